@@ -1,0 +1,253 @@
+//! Case files (JSON): the views (K, R, t, image size, optional image), their annotated contours,
+//! and the template's initial placement. Everything is validated on load; an error names the
+//! file, the field and the value.
+
+use crate::contours::{signed_area, Curve};
+use crate::template::Placement;
+use crate::views::{Camera, Intrinsics};
+use nalgebra::{Matrix3, Point2, Point3, Rotation3, Unit, Vector3};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Intrinsics as written in a case file.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct IntrinsicsFile {
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+}
+
+/// One annotated contour: pixel polyline, closed or open.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ContourFile {
+    pub points: Vec<[f64; 2]>,
+    pub closed: bool,
+}
+
+/// One view.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ViewFile {
+    #[serde(default)]
+    pub name: Option<String>,
+    pub k: IntrinsicsFile,
+    /// World-to-camera rotation, rows.
+    pub r: [[f64; 3]; 3],
+    /// World-to-camera translation, mm.
+    pub t: [f64; 3],
+    pub width: u32,
+    pub height: u32,
+    /// Optional X-ray image (PNG or JPEG), relative to the case file.
+    #[serde(default)]
+    pub image: Option<PathBuf>,
+    pub contours: Vec<ContourFile>,
+}
+
+/// Initial template placement.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TemplateFile {
+    pub center: [f64; 3],
+    pub radius: f64,
+    /// Opening axis: from the sphere centre out through the rim plane.
+    pub axis: [f64; 3],
+}
+
+/// A whole case.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CaseFile {
+    pub views: Vec<ViewFile>,
+    pub template: TemplateFile,
+}
+
+/// A validated case, ready for reconstruction.
+#[derive(Clone, Debug)]
+pub struct Case {
+    pub cameras: Vec<Camera>,
+    pub observed: Vec<Vec<Curve>>,
+    pub init: Placement,
+    pub images: Vec<Option<PathBuf>>,
+    pub names: Vec<String>,
+}
+
+/// A case file is unusable.
+#[derive(Debug, thiserror::Error)]
+pub enum CaseError {
+    #[error("{path}: cannot read: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}: invalid JSON: {message}")]
+    Json { path: PathBuf, message: String },
+    #[error("{path}: field {field} = {value}: {reason}")]
+    Field { path: PathBuf, field: String, value: String, reason: String },
+}
+
+fn field_err(path: &Path, field: impl Into<String>, value: impl std::fmt::Display, reason: impl Into<String>) -> CaseError {
+    CaseError::Field { path: path.to_path_buf(), field: field.into(), value: value.to_string(), reason: reason.into() }
+}
+
+/// Largest coordinate magnitude accepted anywhere (mm or px): beyond it the input is absurd.
+const ABSURD: f64 = 1e7;
+
+impl CaseFile {
+    /// Read and validate.
+    pub fn load(path: &Path) -> Result<Case, CaseError> {
+        let text = std::fs::read_to_string(path).map_err(|source| CaseError::Io { path: path.to_path_buf(), source })?;
+        let file: CaseFile = serde_json::from_str(&text).map_err(|e| CaseError::Json { path: path.to_path_buf(), message: e.to_string() })?;
+        file.validate(path)
+    }
+
+    /// Check every field and build the cameras, curves and placement.
+    pub fn validate(&self, path: &Path) -> Result<Case, CaseError> {
+        if self.views.len() < 2 {
+            return Err(field_err(path, "views", self.views.len(), "at least 2 views are needed (3 recommended)"));
+        }
+        if self.views.len() > 64 {
+            return Err(field_err(path, "views", self.views.len(), "at most 64 views"));
+        }
+        let tp = &self.template;
+        for (i, v) in tp.center.iter().enumerate() {
+            if !v.is_finite() || v.abs() > ABSURD {
+                return Err(field_err(path, format!("template.center[{i}]"), v, "must be a finite number of mm"));
+            }
+        }
+        if !(tp.radius.is_finite() && tp.radius > 1.0 && tp.radius < 200.0) {
+            return Err(field_err(path, "template.radius", tp.radius, "must be between 1 and 200 mm"));
+        }
+        let axis = Vector3::from(tp.axis);
+        if !axis.iter().all(|v| v.is_finite()) || axis.norm() < 1e-9 {
+            return Err(field_err(path, "template.axis", format!("{:?}", tp.axis), "must be a finite non-zero vector"));
+        }
+        let init = Placement { center: Point3::from(tp.center), radius: tp.radius, axis: Unit::new_normalize(axis) };
+        let base = path.parent().unwrap_or(Path::new("."));
+        let mut case = Case { cameras: Vec::new(), observed: Vec::new(), init, images: Vec::new(), names: Vec::new() };
+        for (vi, v) in self.views.iter().enumerate() {
+            let f = |name: &str| format!("views[{vi}].{name}");
+            for (name, val) in [("k.fx", v.k.fx), ("k.fy", v.k.fy)] {
+                if !(val.is_finite() && val > 0.0 && val < ABSURD) {
+                    return Err(field_err(path, f(name), val, "focal length must be a positive finite number of pixels"));
+                }
+            }
+            for (name, val) in [("k.cx", v.k.cx), ("k.cy", v.k.cy)] {
+                if !val.is_finite() || val.abs() > ABSURD {
+                    return Err(field_err(path, f(name), val, "principal point must be finite"));
+                }
+            }
+            if v.width == 0 || v.height == 0 || v.width > 65536 || v.height > 65536 {
+                return Err(field_err(path, f("width/height"), format!("{}x{}", v.width, v.height), "image size must be 1..65536 pixels"));
+            }
+            let r = Matrix3::from_fn(|i, j| v.r[i][j]);
+            if !r.iter().all(|x| x.is_finite()) {
+                return Err(field_err(path, f("r"), format!("{:?}", v.r), "rotation entries must be finite"));
+            }
+            let orth = (r.transpose() * r - Matrix3::identity()).abs().max();
+            if orth > 1e-4 {
+                return Err(field_err(path, f("r"), format!("{:?}", v.r), format!("rotation is not orthonormal (|R^T R - I| = {orth:.3e})")));
+            }
+            let det = r.determinant();
+            if det < 0.0 {
+                return Err(field_err(path, f("r"), format!("{:?}", v.r), format!("rotation is a reflection (det = {det:.3})")));
+            }
+            for (i, val) in v.t.iter().enumerate() {
+                if !val.is_finite() || val.abs() > ABSURD {
+                    return Err(field_err(path, f(&format!("t[{i}]")), val, "translation must be a finite number of mm"));
+                }
+            }
+            let cam = Camera {
+                k: Intrinsics { fx: v.k.fx, fy: v.k.fy, cx: v.k.cx, cy: v.k.cy },
+                r: Rotation3::from_matrix(&r),
+                t: Vector3::from(v.t),
+                width: v.width,
+                height: v.height,
+            };
+            if let Err(e) = cam.project(&case.init.center) {
+                return Err(field_err(path, f("t"), format!("{:?}", v.t), format!("the template centre is not in front of the source: {e}")));
+            }
+            if v.contours.is_empty() {
+                return Err(field_err(path, f("contours"), "[]", "each view needs at least one contour"));
+            }
+            let mut curves = Vec::new();
+            for (ci, c) in v.contours.iter().enumerate() {
+                let cf = |name: &str| format!("views[{vi}].contours[{ci}].{name}");
+                let margin = 0.5 * (v.width.max(v.height)) as f64;
+                for (pi, p) in c.points.iter().enumerate() {
+                    if !p[0].is_finite() || !p[1].is_finite() {
+                        return Err(field_err(path, cf(&format!("points[{pi}]")), format!("{p:?}"), "coordinates must be finite"));
+                    }
+                    if p[0] < -margin || p[1] < -margin || p[0] > v.width as f64 + margin || p[1] > v.height as f64 + margin {
+                        return Err(field_err(
+                            path,
+                            cf(&format!("points[{pi}]")),
+                            format!("{p:?}"),
+                            format!("outside the {}x{} image", v.width, v.height),
+                        ));
+                    }
+                }
+                let mut pts: Vec<Point2<f64>> = c.points.iter().map(|p| Point2::new(p[0], p[1])).collect();
+                pts.dedup_by(|a, b| (*a - *b).norm() < 1e-9);
+                if c.closed && pts.len() > 1 && (pts[0] - pts[pts.len() - 1]).norm() < 1e-9 {
+                    pts.pop(); // an explicitly repeated first point
+                }
+                let distinct = pts.len();
+                if distinct < 4 {
+                    return Err(field_err(path, cf("points"), format!("{} distinct points", distinct), "a contour needs at least 4 distinct points"));
+                }
+                let extent = pts.iter().map(|p| (p - pts[0]).norm()).fold(0.0, f64::max);
+                if extent < 2.0 {
+                    return Err(field_err(path, cf("points"), format!("extent {extent:.3} px"), "the contour is smaller than 2 pixels"));
+                }
+                if c.closed && signed_area(&pts) < 0.0 {
+                    pts.reverse(); // all closed curves run the same way as model contours
+                }
+                curves.push(Curve { points: pts, closed: c.closed });
+            }
+            let image = match &v.image {
+                Some(p) => {
+                    let full = if p.is_absolute() { p.clone() } else { base.join(p) };
+                    if !full.is_file() {
+                        return Err(field_err(path, f("image"), full.display(), "image file not found or unreadable"));
+                    }
+                    Some(full)
+                }
+                None => None,
+            };
+            case.cameras.push(cam);
+            case.observed.push(curves);
+            case.images.push(image);
+            case.names.push(v.name.clone().unwrap_or_else(|| format!("view{vi}")));
+        }
+        Ok(case)
+    }
+
+    /// The case file for cameras, curves and a placement (inverse of `validate`).
+    pub fn from_parts(cameras: &[Camera], observed: &[Vec<Curve>], init: &Placement) -> CaseFile {
+        CaseFile {
+            views: cameras
+                .iter()
+                .zip(observed)
+                .enumerate()
+                .map(|(i, (c, curves))| ViewFile {
+                    name: Some(format!("view{i}")),
+                    k: IntrinsicsFile { fx: c.k.fx, fy: c.k.fy, cx: c.k.cx, cy: c.k.cy },
+                    r: [0, 1, 2].map(|row| [0, 1, 2].map(|col| c.r.matrix()[(row, col)])),
+                    t: [c.t.x, c.t.y, c.t.z],
+                    width: c.width,
+                    height: c.height,
+                    image: None,
+                    contours: curves
+                        .iter()
+                        .map(|cv| ContourFile { points: cv.points.iter().map(|p| [p.x, p.y]).collect(), closed: cv.closed })
+                        .collect(),
+                })
+                .collect(),
+            template: TemplateFile {
+                center: [init.center.x, init.center.y, init.center.z],
+                radius: init.radius,
+                axis: [init.axis.x, init.axis.y, init.axis.z],
+            },
+        }
+    }
+}

@@ -1,0 +1,201 @@
+//! Alpha-shape boundary of projected vertices (spade Delaunay), as one ordered closed polyline of
+//! model vertex indices.
+
+use super::polyline::signed_area;
+use crate::mesh::Mesh;
+use crate::views::{Camera, ProjectionError};
+use nalgebra::Point2;
+use spade::{DelaunayTriangulation, HasPosition, Triangulation};
+
+/// Why a contour could not be formed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ContourError {
+    #[error("vertex {vertex} cannot be projected: {source}")]
+    Projection { vertex: usize, source: ProjectionError },
+    #[error("too few distinct projected points ({count}) for a contour")]
+    TooFewPoints { count: usize },
+    #[error("the Delaunay triangulation failed: {0}")]
+    Delaunay(String),
+}
+
+/// The model contour in one view.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelContour {
+    /// Model vertex index of each contour point, in order around the outline.
+    pub vertex_ids: Vec<u32>,
+    /// Projected positions (pixels) of those vertices; positive signed area.
+    pub points: Vec<Point2<f64>>,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Site {
+    p: spade::Point2<f64>,
+    id: u32,
+}
+
+impl HasPosition for Site {
+    type Scalar = f64;
+    fn position(&self) -> spade::Point2<f64> {
+        self.p
+    }
+}
+
+/// Default alpha (circumradius bound, pixels): 1.2 times the 95th percentile of projected edge lengths.
+pub fn default_alpha(mesh: &Mesh, projected: &[Point2<f64>]) -> f64 {
+    let mut l: Vec<f64> =
+        mesh.edges().iter().map(|[a, b]| (projected[*a as usize] - projected[*b as usize]).norm()).collect();
+    if l.is_empty() {
+        return 1.0;
+    }
+    l.sort_by(f64::total_cmp);
+    1.2 * l[((l.len() - 1) as f64 * 0.95) as usize].max(1e-9)
+}
+
+/// Project the mesh into the camera and take the alpha-shape outline (alpha from `default_alpha`
+/// unless given).
+pub fn model_contour(mesh: &Mesh, cam: &Camera, alpha: Option<f64>) -> Result<ModelContour, ContourError> {
+    let mut projected = Vec::with_capacity(mesh.vertex_count());
+    for (vertex, v) in mesh.vertices.iter().enumerate() {
+        projected.push(cam.project(v).map_err(|source| ContourError::Projection { vertex, source })?);
+    }
+    let alpha = alpha.unwrap_or_else(|| default_alpha(mesh, &projected));
+    alpha_shape_contour(&projected, alpha)
+}
+
+/// Alpha shape of `points`: Delaunay triangles with circumradius <= alpha are kept and their
+/// outline is traced. If the outline is not one simple loop (holes, pinches, islands), alpha is
+/// raised by half until it is; the convex hull (alpha -> infinity) always is.
+pub fn alpha_shape_contour(points: &[Point2<f64>], alpha: f64) -> Result<ModelContour, ContourError> {
+    let sites: Vec<Site> = points
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.x.is_finite() && p.y.is_finite())
+        .map(|(i, p)| Site { p: spade::Point2::new(p.x, p.y), id: i as u32 })
+        .collect();
+    let tri = DelaunayTriangulation::<Site>::bulk_load(sites).map_err(|e| ContourError::Delaunay(format!("{e:?}")))?;
+    if tri.num_inner_faces() == 0 {
+        return Err(ContourError::TooFewPoints { count: tri.num_vertices() });
+    }
+    let mut alpha = alpha.max(1e-9);
+    for _ in 0..60 {
+        if let Some(ids) = trace_single_loop(&tri, alpha) {
+            let mut pts: Vec<Point2<f64>> = ids.iter().map(|&i| points[i as usize]).collect();
+            let mut ids = ids;
+            if signed_area(&pts) < 0.0 {
+                pts.reverse();
+                ids.reverse();
+            }
+            return Ok(ModelContour { vertex_ids: ids, points: pts });
+        }
+        alpha *= 1.5;
+    }
+    Err(ContourError::Delaunay("no simple outline found".into()))
+}
+
+/// Circumradius of a triangle.
+fn circumradius(a: spade::Point2<f64>, b: spade::Point2<f64>, c: spade::Point2<f64>) -> f64 {
+    let (ab, bc, ca) = (dist(a, b), dist(b, c), dist(c, a));
+    let cross = ((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x)).abs();
+    if cross <= 0.0 { f64::INFINITY } else { ab * bc * ca / (2.0 * cross) }
+}
+
+fn dist(a: spade::Point2<f64>, b: spade::Point2<f64>) -> f64 {
+    ((a.x - b.x).powi(2) + (a.y - b.y).powi(2)).sqrt()
+}
+
+/// Trace the boundary of the kept faces; `None` unless it is exactly one simple loop covering
+/// every kept face's outline.
+fn trace_single_loop(tri: &DelaunayTriangulation<Site>, alpha: f64) -> Option<Vec<u32>> {
+    let kept: Vec<bool> = tri
+        .all_faces()
+        .map(|f| match f.as_inner() {
+            Some(inner) => {
+                let [a, b, c] = inner.vertices().map(|v| v.position());
+                circumradius(a, b, c) <= alpha
+            }
+            None => false,
+        })
+        .collect();
+    // Directed boundary edges (kept face on the left): from -> to, by spade vertex index.
+    let mut next = vec![usize::MAX; tri.num_vertices()];
+    let mut count = 0usize;
+    let mut start = usize::MAX;
+    for f in tri.inner_faces() {
+        if !kept[f.fix().index()] {
+            continue;
+        }
+        for e in f.adjacent_edges() {
+            let other = e.rev().face().fix().index();
+            if !kept[other] {
+                let (from, to) = (e.from().fix().index(), e.to().fix().index());
+                if next[from] != usize::MAX {
+                    return None; // a pinch vertex: two outgoing boundary edges
+                }
+                next[from] = to;
+                count += 1;
+                start = from;
+            }
+        }
+    }
+    if count < 3 {
+        return None;
+    }
+    let mut ids = Vec::with_capacity(count);
+    let mut v = start;
+    for _ in 0..count {
+        ids.push(tri.vertex(spade::handles::FixedVertexHandle::from_index(v)).data().id);
+        v = next[v];
+        if v == usize::MAX {
+            return None;
+        }
+        if v == start {
+            break;
+        }
+    }
+    (v == start && ids.len() == count).then_some(ids)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn alpha_shape_of_a_filled_square_is_its_outline() {
+        let mut pts = Vec::new();
+        for i in 0..=10 {
+            for j in 0..=10 {
+                pts.push(Point2::new(i as f64, j as f64));
+            }
+        }
+        let c = alpha_shape_contour(&pts, 1.0).unwrap();
+        assert_eq!(c.points.len(), 40);
+        assert!(signed_area(&c.points) > 99.0);
+        for p in &c.points {
+            assert!(p.x == 0.0 || p.x == 10.0 || p.y == 0.0 || p.y == 10.0);
+        }
+    }
+
+    #[test]
+    fn alpha_shape_follows_a_concavity_that_the_hull_would_bridge() {
+        // An L shape: the hull would cut the inner corner at (5, 5).
+        let mut pts = Vec::new();
+        for i in 0..=10 {
+            for j in 0..=10 {
+                if i <= 5 || j <= 5 {
+                    pts.push(Point2::new(i as f64, j as f64));
+                }
+            }
+        }
+        let c = alpha_shape_contour(&pts, 1.0).unwrap();
+        assert!(c.points.iter().any(|p| p.x == 5.0 && p.y == 5.0));
+        assert!((signed_area(&c.points) - 75.0).abs() < 1e-9);
+        let hull = alpha_shape_contour(&pts, 1e9).unwrap();
+        assert!(signed_area(&hull.points) > 85.0);
+    }
+
+    #[test]
+    fn too_few_points_is_an_error() {
+        let pts = vec![Point2::new(0.0, 0.0), Point2::new(1.0, 0.0)];
+        assert!(alpha_shape_contour(&pts, 1.0).is_err());
+    }
+}

@@ -1,0 +1,8 @@
+//! Stage 3: contours. The model contour of a view is the alpha-shape boundary of the projected
+//! template vertices; observed contours are pixel polylines annotated on the X-ray.
+
+mod alpha_shape;
+mod polyline;
+
+pub use alpha_shape::{alpha_shape_contour, default_alpha, model_contour, ContourError, ModelContour};
+pub use polyline::{polyline_length, ClosedPolyline, resample_closed, resample_open, signed_area, Curve};

@@ -1,0 +1,105 @@
+//! Planar polylines: length, orientation and arc-length resampling.
+
+use nalgebra::Point2;
+
+/// An observed or model curve in pixels; `closed` joins the last point to the first.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Curve {
+    pub points: Vec<Point2<f64>>,
+    pub closed: bool,
+}
+
+/// Length of the polyline (including the closing segment when `closed`).
+pub fn polyline_length(p: &[Point2<f64>], closed: bool) -> f64 {
+    let mut l: f64 = p.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
+    if closed && p.len() > 1 {
+        l += (p[0] - p[p.len() - 1]).norm();
+    }
+    l
+}
+
+/// Shoelace signed area (positive when the points run counter-clockwise in x-right, y-up axes).
+pub fn signed_area(p: &[Point2<f64>]) -> f64 {
+    let n = p.len();
+    (0..n).map(|i| p[i].x * p[(i + 1) % n].y - p[(i + 1) % n].x * p[i].y).sum::<f64>() * 0.5
+}
+
+/// Cumulative arc length at each vertex, plus the total (closing segment included when closed).
+fn cumulative(p: &[Point2<f64>], closed: bool) -> Vec<f64> {
+    let mut s = vec![0.0; p.len() + usize::from(closed)];
+    for i in 1..s.len() {
+        s[i] = s[i - 1] + (p[i % p.len()] - p[i - 1]).norm();
+    }
+    s
+}
+
+fn sample(p: &[Point2<f64>], s: &[f64], target: f64) -> (Point2<f64>, f64) {
+    // Index of the segment holding `target`, and the fractional position along it.
+    let k = match s.binary_search_by(|x| x.partial_cmp(&target).unwrap_or(std::cmp::Ordering::Less)) {
+        Ok(k) => k.min(s.len() - 2),
+        Err(k) => k.saturating_sub(1).min(s.len() - 2),
+    };
+    let len = s[k + 1] - s[k];
+    let u = if len > 0.0 { ((target - s[k]) / len).clamp(0.0, 1.0) } else { 0.0 };
+    let a = p[k % p.len()];
+    let b = p[(k + 1) % p.len()];
+    (a + (b - a) * u, k as f64 + u)
+}
+
+/// A closed polyline with its arc-length table, for sampling at arbitrary arc-length positions.
+#[derive(Clone, Debug)]
+pub struct ClosedPolyline<'a> {
+    points: &'a [Point2<f64>],
+    cum: Vec<f64>,
+    /// Total length, closing segment included.
+    pub total: f64,
+}
+
+impl<'a> ClosedPolyline<'a> {
+    pub fn new(points: &'a [Point2<f64>]) -> Self {
+        let cum = cumulative(points, true);
+        let total = cum[cum.len() - 1];
+        ClosedPolyline { points, cum, total }
+    }
+
+    /// The point at arc length `s` (taken modulo the total) and its fractional vertex index.
+    pub fn at(&self, s: f64) -> (Point2<f64>, f64) {
+        let s = if self.total > 0.0 { s.rem_euclid(self.total) } else { 0.0 };
+        sample(self.points, &self.cum, s)
+    }
+}
+
+/// Resample a closed polyline to `t` points evenly spaced in arc length, starting at point 0.
+/// Also returns each sample's position as a fractional vertex index into `p`.
+pub fn resample_closed(p: &[Point2<f64>], t: usize) -> (Vec<Point2<f64>>, Vec<f64>) {
+    let s = cumulative(p, true);
+    let total = s[s.len() - 1];
+    (0..t).map(|i| sample(p, &s, total * i as f64 / t as f64)).unzip()
+}
+
+/// Resample an open polyline to `t` points evenly spaced in arc length, both ends included.
+pub fn resample_open(p: &[Point2<f64>], t: usize) -> (Vec<Point2<f64>>, Vec<f64>) {
+    let s = cumulative(p, false);
+    let total = s[s.len() - 1];
+    (0..t).map(|i| sample(p, &s, total * i as f64 / (t - 1).max(1) as f64)).unzip()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn square_resampling_and_area() {
+        let sq = [Point2::new(0.0, 0.0), Point2::new(1.0, 0.0), Point2::new(1.0, 1.0), Point2::new(0.0, 1.0)];
+        assert_eq!(signed_area(&sq), 1.0);
+        assert_eq!(polyline_length(&sq, true), 4.0);
+        let (r, idx) = resample_closed(&sq, 8);
+        assert_eq!(r.len(), 8);
+        assert!((r[1] - Point2::new(0.5, 0.0)).norm() < 1e-12);
+        assert!((r[7] - Point2::new(0.0, 0.5)).norm() < 1e-12);
+        assert!((idx[7] - 3.5).abs() < 1e-12);
+        let (o, _) = resample_open(&sq, 4);
+        assert!((o[3] - Point2::new(0.0, 1.0)).norm() < 1e-12);
+        assert!((o[1] - Point2::new(1.0, 0.0)).norm() < 1e-12);
+    }
+}

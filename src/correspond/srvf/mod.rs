@@ -1,0 +1,140 @@
+//! SRVF elastic registration: q = b' / sqrt(|b'|); rotation, seed and warp by dynamic programming.
+
+mod align;
+mod curve;
+mod dp;
+
+pub use align::{align, align_closed, align_open, align_partial, Alignment, CurveKind, SrvfError, SrvfParams};
+pub use curve::{best_rotation, dist2, inner, rotate, srvf};
+pub use dp::{coprime_steps, dp_warp, edge_cost, traceback, warp_from_path, Warp};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Point2;
+
+    /// A closed, non-symmetric blob.
+    fn blob(n: usize, phase: f64) -> Vec<Point2<f64>> {
+        (0..n)
+            .map(|i| {
+                let t = std::f64::consts::TAU * (i as f64 / n as f64 + phase);
+                let r = 1.0 + 0.3 * (2.0 * t).cos() + 0.15 * (3.0 * t + 0.4).sin();
+                Point2::new(r * t.cos(), 0.8 * r * t.sin())
+            })
+            .collect()
+    }
+
+    fn similarity(p: &[Point2<f64>], theta: f64, s: f64, tx: f64, ty: f64) -> Vec<Point2<f64>> {
+        let (sn, c) = theta.sin_cos();
+        p.iter().map(|q| Point2::new(s * (c * q.x - sn * q.y) + tx, s * (sn * q.x + c * q.y) + ty)).collect()
+    }
+
+    /// Re-parameterise: sample the same curve at unevenly spaced parameter values.
+    fn uneven(n: usize) -> Vec<Point2<f64>> {
+        (0..n)
+            .map(|i| {
+                let u = i as f64 / n as f64;
+                let w = u + 0.08 * (std::f64::consts::TAU * u).sin();
+                let t = std::f64::consts::TAU * w;
+                let r = 1.0 + 0.3 * (2.0 * t).cos() + 0.15 * (3.0 * t + 0.4).sin();
+                Point2::new(r * t.cos(), 0.8 * r * t.sin())
+            })
+            .collect()
+    }
+
+    fn prm(t: usize) -> SrvfParams {
+        SrvfParams { samples: t, ..Default::default() }
+    }
+
+    #[test]
+    fn closed_distance_is_zero_for_similar_reparameterised_shifted_copies() {
+        let a = blob(300, 0.0);
+        let b = similarity(&uneven(257), 0.9, 2.5, 40.0, -7.0);
+        let b: Vec<Point2<f64>> = b[80..].iter().chain(&b[..80]).cloned().collect(); // new start
+        let al = align_closed(&a, &b, &prm(100), false).unwrap();
+        assert!(al.distance < 0.05, "distance {}", al.distance);
+        assert!(((al.rotation + 0.9 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI).abs() < 0.05, "rotation {}", al.rotation);
+        // The matched points map back onto A under the inverse similarity.
+        let back = similarity(&al.b_points, -0.9, 1.0 / 2.5, 0.0, 0.0);
+        let off = nalgebra::Vector2::new(40.0, -7.0);
+        let (sn, c) = (-0.9f64).sin_cos();
+        let off = nalgebra::Vector2::new(c * off.x - sn * off.y, sn * off.x + c * off.y) / 2.5;
+        let err = al.a_points.iter().zip(&back).map(|(a, b)| (a - (b - off)).norm()).fold(0.0, f64::max);
+        assert!(err < 0.1, "max correspondence error {err}");
+        // The companion: a different shape is far.
+        let other: Vec<Point2<f64>> = (0..200).map(|i| {
+            let t = std::f64::consts::TAU * i as f64 / 200.0;
+            Point2::new(t.cos(), 0.3 * t.sin())
+        }).collect();
+        assert!(align_closed(&a, &other, &prm(100), false).unwrap().distance > 0.2);
+    }
+
+    #[test]
+    fn seed_search_finds_a_known_shift() {
+        let t = 120;
+        let a = blob(t, 0.0);
+        for shift in [0usize, 17, 61, 100] {
+            let b: Vec<Point2<f64>> = (0..t).map(|i| a[(i + shift) % t]).collect();
+            let al = align_closed(&a, &b, &prm(t), false).unwrap();
+            let expect = (t - shift) % t;
+            let d = (al.seed as isize - expect as isize).rem_euclid(t as isize) as usize;
+            assert!(d.min(t - d) <= 1, "shift {shift}: seed {} expected {expect}", al.seed);
+            assert!(al.distance < 1e-6);
+        }
+    }
+
+    #[test]
+    fn fast_closed_search_matches_the_exhaustive_oracle() {
+        let a = blob(150, 0.0);
+        let b = similarity(&uneven(140), 0.4, 1.3, 0.0, 0.0);
+        let b: Vec<Point2<f64>> = b.iter().map(|p| Point2::new(p.x * 1.15, p.y)).collect(); // a different shape
+        let p = prm(48);
+        let fast = align_closed(&a, &b, &p, false).unwrap();
+        let exact = align_closed(&a, &b, &p, true).unwrap();
+        assert!(fast.distance <= exact.distance * 1.01 + 1e-9, "fast {} exhaustive {}", fast.distance, exact.distance);
+        assert!(exact.distance <= fast.distance + 1e-12);
+    }
+
+    #[test]
+    fn open_curves_align_up_to_similarity() {
+        let a: Vec<Point2<f64>> = (0..90).map(|i| {
+            let t = i as f64 / 89.0 * 3.0;
+            Point2::new(t, (2.0 * t).sin() + 0.2 * t * t)
+        }).collect();
+        let b = similarity(&a, -1.2, 0.5, 3.0, 3.0);
+        let al = align_open(&a, &b, &prm(100)).unwrap();
+        assert!(al.distance < 0.05, "{}", al.distance);
+        assert!((al.rotation - 1.2).abs() < 0.05);
+        let other: Vec<Point2<f64>> = (0..90).map(|i| Point2::new(i as f64, 0.0)).collect();
+        assert!(align_open(&a, &other, &prm(100)).unwrap().distance > 0.3);
+    }
+
+    #[test]
+    fn partial_arc_lands_on_the_right_part_of_the_closed_curve() {
+        let b = blob(400, 0.0);
+        // A is 40 % of B, from sample 100 to 260, moved, and drawn the other way round.
+        let mut a = similarity(&b[100..=260], 0.3, 1.7, 5.0, 5.0);
+        a.reverse();
+        let al = align_partial(&a, &b, &prm(100)).unwrap();
+        assert!(al.reversed);
+        assert!(al.distance < 0.08, "distance {}", al.distance);
+        // First point of A (B's sample 260) should land near B's vertex 260, the last near 100.
+        let first = al.b_index[0];
+        let last = al.b_index[al.b_index.len() - 1];
+        assert!((first - 260.0).abs() < 8.0, "first {first}");
+        assert!((last - 100.0).abs() < 8.0, "last {last}");
+    }
+
+    #[test]
+    fn bad_curves_are_errors_not_panics() {
+        let p = prm(50);
+        let one = vec![Point2::new(0.0, 0.0)];
+        let dup = vec![Point2::new(1.0, 1.0); 10];
+        let nan = vec![Point2::new(0.0, 0.0), Point2::new(f64::NAN, 1.0), Point2::new(1.0, 0.0)];
+        let ok = blob(20, 0.0);
+        assert!(matches!(align_closed(&one, &ok, &p, false), Err(SrvfError::TooFewPoints { .. })));
+        assert!(matches!(align_open(&ok, &dup, &p), Err(SrvfError::ZeroLength { curve: "B" })));
+        assert!(matches!(align_partial(&nan, &ok, &p), Err(SrvfError::NonFinite { index: 1, .. })));
+        assert!(matches!(align_closed(&ok, &ok, &prm(3), false), Err(SrvfError::TooFewSamples(3))));
+    }
+}

@@ -1,0 +1,20 @@
+//! acetab: reconstruct the acetabular surface from three pelvic X-rays and size the cup.
+//!
+//! The pipeline, one module per stage:
+//! template (hemisphere) -> views (cameras) -> contours (alpha shape) -> correspond (SRVF | ICP |
+//! ICP-NormVec) -> solve (similarity, then the embedded deformation graph by Gauss-Newton with
+//! faer) -> report (metrics, sphere fit, cup size). `pipeline` runs them in order; `case` reads
+//! case files; `simulate` makes synthetic cases from a ground-truth surface.
+
+pub mod case;
+pub mod contours;
+pub mod correspond;
+pub mod demo;
+pub mod fsutil;
+pub mod mesh;
+pub mod pipeline;
+pub mod report;
+pub mod simulate;
+pub mod solve;
+pub mod template;
+pub mod views;

@@ -1,0 +1,280 @@
+//! Mesh files: STL (ASCII and binary, via `stl_io`), PLY (ASCII, with per-vertex colour, via
+//! `ply-rs`) and OBJ (read via `tobj`; written by hand, the format is three line kinds).
+
+use super::{Mesh, MeshError};
+use crate::fsutil::write_atomic;
+use nalgebra::Point3;
+use std::path::{Path, PathBuf};
+
+/// A mesh file could not be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum MeshIoError {
+    #[error("{path}: cannot read: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}: not a valid {format} file: {reason}")]
+    Parse { path: PathBuf, format: &'static str, reason: String },
+    #[error("{path}: unsupported mesh extension {ext:?} (use .stl, .ply or .obj)")]
+    Extension { path: PathBuf, ext: String },
+    #[error("{path}: {source}")]
+    Mesh { path: PathBuf, source: MeshError },
+}
+
+/// An RGB colour per vertex, for error maps.
+pub type Rgb = [u8; 3];
+
+fn ext_of(path: &Path) -> String {
+    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
+}
+
+/// Read an STL, PLY or OBJ file (by extension). STL corners are welded at 1e-6 mm.
+pub fn read_mesh(path: &Path) -> Result<Mesh, MeshIoError> {
+    let io = |source| MeshIoError::Io { path: path.to_path_buf(), source };
+    let (vertices, triangles) = match ext_of(path).as_str() {
+        "stl" => {
+            let mut f = std::fs::File::open(path).map_err(io)?;
+            let m = stl_io::read_stl(&mut f).map_err(|e| MeshIoError::Parse {
+                path: path.to_path_buf(),
+                format: "STL",
+                reason: e.to_string(),
+            })?;
+            let v = m.vertices.iter().map(|v| Point3::new(v[0] as f64, v[1] as f64, v[2] as f64)).collect();
+            let t = m.faces.iter().map(|f| f.vertices.map(|i| i as u32)).collect();
+            (v, t)
+        }
+        "ply" => read_ply(path)?,
+        "obj" => {
+            let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
+            let (models, _) = tobj::load_obj(path, &opts).map_err(|e| match e {
+                tobj::LoadError::OpenFileFailed => io(std::io::Error::new(std::io::ErrorKind::NotFound, "open failed")),
+                e => MeshIoError::Parse { path: path.to_path_buf(), format: "OBJ", reason: e.to_string() },
+            })?;
+            let mut v = Vec::new();
+            let mut t = Vec::new();
+            for m in models {
+                let base = v.len() as u32;
+                v.extend(m.mesh.positions.chunks_exact(3).map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)));
+                t.extend(m.mesh.indices.chunks_exact(3).map(|c| [c[0] + base, c[1] + base, c[2] + base]));
+            }
+            (v, t)
+        }
+        ext => return Err(MeshIoError::Extension { path: path.to_path_buf(), ext: ext.to_string() }),
+    };
+    let mesh = Mesh::new(vertices, triangles).map_err(|source| MeshIoError::Mesh { path: path.to_path_buf(), source })?;
+    mesh.welded(1e-6).map_err(|source| MeshIoError::Mesh { path: path.to_path_buf(), source })
+}
+
+fn read_ply(path: &Path) -> Result<(Vec<Point3<f64>>, Vec<[u32; 3]>), MeshIoError> {
+    use ply_rs::ply::Property;
+    let parse = |reason: String| MeshIoError::Parse { path: path.to_path_buf(), format: "PLY", reason };
+    let f = std::fs::File::open(path).map_err(|source| MeshIoError::Io { path: path.to_path_buf(), source })?;
+    let mut r = std::io::BufReader::new(f);
+    let parser = ply_rs::parser::Parser::<ply_rs::ply::DefaultElement>::new();
+    let ply = parser.read_ply(&mut r).map_err(|e| parse(e.to_string()))?;
+    let scalar = |p: Option<&Property>, name: &str, i: usize| -> Result<f64, MeshIoError> {
+        match p {
+            Some(Property::Float(v)) => Ok(*v as f64),
+            Some(Property::Double(v)) => Ok(*v),
+            Some(Property::Int(v)) => Ok(*v as f64),
+            Some(Property::Short(v)) => Ok(*v as f64),
+            _ => Err(parse(format!("vertex {i} has no numeric property {name:?}"))),
+        }
+    };
+    let verts = ply.payload.get("vertex").ok_or_else(|| parse("no vertex element".into()))?;
+    let mut v = Vec::with_capacity(verts.len());
+    for (i, e) in verts.iter().enumerate() {
+        v.push(Point3::new(scalar(e.get("x"), "x", i)?, scalar(e.get("y"), "y", i)?, scalar(e.get("z"), "z", i)?));
+    }
+    let faces = ply.payload.get("face").ok_or_else(|| parse("no face element".into()))?;
+    let mut t = Vec::with_capacity(faces.len());
+    for (i, e) in faces.iter().enumerate() {
+        let idx: Vec<i64> = match e.get("vertex_indices").or_else(|| e.get("vertex_index")) {
+            Some(Property::ListInt(l)) => l.iter().map(|&x| x as i64).collect(),
+            Some(Property::ListUInt(l)) => l.iter().map(|&x| x as i64).collect(),
+            Some(Property::ListUChar(l)) => l.iter().map(|&x| x as i64).collect(),
+            Some(Property::ListShort(l)) => l.iter().map(|&x| x as i64).collect(),
+            Some(Property::ListUShort(l)) => l.iter().map(|&x| x as i64).collect(),
+            _ => return Err(parse(format!("face {i} has no vertex_indices list"))),
+        };
+        if idx.len() < 3 || idx.iter().any(|&x| x < 0 || x > u32::MAX as i64) {
+            return Err(parse(format!("face {i} has invalid vertex_indices {idx:?}")));
+        }
+        for k in 1..idx.len() - 1 {
+            t.push([idx[0] as u32, idx[k] as u32, idx[k + 1] as u32]);
+        }
+    }
+    Ok((v, t))
+}
+
+fn write_err(path: &Path) -> impl Fn(std::io::Error) -> MeshIoError + '_ {
+    move |source| MeshIoError::Io { path: path.to_path_buf(), source }
+}
+
+/// Write a binary STL.
+pub fn write_stl_binary(mesh: &Mesh, path: &Path) -> Result<(), MeshIoError> {
+    let tris: Vec<stl_io::Triangle> = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
+            let n = (b - a).cross(&(c - a)).try_normalize(0.0).unwrap_or_default();
+            let v = |p: Point3<f64>| stl_io::Vertex::new([p.x as f32, p.y as f32, p.z as f32]);
+            stl_io::Triangle { normal: stl_io::Normal::new([n.x as f32, n.y as f32, n.z as f32]), vertices: [v(a), v(b), v(c)] }
+        })
+        .collect();
+    let mut buf = Vec::new();
+    stl_io::write_stl(&mut buf, tris.iter()).map_err(write_err(path))?;
+    write_atomic(path, &buf).map_err(write_err(path))
+}
+
+/// Write an ASCII STL (stl_io writes binary only; ASCII STL is a fixed five-line record).
+pub fn write_stl_ascii(mesh: &Mesh, path: &Path) -> Result<(), MeshIoError> {
+    use std::fmt::Write;
+    let mut s = String::from("solid acetab\n");
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
+        let n = (b - a).cross(&(c - a)).try_normalize(0.0).unwrap_or_default();
+        let _ = writeln!(s, "  facet normal {:e} {:e} {:e}\n    outer loop", n.x, n.y, n.z);
+        for p in [a, b, c] {
+            let _ = writeln!(s, "      vertex {:e} {:e} {:e}", p.x, p.y, p.z);
+        }
+        s.push_str("    endloop\n  endfacet\n");
+    }
+    s.push_str("endsolid acetab\n");
+    write_atomic(path, s.as_bytes()).map_err(write_err(path))
+}
+
+/// Write an ASCII PLY with optional per-vertex colour (red, green, blue as uchar).
+pub fn write_ply(mesh: &Mesh, colors: Option<&[Rgb]>, path: &Path) -> Result<(), MeshIoError> {
+    use ply_rs::ply::{
+        Addable, DefaultElement, ElementDef, Encoding, Ply, Property, PropertyDef, PropertyType, ScalarType,
+    };
+    let mut ply = Ply::<DefaultElement>::new();
+    ply.header.encoding = Encoding::Ascii;
+    let mut vdef = ElementDef::new("vertex".to_string());
+    for name in ["x", "y", "z"] {
+        vdef.properties.add(PropertyDef::new(name.to_string(), PropertyType::Scalar(ScalarType::Double)));
+    }
+    if colors.is_some() {
+        for name in ["red", "green", "blue"] {
+            vdef.properties.add(PropertyDef::new(name.to_string(), PropertyType::Scalar(ScalarType::UChar)));
+        }
+    }
+    ply.header.elements.add(vdef);
+    let mut fdef = ElementDef::new("face".to_string());
+    fdef.properties.add(PropertyDef::new(
+        "vertex_indices".to_string(),
+        PropertyType::List(ScalarType::UChar, ScalarType::Int),
+    ));
+    ply.header.elements.add(fdef);
+    let verts = mesh
+        .vertices
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let mut e = DefaultElement::new();
+            e.insert("x".into(), Property::Double(p.x));
+            e.insert("y".into(), Property::Double(p.y));
+            e.insert("z".into(), Property::Double(p.z));
+            if let Some(c) = colors.and_then(|c| c.get(i)) {
+                e.insert("red".into(), Property::UChar(c[0]));
+                e.insert("green".into(), Property::UChar(c[1]));
+                e.insert("blue".into(), Property::UChar(c[2]));
+            } else if colors.is_some() {
+                for k in ["red", "green", "blue"] {
+                    e.insert(k.into(), Property::UChar(200));
+                }
+            }
+            e
+        })
+        .collect();
+    let faces = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let mut e = DefaultElement::new();
+            e.insert("vertex_indices".into(), Property::ListInt(t.iter().map(|&i| i as i32).collect()));
+            e
+        })
+        .collect();
+    ply.payload.insert("vertex".into(), verts);
+    ply.payload.insert("face".into(), faces);
+    let mut buf = Vec::new();
+    ply_rs::writer::Writer::new().write_ply(&mut buf, &mut ply).map_err(write_err(path))?;
+    write_atomic(path, &buf).map_err(write_err(path))
+}
+
+/// Write a Wavefront OBJ (positions and triangles).
+pub fn write_obj(mesh: &Mesh, path: &Path) -> Result<(), MeshIoError> {
+    use std::fmt::Write;
+    let mut s = String::from("# acetab\n");
+    for p in &mesh.vertices {
+        let _ = writeln!(s, "v {} {} {}", p.x, p.y, p.z);
+    }
+    for t in &mesh.triangles {
+        let _ = writeln!(s, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1);
+    }
+    write_atomic(path, s.as_bytes()).map_err(write_err(path))
+}
+
+/// Write by extension: .stl (binary), .ply or .obj.
+pub fn write_mesh(mesh: &Mesh, path: &Path) -> Result<(), MeshIoError> {
+    match ext_of(path).as_str() {
+        "stl" => write_stl_binary(mesh, path),
+        "ply" => write_ply(mesh, None, path),
+        "obj" => write_obj(mesh, path),
+        ext => Err(MeshIoError::Extension { path: path.to_path_buf(), ext: ext.to_string() }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::template::hemisphere;
+
+    fn tmpdir(tag: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("acetab-io-{tag}-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn assert_same_geometry(a: &Mesh, b: &Mesh, tol: f64) {
+        assert_eq!(a.vertex_count(), b.vertex_count());
+        assert_eq!(a.triangles.len(), b.triangles.len());
+        assert!((a.area() - b.area()).abs() < tol * a.area());
+    }
+
+    #[test]
+    fn round_trip_every_format() {
+        let m = hemisphere(10.0, 400);
+        let d = tmpdir("rt");
+        for name in ["a.obj", "a.ply", "a.stl"] {
+            let p = d.join(name);
+            write_mesh(&m, &p).unwrap();
+            assert_same_geometry(&m, &read_mesh(&p).unwrap(), 1e-5);
+        }
+        let p = d.join("ascii.stl");
+        write_stl_ascii(&m, &p).unwrap();
+        assert_same_geometry(&m, &read_mesh(&p).unwrap(), 1e-5);
+        let colors = vec![[255u8, 0, 0]; m.vertex_count()];
+        let p = d.join("c.ply");
+        write_ply(&m, Some(&colors), &p).unwrap();
+        let text = std::fs::read_to_string(&p).unwrap();
+        assert!(text.contains("property uchar red"));
+        assert_same_geometry(&m, &read_mesh(&p).unwrap(), 1e-9);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn bad_files_name_the_path() {
+        let d = tmpdir("bad");
+        let p = d.join("broken.ply");
+        std::fs::write(&p, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1\n").unwrap();
+        let e = read_mesh(&p).unwrap_err().to_string();
+        assert!(e.contains("broken.ply"), "{e}");
+        let e = read_mesh(&d.join("nothing.stl")).unwrap_err().to_string();
+        assert!(e.contains("nothing.stl"), "{e}");
+        let e = read_mesh(&d.join("x.xyz")).unwrap_err().to_string();
+        assert!(e.contains("unsupported"), "{e}");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+}

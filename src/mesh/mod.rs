@@ -1,0 +1,257 @@
+//! Triangle meshes: the template, the phantom, ground-truth surfaces and reconstructions.
+
+pub mod io;
+
+use nalgebra::{Point3, Vector3};
+
+/// An indexed triangle mesh in millimetres with per-vertex normals.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    pub vertices: Vec<Point3<f64>>,
+    /// Counter-clockwise triangles (outward normal by the right-hand rule).
+    pub triangles: Vec<[u32; 3]>,
+    /// Unit vertex normals, area-weighted from the faces; same length as `vertices`.
+    pub normals: Vec<Vector3<f64>>,
+}
+
+/// Why a mesh cannot be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MeshError {
+    #[error("mesh has no triangles")]
+    Empty,
+    #[error("triangle {triangle} refers to vertex {index}, but the mesh has {vertex_count} vertices")]
+    IndexOutOfRange { triangle: usize, index: u32, vertex_count: usize },
+    #[error("vertex {index} has a non-finite coordinate ({value})")]
+    NonFinite { index: usize, value: f64 },
+    #[error("mesh is degenerate: total area {area} mm^2")]
+    Degenerate { area: f64 },
+}
+
+impl Mesh {
+    /// Build a mesh, check it and compute vertex normals.
+    pub fn new(vertices: Vec<Point3<f64>>, triangles: Vec<[u32; 3]>) -> Result<Mesh, MeshError> {
+        if triangles.is_empty() || vertices.len() < 3 {
+            return Err(MeshError::Empty);
+        }
+        for (index, v) in vertices.iter().enumerate() {
+            if let Some(&value) = v.coords.iter().find(|c| !c.is_finite()) {
+                return Err(MeshError::NonFinite { index, value });
+            }
+        }
+        for (t, tri) in triangles.iter().enumerate() {
+            if let Some(&index) = tri.iter().find(|&&i| i as usize >= vertices.len()) {
+                return Err(MeshError::IndexOutOfRange { triangle: t, index, vertex_count: vertices.len() });
+            }
+        }
+        let mut mesh = Mesh { vertices, triangles, normals: Vec::new() };
+        let area = mesh.area();
+        if !(area > 1e-9) {
+            return Err(MeshError::Degenerate { area });
+        }
+        mesh.recompute_normals();
+        Ok(mesh)
+    }
+
+    pub fn vertex_count(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// Recompute area-weighted vertex normals (vertices on no triangle keep a zero normal).
+    pub fn recompute_normals(&mut self) {
+        let mut n = vec![Vector3::zeros(); self.vertices.len()];
+        for tri in &self.triangles {
+            let [a, b, c] = tri.map(|i| self.vertices[i as usize]);
+            let f = (b - a).cross(&(c - a));
+            for &i in tri {
+                n[i as usize] += f;
+            }
+        }
+        for v in &mut n {
+            let len = v.norm();
+            if len > 0.0 {
+                *v /= len;
+            }
+        }
+        self.normals = n;
+    }
+
+    /// Total surface area in mm^2.
+    pub fn area(&self) -> f64 {
+        self.triangles
+            .iter()
+            .map(|tri| {
+                let [a, b, c] = tri.map(|i| self.vertices[i as usize]);
+                0.5 * (b - a).cross(&(c - a)).norm()
+            })
+            .sum()
+    }
+
+    /// Unique undirected edges (i < j).
+    pub fn edges(&self) -> Vec<[u32; 2]> {
+        let mut e: Vec<[u32; 2]> = self
+            .triangles
+            .iter()
+            .flat_map(|t| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
+            .map(|[a, b]| if a < b { [a, b] } else { [b, a] })
+            .collect();
+        e.sort_unstable();
+        e.dedup();
+        e
+    }
+
+    /// Mean edge length in mm.
+    pub fn mean_edge_length(&self) -> f64 {
+        let e = self.edges();
+        if e.is_empty() {
+            return 0.0;
+        }
+        e.iter().map(|[a, b]| (self.vertices[*a as usize] - self.vertices[*b as usize]).norm()).sum::<f64>()
+            / e.len() as f64
+    }
+
+    /// Edges used by exactly one triangle (the open border of a surface).
+    pub fn boundary_edges(&self) -> Vec<[u32; 2]> {
+        let mut e: Vec<[u32; 2]> = self
+            .triangles
+            .iter()
+            .flat_map(|t| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
+            .map(|[a, b]| if a < b { [a, b] } else { [b, a] })
+            .collect();
+        e.sort_unstable();
+        let mut out = Vec::new();
+        let mut i = 0;
+        while i < e.len() {
+            let mut j = i + 1;
+            while j < e.len() && e[j] == e[i] {
+                j += 1;
+            }
+            if j - i == 1 {
+                out.push(e[i]);
+            }
+            i = j;
+        }
+        out
+    }
+
+    /// Keep only the listed triangles and the vertices they use (indices are compacted).
+    pub fn submesh(&self, keep: &[usize]) -> Result<Mesh, MeshError> {
+        let mut map = vec![u32::MAX; self.vertices.len()];
+        let mut vertices = Vec::new();
+        let mut triangles = Vec::with_capacity(keep.len());
+        for &t in keep {
+            let tri = self.triangles[t].map(|i| {
+                let slot = &mut map[i as usize];
+                if *slot == u32::MAX {
+                    *slot = vertices.len() as u32;
+                    vertices.push(self.vertices[i as usize]);
+                }
+                *slot
+            });
+            triangles.push(tri);
+        }
+        Mesh::new(vertices, triangles)
+    }
+
+    /// Weld vertices closer than `tol` mm (STL stores each triangle's corners separately).
+    pub fn welded(&self, tol: f64) -> Result<Mesh, MeshError> {
+        use std::collections::HashMap;
+        let key = |p: &Point3<f64>| {
+            ((p.x / tol).round() as i64, (p.y / tol).round() as i64, (p.z / tol).round() as i64)
+        };
+        let mut map: HashMap<(i64, i64, i64), u32> = HashMap::new();
+        let mut remap = Vec::with_capacity(self.vertices.len());
+        let mut vertices = Vec::new();
+        for p in &self.vertices {
+            let id = *map.entry(key(p)).or_insert_with(|| {
+                vertices.push(*p);
+                (vertices.len() - 1) as u32
+            });
+            remap.push(id);
+        }
+        let triangles: Vec<[u32; 3]> = self
+            .triangles
+            .iter()
+            .map(|t| t.map(|i| remap[i as usize]))
+            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+            .collect();
+        Mesh::new(vertices, triangles)
+    }
+
+    /// Axis-aligned bounding-box diagonal in mm.
+    pub fn bbox_diagonal(&self) -> f64 {
+        let mut lo = Vector3::repeat(f64::INFINITY);
+        let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+        for v in &self.vertices {
+            lo = lo.inf(&v.coords);
+            hi = hi.sup(&v.coords);
+        }
+        (hi - lo).norm()
+    }
+
+    /// Apply `p -> s R p + t` to every vertex and rotate the normals.
+    pub fn transformed(&self, s: f64, r: &nalgebra::Rotation3<f64>, t: &Vector3<f64>) -> Mesh {
+        let vertices = self.vertices.iter().map(|p| Point3::from(s * (r * p.coords) + t)).collect();
+        let normals = self.normals.iter().map(|n| r * n).collect();
+        Mesh { vertices, triangles: self.triangles.clone(), normals }
+    }
+
+    /// Same topology, new vertex positions; normals recomputed.
+    pub fn with_vertices(&self, vertices: Vec<Point3<f64>>) -> Mesh {
+        let mut m = Mesh { vertices, triangles: self.triangles.clone(), normals: Vec::new() };
+        m.recompute_normals();
+        m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad() -> Mesh {
+        let v = vec![
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(1.0, 1.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+        ];
+        Mesh::new(v, vec![[0, 1, 2], [0, 2, 3]]).unwrap()
+    }
+
+    #[test]
+    fn area_edges_and_boundary_of_a_unit_square() {
+        let m = quad();
+        assert!((m.area() - 1.0).abs() < 1e-12);
+        assert_eq!(m.edges().len(), 5);
+        assert_eq!(m.boundary_edges().len(), 4);
+        assert!((m.normals[0] - Vector3::z()).norm() < 1e-12);
+    }
+
+    #[test]
+    fn bad_meshes_are_rejected_with_the_reason() {
+        let v = vec![Point3::origin(); 3];
+        assert_eq!(Mesh::new(v.clone(), vec![]), Err(MeshError::Empty));
+        assert!(matches!(Mesh::new(v.clone(), vec![[0, 1, 7]]), Err(MeshError::IndexOutOfRange { index: 7, .. })));
+        assert!(matches!(Mesh::new(v, vec![[0, 1, 2]]), Err(MeshError::Degenerate { .. })));
+        let v = vec![Point3::new(f64::NAN, 0.0, 0.0), Point3::origin(), Point3::origin()];
+        assert!(matches!(Mesh::new(v, vec![[0, 1, 2]]), Err(MeshError::NonFinite { index: 0, .. })));
+    }
+
+    #[test]
+    fn welding_merges_duplicated_corners() {
+        let m = quad();
+        let mut v = Vec::new();
+        let mut t = Vec::new();
+        for tri in &m.triangles {
+            let base = v.len() as u32;
+            for &i in tri {
+                v.push(m.vertices[i as usize]);
+            }
+            t.push([base, base + 1, base + 2]);
+        }
+        let soup = Mesh::new(v, t).unwrap();
+        assert_eq!(soup.vertex_count(), 6);
+        let w = soup.welded(1e-6).unwrap();
+        assert_eq!(w.vertex_count(), 4);
+        assert_eq!(w.boundary_edges().len(), 4);
+    }
+}

@@ -1,0 +1,208 @@
+//! The whole method, stage after stage: place the template, then alternate model contours ->
+//! correspondences -> solve, first for a similarity, then for the deformation graph, and fit the
+//! cup sphere to the result.
+
+use crate::contours::{model_contour, ContourError, Curve, ModelContour};
+use crate::correspond::srvf::SrvfError;
+use crate::correspond::{correspond, CorrespondParams, Method};
+use crate::mesh::Mesh;
+use crate::report::{fit_sphere, CupCatalogue, CupSize, Sphere, SphereFitError};
+use crate::solve::{
+    apply_similarity, levenberg_marquardt, DeformationGraph, EdProblem, EdWeights, GraphParams, LmParams, Observation,
+    SimilarityProblem, SolveError,
+};
+use crate::template::{hemisphere, Placement};
+use crate::views::Camera;
+use nalgebra::{Point3, Vector3};
+
+/// Everything that tunes a reconstruction, with documented defaults.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReconParams {
+    pub method: Method,
+    /// Template resolution (default 2,500 vertices).
+    pub template_vertices: usize,
+    pub correspond: CorrespondParams,
+    pub graph: GraphParams,
+    pub weights: EdWeights,
+    pub lm: LmParams,
+    /// Similarity stage: correspondence rounds at most (default 15); stops when a round moves
+    /// the template by less than `similarity_tol_mm` (default 0.05 mm RMS).
+    pub similarity_rounds: usize,
+    pub similarity_tol_mm: f64,
+    /// ED stage for SRVF: correspondence computations (default 3; each followed by GN until the
+    /// deformation settles, the graph rebuilt on the latest shape).
+    pub correspondence_updates: usize,
+    /// ED stage for the ICP baselines: correspondences recomputed every GN iteration, this many
+    /// times at most (default 20).
+    pub icp_iterations: usize,
+    pub catalogue: CupCatalogue,
+}
+
+impl Default for ReconParams {
+    fn default() -> Self {
+        ReconParams {
+            method: Method::Srvf,
+            template_vertices: 2500,
+            correspond: CorrespondParams::default(),
+            graph: GraphParams::default(),
+            weights: EdWeights::default(),
+            lm: LmParams::default(),
+            similarity_rounds: 15,
+            similarity_tol_mm: 0.05,
+            correspondence_updates: 3,
+            icp_iterations: 20,
+            catalogue: CupCatalogue::default(),
+        }
+    }
+}
+
+/// Why a reconstruction failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ReconError {
+    #[error("view {view}: model contour: {source}")]
+    Contour { view: usize, source: ContourError },
+    #[error("view {view}, contour {contour}: correspondence: {source}")]
+    Correspond { view: usize, contour: usize, source: SrvfError },
+    #[error("{stage}: too few correspondences ({count}) to solve")]
+    TooFewCorrespondences { stage: &'static str, count: usize },
+    #[error("{stage}: solver: {source}")]
+    Solve { stage: &'static str, source: SolveError },
+    #[error("the solver diverged: {what}")]
+    Diverged { what: String },
+    #[error("cup sphere fit: {0}")]
+    Sphere(#[from] SphereFitError),
+    #[error("views ({views}) and observed contour sets ({observed}) differ in number")]
+    Mismatch { views: usize, observed: usize },
+}
+
+/// What the solver did.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct SolveLog {
+    pub similarity_rounds: usize,
+    pub correspondence_updates: usize,
+    pub gn_iterations: usize,
+    pub converged: bool,
+    /// Final reprojection RMS over the last correspondences, pixels.
+    pub reprojection_rms_px: f64,
+    pub correspondences: usize,
+}
+
+/// The result.
+#[derive(Clone, Debug)]
+pub struct Reconstruction {
+    pub mesh: Mesh,
+    pub initial: Mesh,
+    pub sphere: Sphere,
+    pub cup: CupSize,
+    pub log: SolveLog,
+    /// Model contours of the initial and final meshes per view.
+    pub initial_contours: Vec<ModelContour>,
+    pub final_contours: Vec<ModelContour>,
+    /// Correspondences of the last round.
+    pub observations: Vec<Observation>,
+}
+
+fn contours(mesh: &Mesh, cams: &[Camera]) -> Result<Vec<ModelContour>, ReconError> {
+    cams.iter().enumerate().map(|(view, c)| model_contour(mesh, c, None).map_err(|source| ReconError::Contour { view, source })).collect()
+}
+
+fn all_correspondences(mesh: &Mesh, cams: &[Camera], observed: &[Vec<Curve>], prm: &ReconParams) -> Result<Vec<Observation>, ReconError> {
+    let model = contours(mesh, cams)?;
+    let mut out = Vec::new();
+    for (view, curves) in observed.iter().enumerate() {
+        for (ci, curve) in curves.iter().enumerate() {
+            let o = correspond(prm.method, view, &model[view], curve, &prm.correspond)
+                .map_err(|source| ReconError::Correspond { view, contour: ci, source })?;
+            out.extend(o);
+        }
+    }
+    Ok(out)
+}
+
+fn rms_px(mesh: &Mesh, cams: &[Camera], obs: &[Observation]) -> f64 {
+    let s: f64 = obs
+        .iter()
+        .map(|o| cams[o.view].project(&mesh.vertices[o.vertex as usize]).map(|p| (p - o.target).norm_squared()).unwrap_or(f64::INFINITY))
+        .sum();
+    (s / obs.len().max(1) as f64).sqrt()
+}
+
+fn check_finite(mesh: &Mesh) -> Result<(), ReconError> {
+    if let Some(i) = mesh.vertices.iter().position(|v| !v.coords.iter().all(|c| c.is_finite())) {
+        return Err(ReconError::Diverged { what: format!("vertex {i} is not finite") });
+    }
+    Ok(())
+}
+
+/// Reconstruct from cameras and observed contours (per view, one or more), starting from `init`.
+pub fn reconstruct(cams: &[Camera], observed: &[Vec<Curve>], init: &Placement, prm: &ReconParams) -> Result<Reconstruction, ReconError> {
+    if cams.len() != observed.len() {
+        return Err(ReconError::Mismatch { views: cams.len(), observed: observed.len() });
+    }
+    let initial = init.place(&hemisphere(1.0, prm.template_vertices));
+    let mut mesh = initial.clone();
+    let mut log = SolveLog::default();
+    let min_corr = 12;
+
+    // Stage A: similarity, correspondences recomputed each round.
+    let sim_lm = LmParams { max_iterations: 10, ..prm.lm.clone() };
+    for _ in 0..prm.similarity_rounds {
+        let obs = all_correspondences(&mesh, cams, observed, prm)?;
+        if obs.len() < min_corr {
+            return Err(ReconError::TooFewCorrespondences { stage: "similarity", count: obs.len() });
+        }
+        let problem = SimilarityProblem::new(&mesh.vertices, cams, &obs);
+        let (x, info) = levenberg_marquardt(&problem, vec![0.0; 7], &sim_lm).map_err(|source| ReconError::Solve { stage: "similarity", source })?;
+        let moved = apply_similarity(&x, &problem.center, &mesh.vertices);
+        let shift = (moved.iter().zip(&mesh.vertices).map(|(a, b)| (a - b).norm_squared()).sum::<f64>() / moved.len() as f64).sqrt();
+        mesh = mesh.with_vertices(moved);
+        check_finite(&mesh)?;
+        log.similarity_rounds += 1;
+        log.gn_iterations += info.iterations;
+        if shift < prm.similarity_tol_mm {
+            break;
+        }
+    }
+
+    // Stage B: embedded deformation.
+    let (rounds, lm) = match prm.method {
+        Method::Srvf => (prm.correspondence_updates.max(1), prm.lm.clone()),
+        Method::Icp | Method::IcpNormvec => (prm.icp_iterations.max(1), LmParams { max_iterations: 1, ..prm.lm.clone() }),
+    };
+    let mut obs = Vec::new();
+    let mut converged = true;
+    for _ in 0..rounds {
+        obs = all_correspondences(&mesh, cams, observed, prm)?;
+        if obs.len() < min_corr {
+            return Err(ReconError::TooFewCorrespondences { stage: "deformation", count: obs.len() });
+        }
+        let graph = DeformationGraph::new(&mesh, &prm.graph);
+        let problem = EdProblem::new(&graph, cams, &obs, prm.weights.clone());
+        let (x, info) = levenberg_marquardt(&problem, graph.identity(), &lm).map_err(|source| ReconError::Solve { stage: "deformation", source })?;
+        mesh = mesh.with_vertices(graph.deform(&x));
+        check_finite(&mesh)?;
+        log.correspondence_updates += 1;
+        log.gn_iterations += info.iterations;
+        converged = info.converged || prm.method != Method::Srvf;
+    }
+    log.converged = converged;
+    log.reprojection_rms_px = rms_px(&mesh, cams, &obs);
+    log.correspondences = obs.len();
+    let sphere = fit_sphere(&mesh.vertices)?;
+    let cup = prm.catalogue.nearest(sphere.diameter());
+    Ok(Reconstruction {
+        initial_contours: contours(&initial, cams)?,
+        final_contours: contours(&mesh, cams)?,
+        mesh,
+        initial,
+        sphere,
+        cup,
+        log,
+        observations: obs,
+    })
+}
+
+/// Centroid of a point set.
+pub fn centroid(p: &[Point3<f64>]) -> Point3<f64> {
+    Point3::from(p.iter().map(|v| v.coords).sum::<Vector3<f64>>() / p.len().max(1) as f64)
+}

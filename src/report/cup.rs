@@ -1,0 +1,75 @@
+//! Acetabular cup catalogue: the sizes a surgeon can implant, and the nearest one to a diameter.
+
+/// Outer diameters on offer, mm (default 40 to 70 in 2 mm steps).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CupCatalogue {
+    pub sizes_mm: Vec<f64>,
+}
+
+impl Default for CupCatalogue {
+    fn default() -> Self {
+        CupCatalogue { sizes_mm: (0..=15).map(|k| 40.0 + 2.0 * k as f64).collect() }
+    }
+}
+
+/// A chosen size.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct CupSize {
+    pub diameter_mm: f64,
+    pub catalogue_mm: f64,
+}
+
+impl CupCatalogue {
+    /// From "min:max:step" or a comma-separated list of sizes.
+    pub fn parse(s: &str) -> Result<CupCatalogue, String> {
+        let sizes: Vec<f64> = if s.contains(':') {
+            let p: Vec<&str> = s.split(':').collect();
+            let nums: Result<Vec<f64>, _> = p.iter().map(|x| x.trim().parse::<f64>()).collect();
+            match nums.as_deref() {
+                Ok([a, b, st]) if *st > 0.0 && b >= a && (b - a) / st < 1e4 => {
+                    let n = ((b - a) / st + 1e-9).floor() as usize;
+                    (0..=n).map(|k| a + st * k as f64).collect()
+                }
+                _ => return Err(format!("catalogue {s:?}: expected min:max:step with step > 0 and max >= min")),
+            }
+        } else {
+            s.split(',').map(|x| x.trim().parse::<f64>().map_err(|_| format!("catalogue size {x:?} is not a number"))).collect::<Result<_, _>>()?
+        };
+        if sizes.is_empty() || sizes.iter().any(|v| !v.is_finite() || *v <= 0.0) {
+            return Err(format!("catalogue {s:?}: sizes must be positive finite numbers"));
+        }
+        let mut sizes = sizes;
+        sizes.sort_by(f64::total_cmp);
+        Ok(CupCatalogue { sizes_mm: sizes })
+    }
+
+    /// The nearest catalogue size (ties go to the larger cup).
+    pub fn nearest(&self, diameter: f64) -> CupSize {
+        let mut best = self.sizes_mm[0];
+        for &s in &self.sizes_mm {
+            if (s - diameter).abs() <= (best - diameter).abs() {
+                best = s;
+            }
+        }
+        CupSize { diameter_mm: diameter, catalogue_mm: best }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_size_and_parsing() {
+        let c = CupCatalogue::default();
+        assert_eq!(c.sizes_mm.len(), 16);
+        assert_eq!(c.nearest(52.9).catalogue_mm, 52.0);
+        assert_eq!(c.nearest(53.0).catalogue_mm, 54.0);
+        assert_eq!(c.nearest(10.0).catalogue_mm, 40.0);
+        assert_eq!(CupCatalogue::parse("44:50:3").unwrap().sizes_mm, vec![44.0, 47.0, 50.0]);
+        assert_eq!(CupCatalogue::parse("52, 48").unwrap().sizes_mm, vec![48.0, 52.0]);
+        assert!(CupCatalogue::parse("40:30:2").is_err());
+        assert!(CupCatalogue::parse("a,b").is_err());
+        assert!(CupCatalogue::parse("-4").is_err());
+    }
+}

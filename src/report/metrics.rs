@@ -1,0 +1,135 @@
+//! Surface distances: points spread evenly over one surface, true closest points on the other's
+//! triangles (parry3d's triangle-mesh point query), and summary statistics.
+
+use crate::mesh::Mesh;
+use nalgebra::Point3;
+use parry3d_f64::math::Vector as PVec;
+use parry3d_f64::query::PointQuery;
+use parry3d_f64::shape::TriMesh;
+use rand::{RngExt, SeedableRng};
+
+/// Mean, SD and 95th percentile of a set of distances (mm).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct DistanceStats {
+    pub mean: f64,
+    pub sd: f64,
+    pub p95: f64,
+    pub max: f64,
+    pub count: usize,
+}
+
+impl DistanceStats {
+    pub fn from(d: &[f64]) -> DistanceStats {
+        if d.is_empty() {
+            return DistanceStats::default();
+        }
+        let n = d.len() as f64;
+        let mean = d.iter().sum::<f64>() / n;
+        let sd = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt();
+        let mut s = d.to_vec();
+        s.sort_by(f64::total_cmp);
+        let p95 = s[((s.len() - 1) as f64 * 0.95).round() as usize];
+        DistanceStats { mean, sd, p95, max: s[s.len() - 1], count: d.len() }
+    }
+}
+
+/// Closest-point queries against a mesh's triangles.
+pub struct SurfaceQuery {
+    shape: TriMesh,
+}
+
+impl SurfaceQuery {
+    pub fn new(mesh: &Mesh) -> Option<SurfaceQuery> {
+        let v: Vec<PVec> = mesh.vertices.iter().map(|p| PVec::new(p.x, p.y, p.z)).collect();
+        TriMesh::new(v, mesh.triangles.clone()).ok().map(|shape| SurfaceQuery { shape })
+    }
+
+    /// Distance from p to the closest point on the surface.
+    pub fn distance(&self, p: &Point3<f64>) -> f64 {
+        let q = PVec::new(p.x, p.y, p.z);
+        let proj = self.shape.project_local_point(q, false);
+        (proj.point - q).length()
+    }
+}
+
+/// `count` points spread evenly (area-weighted, seeded) over the mesh surface.
+pub fn surface_samples(mesh: &Mesh, count: usize, seed: u64) -> Vec<Point3<f64>> {
+    let areas: Vec<f64> = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
+            0.5 * (b - a).cross(&(c - a)).norm()
+        })
+        .collect();
+    let total: f64 = areas.iter().sum();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut out = Vec::with_capacity(count);
+    // Stratified: each triangle gets its expected share; the fractional part is drawn.
+    for (t, a) in mesh.triangles.iter().zip(&areas) {
+        let expect = count as f64 * a / total.max(1e-300);
+        let mut k = expect.floor() as usize;
+        if rng.random::<f64>() < expect - k as f64 {
+            k += 1;
+        }
+        let [p0, p1, p2] = t.map(|i| mesh.vertices[i as usize]);
+        for _ in 0..k {
+            let (mut u, mut v) = (rng.random::<f64>(), rng.random::<f64>());
+            if u + v > 1.0 {
+                u = 1.0 - u;
+                v = 1.0 - v;
+            }
+            out.push(p0 + (p1 - p0) * u + (p2 - p0) * v);
+        }
+    }
+    out
+}
+
+/// Distances from `points` to the surface of `to`.
+pub fn surface_distance(points: &[Point3<f64>], to: &Mesh) -> Vec<f64> {
+    match SurfaceQuery::new(to) {
+        Some(q) => points.iter().map(|p| q.distance(p)).collect(),
+        None => vec![f64::INFINITY; points.len()],
+    }
+}
+
+/// Per-vertex colours for an error map: blue (0 mm) through green to red (>= `max_mm`).
+pub fn error_colors(errors: &[f64], max_mm: f64) -> Vec<[u8; 3]> {
+    errors
+        .iter()
+        .map(|e| {
+            let u = (e / max_mm.max(1e-9)).clamp(0.0, 1.0);
+            let (r, g, b) = if u < 0.5 { (0.0, 2.0 * u, 1.0 - 2.0 * u) } else { (2.0 * u - 1.0, 2.0 - 2.0 * u, 0.0) };
+            [(r * 255.0) as u8, (g * 255.0) as u8, (b * 255.0) as u8]
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::template::hemisphere;
+
+    #[test]
+    fn distance_to_a_concentric_sphere_is_the_radius_gap() {
+        let inner = hemisphere(20.0, 3000);
+        let outer = hemisphere(22.0, 3000);
+        let pts = surface_samples(&inner, 2000, 1);
+        assert!((1900..2100).contains(&pts.len()));
+        let d = surface_distance(&pts, &outer);
+        let s = DistanceStats::from(&d);
+        assert!((s.mean - 2.0).abs() < 0.05, "mean {}", s.mean);
+        // Closest point on triangles, not nearest vertex: well below the vertex spacing.
+        let same = DistanceStats::from(&surface_distance(&pts, &inner));
+        assert!(same.mean < 0.02, "self distance {}", same.mean);
+    }
+
+    #[test]
+    fn stats_are_right_on_known_numbers() {
+        let d: Vec<f64> = (1..=100).map(|x| x as f64).collect();
+        let s = DistanceStats::from(&d);
+        assert_eq!(s.mean, 50.5);
+        assert_eq!(s.p95, 95.0);
+        assert_eq!(s.max, 100.0);
+    }
+}

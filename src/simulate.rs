@@ -1,0 +1,91 @@
+//! Simulated cases: project a ground-truth surface into the X-ray views, take the alpha-shape
+//! contours with Gaussian pixel noise as the "annotations", and perturb the template's start
+//! from the truth's fitted hemisphere by a noise level. Every draw comes from one seeded RNG.
+
+use crate::contours::{model_contour, ContourError, Curve};
+use crate::mesh::Mesh;
+use crate::pipeline::centroid;
+use crate::report::{fit_sphere, Sphere, SphereFitError};
+use crate::template::Placement;
+use crate::views::{simulated_views, Camera, XrayGeometry};
+use nalgebra::{Rotation3, Unit, Vector3};
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+
+/// Initialisation noise of one level: Euler-angle SD (rad), translation SD per axis (mm) and the
+/// scale factor s (scale = exp(N(0, ln s))).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct NoiseLevel {
+    pub rotation_sd: f64,
+    pub translation_sd: f64,
+    pub scale: f64,
+}
+
+impl NoiseLevel {
+    /// The paper's levels 1..5 (level 0: no initialisation noise).
+    pub fn level(l: u32) -> Option<NoiseLevel> {
+        let t = [(0.0, 0.0, 1.0), (0.1, 10.0, 1.1), (0.2, 30.0, 1.2), (0.3, 50.0, 1.3), (0.4, 80.0, 1.4), (0.5, 100.0, 1.5)];
+        t.get(l as usize).map(|&(r, tr, s)| NoiseLevel { rotation_sd: r, translation_sd: tr, scale: s })
+    }
+}
+
+/// A simulated case.
+#[derive(Clone, Debug)]
+pub struct SimCase {
+    pub cameras: Vec<Camera>,
+    pub observed: Vec<Vec<Curve>>,
+    /// The hemisphere fitted to the truth (before perturbation).
+    pub truth_placement: Placement,
+    pub truth_sphere: Sphere,
+    /// The perturbed start.
+    pub init: Placement,
+    pub seed: u64,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    #[error("ground truth sphere fit: {0}")]
+    Sphere(#[from] SphereFitError),
+    #[error("ground truth contour in view {view}: {source}")]
+    Contour { view: usize, source: ContourError },
+}
+
+/// The hemisphere that best fits a surface: the sphere fit's centre and radius, the opening axis
+/// pointing from the surface's centroid through the centre.
+pub fn fit_placement(truth: &Mesh) -> Result<(Placement, Sphere), SphereFitError> {
+    let s = fit_sphere(&truth.vertices)?;
+    let c = s.center_point();
+    let dir = c - centroid(&truth.vertices);
+    let axis = Unit::try_new(dir, 1e-9).unwrap_or(Vector3::z_axis());
+    Ok((Placement { center: c, radius: s.radius, axis }, s))
+}
+
+/// Perturb a placement: the axis rotated by Euler angles (x, y, z) drawn with the level's SD, the
+/// centre shifted per axis, the radius scaled.
+pub fn perturb(p: &Placement, level: &NoiseLevel, rng: &mut impl rand::Rng) -> Placement {
+    let nr = Normal::new(0.0, level.rotation_sd.max(0.0)).expect("finite SD");
+    let nt = Normal::new(0.0, level.translation_sd.max(0.0)).expect("finite SD");
+    let ns = Normal::new(0.0, level.scale.max(1.0).ln()).expect("finite SD");
+    let (ax, ay, az) = (nr.sample(rng), nr.sample(rng), nr.sample(rng));
+    let rot = Rotation3::from_euler_angles(ax, ay, az);
+    let t = Vector3::new(nt.sample(rng), nt.sample(rng), nt.sample(rng));
+    let s = ns.sample(rng).exp();
+    Placement { center: p.center + t, radius: p.radius * s, axis: rot * p.axis }
+}
+
+/// Simulate: views aimed at the truth's sphere centre, alpha-shape contours with `noise_px`
+/// Gaussian noise per point, start perturbed by `level`; all draws from ChaCha8(seed).
+pub fn simulate_case(truth: &Mesh, geometry: &XrayGeometry, noise_px: f64, level: &NoiseLevel, seed: u64) -> Result<SimCase, SimError> {
+    let (placement, sphere) = fit_placement(truth)?;
+    let cameras = simulated_views(geometry, &placement.center);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let noise = Normal::new(0.0, noise_px.max(0.0)).expect("finite SD");
+    let mut observed = Vec::new();
+    for (view, cam) in cameras.iter().enumerate() {
+        let c = model_contour(truth, cam, None).map_err(|source| SimError::Contour { view, source })?;
+        let pts = c.points.iter().map(|p| nalgebra::Point2::new(p.x + noise.sample(&mut rng), p.y + noise.sample(&mut rng))).collect();
+        observed.push(vec![Curve { points: pts, closed: true }]);
+    }
+    let init = perturb(&placement, level, &mut rng);
+    Ok(SimCase { cameras, observed, truth_placement: placement, truth_sphere: sphere, init, seed })
+}

@@ -1,0 +1,17 @@
+//! Stage 5: the deformation. An embedded deformation graph over the template, the energy
+//! w_rot E_rot + w_reg E_reg + w_obs E_obs, and Gauss-Newton / Levenberg-Marquardt on its sparse
+//! normal equations (faer). A 7-parameter similarity stage runs first.
+
+mod energy;
+mod graph;
+mod knn;
+mod lm;
+mod normal;
+mod similarity;
+
+pub use energy::{EdProblem, EdWeights, Observation};
+pub use graph::{farthest_point_sample, DeformationGraph, GraphParams, NODE_PARAMS};
+pub use knn::Knn3;
+pub use lm::{levenberg_marquardt, LmInfo, LmParams, Problem, SolveError};
+pub use normal::{LinearSolveError, Linearization, NormalEquations};
+pub use similarity::{apply_similarity, SimilarityProblem, SIM_PARAMS};

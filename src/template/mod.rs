@@ -1,0 +1,7 @@
+//! Stage 1: the standard hemisphere template and the built-in acetabulum phantom.
+
+mod hemisphere;
+mod phantom;
+
+pub use hemisphere::{hemisphere, spherical_cap, Placement};
+pub use phantom::{phantom, Phantom, PhantomParams};

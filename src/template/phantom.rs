@@ -1,0 +1,148 @@
+//! The built-in acetabulum phantom: a procedural surface that is deliberately not a hemisphere,
+//! used as the default ground truth for the demo and the tests.
+
+use super::hemisphere::{spherical_cap, Placement};
+use crate::mesh::Mesh;
+use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
+
+/// Shape and pose of the phantom. Angles in degrees, lengths in mm.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PhantomParams {
+    /// Sphere radius before the ellipticity is applied.
+    pub radius: f64,
+    /// Semi-axis factors of the rim ellipse (local x and y); 1.0 each is circular.
+    pub ellipticity: [f64; 2],
+    /// Polar angle of the rim, < 90 makes it shallower than a hemisphere.
+    pub depth_deg: f64,
+    /// Acetabular notch: azimuthal width (centred on the inferior rim) and the polar angle where
+    /// the cut starts.
+    pub notch_width_deg: f64,
+    pub notch_start_deg: f64,
+    /// Fossa: a depression of this depth (mm, away from the centre) with this angular radius,
+    /// centred this far from the pole towards the notch.
+    pub fossa_depth: f64,
+    pub fossa_radius_deg: f64,
+    pub fossa_offset_deg: f64,
+    /// Radiographic anteversion and inclination of the opening axis (Murray's definitions).
+    pub anteversion_deg: f64,
+    pub inclination_deg: f64,
+    /// Sphere centre in the world (x lateral, y anterior, z superior).
+    pub center: Point3<f64>,
+    /// Resolution of the generated surface.
+    pub vertices: usize,
+}
+
+impl Default for PhantomParams {
+    fn default() -> Self {
+        PhantomParams {
+            radius: 26.0,
+            ellipticity: [1.04, 0.97],
+            depth_deg: 80.0,
+            notch_width_deg: 40.0,
+            notch_start_deg: 58.0,
+            fossa_depth: 1.5,
+            fossa_radius_deg: 25.0,
+            fossa_offset_deg: 20.0,
+            anteversion_deg: 20.0,
+            inclination_deg: 45.0,
+            center: Point3::origin(),
+            vertices: 3000,
+        }
+    }
+}
+
+/// A generated phantom: the surface and the hemisphere it was built around.
+#[derive(Clone, Debug)]
+pub struct Phantom {
+    pub mesh: Mesh,
+    /// The undeformed sphere's centre, radius and opening axis.
+    pub placement: Placement,
+}
+
+/// Opening axis from radiographic anteversion A and inclination I: (cos A sin I, sin A, -cos A cos I)
+/// with x lateral, y anterior, z superior.
+pub fn radiographic_axis(anteversion_deg: f64, inclination_deg: f64) -> Unit<Vector3<f64>> {
+    let (a, i) = (anteversion_deg.to_radians(), inclination_deg.to_radians());
+    Unit::new_normalize(Vector3::new(a.cos() * i.sin(), a.sin(), -a.cos() * i.cos()))
+}
+
+/// Generate the phantom. The local frame has the opening along +z and the notch at local -y;
+/// the pose maps local +y to the superior direction within the rim plane.
+pub fn phantom(p: &PhantomParams) -> Phantom {
+    let cap = spherical_cap(1.0, p.vertices, p.depth_deg.to_radians());
+    let fossa_dir = {
+        let o = p.fossa_offset_deg.to_radians();
+        Vector3::new(0.0, -o.sin(), -o.cos())
+    };
+    let fossa_r = p.fossa_radius_deg.to_radians();
+    let vertices: Vec<Point3<f64>> = cap
+        .vertices
+        .iter()
+        .map(|v| {
+            let u = v.coords; // unit sphere point
+            let ang = u.dot(&fossa_dir).clamp(-1.0, 1.0).acos();
+            let bump = if ang < fossa_r { 0.5 * (1.0 + (std::f64::consts::PI * ang / fossa_r).cos()) } else { 0.0 };
+            let r = p.radius + p.fossa_depth * bump;
+            Point3::new(u.x * r * p.ellipticity[0], u.y * r * p.ellipticity[1], u.z * r)
+        })
+        .collect();
+    // Cut the notch: drop triangles whose centroid lies in the inferior wedge below the start angle.
+    let half = 0.5 * p.notch_width_deg.to_radians();
+    let start = p.notch_start_deg.to_radians();
+    let keep: Vec<usize> = (0..cap.triangles.len())
+        .filter(|&t| {
+            let c = cap.triangles[t].iter().map(|&i| cap.vertices[i as usize].coords).sum::<Vector3<f64>>() / 3.0;
+            let polar = (-c.z / c.norm()).clamp(-1.0, 1.0).acos();
+            let az = c.y.atan2(c.x); // inferior is -pi/2
+            let off = (az + std::f64::consts::FRAC_PI_2 + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
+                - std::f64::consts::PI;
+            !(polar > start && off.abs() < half)
+        })
+        .collect();
+    let local = cap.with_vertices(vertices).submesh(&keep).expect("the phantom keeps most of a valid cap");
+    let axis = radiographic_axis(p.anteversion_deg, p.inclination_deg);
+    let superior = Vector3::z() - axis.into_inner() * axis.z;
+    let ey = superior.try_normalize(1e-9).unwrap_or_else(Vector3::y);
+    let ex = ey.cross(&axis);
+    let rot = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[ex, ey, axis.into_inner()]));
+    let mesh = local.transformed(1.0, &rot, &p.center.coords);
+    Phantom { mesh, placement: Placement { center: p.center, radius: p.radius, axis } }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn phantom_is_not_a_hemisphere() {
+        let p = PhantomParams::default();
+        let ph = phantom(&p);
+        let d: Vec<f64> = ph.mesh.vertices.iter().map(|v| (v - p.center).norm()).collect();
+        let max = d.iter().cloned().fold(0.0, f64::max);
+        let min = d.iter().cloned().fold(f64::INFINITY, f64::min);
+        assert!(max > 26.9 && min < 25.5, "radii {min}..{max}");
+        // Shallower than a hemisphere: no point beyond the rim plane, the rim well inside it.
+        let depth_min =
+            ph.mesh.vertices.iter().map(|v| (v - p.center).dot(&ph.placement.axis)).fold(f64::INFINITY, f64::min);
+        let depth_max = ph.mesh.vertices.iter().map(|v| (v - p.center).dot(&ph.placement.axis)).fold(-1e9, f64::max);
+        assert!(depth_max < -2.0, "rim offset {depth_max}");
+        assert!(depth_min < -25.0);
+        // The notch opens a gap: the rim boundary dips towards the pole.
+        let boundary = ph.mesh.boundary_edges();
+        let dips = boundary
+            .iter()
+            .filter(|[i, _]| (ph.mesh.vertices[*i as usize] - p.center).dot(&ph.placement.axis) < -10.0)
+            .count();
+        assert!(dips > 3, "notch edges {dips}");
+    }
+
+    #[test]
+    fn axis_follows_radiographic_angles() {
+        let a = radiographic_axis(20.0, 45.0);
+        assert!(a.x > 0.0 && a.y > 0.0 && a.z < 0.0);
+        let coronal = Vector3::new(a.x, 0.0, a.z);
+        let incl = coronal.x.atan2(-coronal.z).to_degrees();
+        assert!((incl - 45.0).abs() < 1e-9);
+        assert!((a.y.asin().to_degrees() - 20.0).abs() < 1e-9);
+    }
+}

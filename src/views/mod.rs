@@ -1,0 +1,7 @@
+//! Stage 2: X-ray views, each a pinhole camera p ~ K (R P + t), and the simulated view geometry.
+
+mod camera;
+mod geometry;
+
+pub use camera::{Camera, Intrinsics, ProjectionError};
+pub use geometry::{simulated_views, XrayGeometry};
