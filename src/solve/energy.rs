@@ -181,8 +181,9 @@ mod tests {
             .map(|i| {
                 let view = i % 3;
                 let vertex = rng.random_range(0..m.vertex_count() as u32);
-                let p = cams[view].project(&m.vertices[vertex as usize]).unwrap();
-                Observation { view, vertex, target: p + nalgebra::Vector2::new(rng.random_range(-9.0..9.0), rng.random_range(-9.0..9.0)) }
+                // Targets from a slightly scaled and shifted copy: a deformation the graph can reach.
+                let moved = Point3::from(m.vertices[vertex as usize].coords * 1.05 + nalgebra::Vector3::new(1.0, -2.0, 0.5));
+                Observation { view, vertex, target: cams[view].project(&moved).unwrap() }
             })
             .collect();
         (g, cams, obs)
@@ -219,7 +220,7 @@ mod tests {
         let x = g.identity();
         let mut j = p.linearize(&x, true).dense_jacobian();
         let row = j.nrows() - 1;
-        let k = (0..j.ncols()).find(|&k| j[(row, k)] != 0.0).unwrap();
+        let k = (0..j.ncols()).max_by(|&a, &b| j[(row, a)].abs().total_cmp(&j[(row, b)].abs())).unwrap();
         j[(row, k)] *= 1.01; // a 1 % error in one entry
         let mut xp = x.clone();
         xp[k] += 1e-6;
@@ -236,6 +237,6 @@ mod tests {
         let (_, info) = levenberg_marquardt(&p, g.identity(), &LmParams::default()).unwrap();
         assert!(info.costs.len() > 2);
         assert!(info.costs.windows(2).all(|w| w[1] < w[0]), "{:?}", info.costs);
-        assert!(info.final_cost() < 0.5 * info.costs[0]);
+        assert!(info.final_cost() < 0.05 * info.costs[0], "{:?}", info.costs);
     }
 }
