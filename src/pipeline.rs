@@ -6,7 +6,7 @@ use crate::contours::{model_contour, ContourError, Curve, ModelContour};
 use crate::correspond::srvf::SrvfError;
 use crate::correspond::{correspond, CorrespondParams, Method};
 use crate::mesh::Mesh;
-use crate::report::{fit_sphere, CupCatalogue, CupSize, Sphere, SphereFitError};
+use crate::report::{fit_sphere_robust, CupCatalogue, CupSize, Sphere, SphereFitError};
 use crate::solve::{
     apply_similarity, levenberg_marquardt, DeformationGraph, EdProblem, EdWeights, GraphParams, LmParams, Observation,
     SimilarityProblem, SolveError,
@@ -36,6 +36,8 @@ pub struct ReconParams {
     /// times at most (default 20).
     pub icp_iterations: usize,
     pub catalogue: CupCatalogue,
+    /// Cauchy robust weights on the reprojection residuals (default on).
+    pub robust: bool,
 }
 
 impl Default for ReconParams {
@@ -52,6 +54,7 @@ impl Default for ReconParams {
             correspondence_updates: 3,
             icp_iterations: 20,
             catalogue: CupCatalogue::default(),
+            robust: true,
         }
     }
 }
@@ -119,6 +122,22 @@ fn all_correspondences(mesh: &Mesh, cams: &[Camera], observed: &[Vec<Curve>], pr
     Ok(out)
 }
 
+/// Cauchy weights w = 1 / (1 + (r / c)^2) on the current reprojection residuals, c = 2 robust SDs
+/// (1.4826 * median), so that contour parts the template cannot follow (a notch, a shallow rim)
+/// pull less than the parts it can.
+fn robust_weights(mesh: &Mesh, cams: &[Camera], obs: &mut [Observation]) {
+    let r: Vec<f64> = obs
+        .iter()
+        .map(|o| cams[o.view].project(&mesh.vertices[o.vertex as usize]).map(|p| (p - o.target).norm()).unwrap_or(f64::INFINITY))
+        .collect();
+    let mut s = r.clone();
+    s.sort_by(f64::total_cmp);
+    let c = 2.0 * 1.4826 * s.get(s.len() / 2).copied().unwrap_or(1.0).max(0.5);
+    for (o, r) in obs.iter_mut().zip(r) {
+        o.weight = if r.is_finite() { 1.0 / (1.0 + (r / c).powi(2)) } else { 0.0 };
+    }
+}
+
 fn rms_px(mesh: &Mesh, cams: &[Camera], obs: &[Observation]) -> f64 {
     let s: f64 = obs
         .iter()
@@ -147,7 +166,10 @@ pub fn reconstruct(cams: &[Camera], observed: &[Vec<Curve>], init: &Placement, p
     // Stage A: similarity, correspondences recomputed each round.
     let sim_lm = LmParams { max_iterations: 10, ..prm.lm.clone() };
     for _ in 0..prm.similarity_rounds {
-        let obs = all_correspondences(&mesh, cams, observed, prm)?;
+        let mut obs = all_correspondences(&mesh, cams, observed, prm)?;
+        if prm.robust {
+            robust_weights(&mesh, cams, &mut obs);
+        }
         if obs.len() < min_corr {
             return Err(ReconError::TooFewCorrespondences { stage: "similarity", count: obs.len() });
         }
@@ -173,6 +195,9 @@ pub fn reconstruct(cams: &[Camera], observed: &[Vec<Curve>], init: &Placement, p
     let mut converged = true;
     for _ in 0..rounds {
         obs = all_correspondences(&mesh, cams, observed, prm)?;
+        if prm.robust {
+            robust_weights(&mesh, cams, &mut obs);
+        }
         if obs.len() < min_corr {
             return Err(ReconError::TooFewCorrespondences { stage: "deformation", count: obs.len() });
         }
@@ -188,7 +213,7 @@ pub fn reconstruct(cams: &[Camera], observed: &[Vec<Curve>], init: &Placement, p
     log.converged = converged;
     log.reprojection_rms_px = rms_px(&mesh, cams, &obs);
     log.correspondences = obs.len();
-    let sphere = fit_sphere(&mesh.vertices)?;
+    let sphere = fit_sphere_robust(&mesh.vertices)?;
     let cup = prm.catalogue.nearest(sphere.diameter());
     Ok(Reconstruction {
         initial_contours: contours(&initial, cams)?,

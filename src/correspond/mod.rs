@@ -90,6 +90,6 @@ pub fn correspond(
         .iter()
         .zip(keep)
         .filter(|(_, k)| *k)
-        .map(|((t, _, k), _)| Observation { view, vertex: model.vertex_ids[*k], target: *t })
+        .map(|((t, _, k), _)| Observation { view, vertex: model.vertex_ids[*k], target: *t, weight: 1.0 })
         .collect())
 }

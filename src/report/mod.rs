@@ -7,4 +7,4 @@ mod sphere;
 
 pub use cup::{CupCatalogue, CupSize};
 pub use metrics::{error_colors, surface_distance, surface_samples, DistanceStats, SurfaceQuery};
-pub use sphere::{fit_sphere, Sphere, SphereFitError};
+pub use sphere::{fit_sphere, fit_sphere_robust, Sphere, SphereFitError};

@@ -31,18 +31,53 @@ pub enum SphereFitError {
 
 /// Fit a sphere to points.
 pub fn fit_sphere(points: &[Point3<f64>]) -> Result<Sphere, SphereFitError> {
+    fit_sphere_weighted(points, None)
+}
+
+/// Robust sphere fit: iteratively reweighted with Tukey's biweight on the radial residuals
+/// (cut-off 4.685 robust SDs, the SD from the median absolute residual), so that parts of a
+/// reconstruction pulled off the sphere (a notch, a bulge) do not move the cup size.
+pub fn fit_sphere_robust(points: &[Point3<f64>]) -> Result<Sphere, SphereFitError> {
+    let mut s = fit_sphere(points)?;
+    for _ in 0..10 {
+        let c = s.center_point();
+        let res: Vec<f64> = points.iter().map(|p| (p - c).norm() - s.radius).collect();
+        let mut abs: Vec<f64> = res.iter().map(|r| r.abs()).collect();
+        abs.sort_by(f64::total_cmp);
+        let scale = (1.4826 * abs[abs.len() / 2]).max(1e-6);
+        let cut = 4.685 * scale;
+        let w: Vec<f64> = res.iter().map(|r| if r.abs() < cut { (1.0 - (r / cut).powi(2)).powi(2) } else { 0.0 }).collect();
+        if w.iter().filter(|x| **x > 0.0).count() < 4 {
+            break;
+        }
+        let next = fit_sphere_weighted(points, Some(&w))?;
+        let moved = (next.center_point() - c).norm() + (next.radius - s.radius).abs();
+        s = next;
+        if moved < 1e-6 {
+            break;
+        }
+    }
+    Ok(s)
+}
+
+fn fit_sphere_weighted(points: &[Point3<f64>], weights: Option<&[f64]>) -> Result<Sphere, SphereFitError> {
+    let wt = |i: usize| weights.map_or(1.0, |w| w[i]);
     if points.len() < 4 {
         return Err(SphereFitError::TooFewPoints(points.len()));
     }
     // Algebraic: [2x 2y 2z 1] [c; d] = |p|^2, centred for conditioning.
-    let mean = points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len() as f64;
+    let wsum: f64 = (0..points.len()).map(wt).sum();
+    if !(wsum > 0.0) {
+        return Err(SphereFitError::Degenerate);
+    }
+    let mean = points.iter().enumerate().map(|(i, p)| p.coords * wt(i)).sum::<Vector3<f64>>() / wsum;
     let mut ata = Matrix4::<f64>::zeros();
     let mut atb = Vector4::<f64>::zeros();
-    for p in points {
+    for (i, p) in points.iter().enumerate() {
         let q = p.coords - mean;
         let row = Vector4::new(2.0 * q.x, 2.0 * q.y, 2.0 * q.z, 1.0);
-        ata += row * row.transpose();
-        atb += row * q.norm_squared();
+        ata += row * row.transpose() * wt(i);
+        atb += row * q.norm_squared() * wt(i);
     }
     let sol = ata.cholesky().ok_or(SphereFitError::Degenerate)?.solve(&atb);
     let mut c = Vector3::new(sol[0], sol[1], sol[2]);
@@ -55,13 +90,13 @@ pub fn fit_sphere(points: &[Point3<f64>]) -> Result<Sphere, SphereFitError> {
     for _ in 0..50 {
         let mut jtj = Matrix4::<f64>::zeros();
         let mut jtr = Vector4::<f64>::zeros();
-        for p in points {
+        for (i, p) in points.iter().enumerate() {
             let d = p.coords - mean - c;
             let n = d.norm().max(1e-12);
             let res = n - r;
             let j = Vector4::new(-d.x / n, -d.y / n, -d.z / n, -1.0);
-            jtj += j * j.transpose();
-            jtr += j * res;
+            jtj += j * j.transpose() * wt(i);
+            jtr += j * res * wt(i);
         }
         let Some(ch) = jtj.cholesky() else { break };
         let step = -ch.solve(&jtr);
@@ -97,6 +132,24 @@ mod tests {
         assert!((s.radius - 27.5).abs() < 1e-9, "{}", s.radius);
         assert!((s.center_point().coords - c).norm() < 1e-9);
         assert!(s.rms < 1e-9);
+    }
+
+    #[test]
+    fn robust_fit_ignores_a_displaced_patch_that_moves_the_plain_fit() {
+        let mut pts: Vec<Point3<f64>> = (0..2000)
+            .map(|i| {
+                let t = 1.5 * ((i as f64 + 0.5) / 2000.0).sqrt();
+                let p = i as f64 * 2.399;
+                Point3::new(25.0 * t.sin() * p.cos(), 25.0 * t.sin() * p.sin(), -25.0 * t.cos())
+            })
+            .collect();
+        for p in pts.iter_mut().filter(|p| p.x > 15.0) {
+            *p = Point3::from(p.coords * 0.85); // a patch pulled 3.75 mm inwards
+        }
+        let plain = fit_sphere(&pts).unwrap();
+        let robust = fit_sphere_robust(&pts).unwrap();
+        assert!((robust.radius - 25.0).abs() < 0.05, "robust {}", robust.radius);
+        assert!((plain.radius - 25.0).abs() > 0.3, "plain {}", plain.radius);
     }
 
     #[test]

@@ -54,7 +54,7 @@ impl Problem for SimilarityProblem<'_> {
         let s = x[6].exp();
         for o in self.observations {
             let cam = &self.cameras[o.view];
-            let k = 1.0 / self.px_per_mm[o.view];
+            let k = o.weight.sqrt() / self.px_per_mm[o.view];
             let q = s * (r * (self.rest[o.vertex as usize] - self.center));
             let v = self.center + t + q;
             let Ok((px, jp)) = cam.project_with_jacobian(&v) else {
@@ -103,7 +103,7 @@ mod tests {
             .flat_map(|i| {
                 let moved = &moved;
                 let cams = &cams;
-                (0..3).map(move |v| Observation { view: v, vertex: i as u32, target: cams[v].project(&moved[i]).unwrap() })
+                (0..3).map(move |v| Observation { view: v, vertex: i as u32, target: cams[v].project(&moved[i]).unwrap(), weight: 1.0 })
             })
             .collect();
         let p = SimilarityProblem::new(&m.vertices, &cams, &obs);

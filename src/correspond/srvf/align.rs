@@ -162,10 +162,35 @@ pub fn align_closed(a: &[Point2<f64>], b: &[Point2<f64>], prm: &SrvfParams, exha
     }
     let q1g = closed_grid(&q1, 0);
     let mut best: Option<(f64, usize, f64, Warp)> = None;
-    for s in order {
+    let mut refine = |s: usize, best: &mut Option<(f64, usize, f64, Warp)>| {
         let (theta, w) = rotate_and_warp(&q1g, &closed_grid(&q2, s), energies[s].1, prm, &steps);
         if best.as_ref().map_or(true, |b| w.energy < b.0) {
-            best = Some((w.energy, s, theta, w));
+            *best = Some((w.energy, s, theta, w));
+        }
+    };
+    if exhaustive {
+        for s in order {
+            refine(s, &mut best);
+        }
+    } else {
+        // Coarse to fine: rank the candidate seeds by a DP at <= 48 samples, then refine the two
+        // best (and their neighbouring full-resolution seeds) at the full sample count.
+        let tc = t.min(48);
+        let coarse_prm = SrvfParams { max_alternations: 2, ..prm.clone() };
+        let (ca, _) = resample_closed(&ra, tc);
+        let cq1 = closed_grid(&srvf(&ca, true), 0);
+        let mut ranked: Vec<(f64, usize)> = order
+            .iter()
+            .map(|&s| {
+                let (cb, _) = resample_closed(&rotate_list(&rb, s), tc);
+                let cq2 = closed_grid(&srvf(&cb, true), 0);
+                let (_, w) = rotate_and_warp(&cq1, &cq2, energies[s].1, &coarse_prm, &steps);
+                (w.energy, s)
+            })
+            .collect();
+        ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for &(_, s) in ranked.iter().take(2) {
+            refine(s, &mut best);
         }
     }
     let (energy, seed, theta, w) = best.expect("at least one seed is tried");
@@ -190,6 +215,11 @@ pub fn align_closed(a: &[Point2<f64>], b: &[Point2<f64>], prm: &SrvfParams, exha
         b_index,
         reversed: false,
     })
+}
+
+/// The points rotated so that index `s` comes first.
+fn rotate_list(p: &[Point2<f64>], s: usize) -> Vec<Point2<f64>> {
+    p[s..].iter().chain(&p[..s]).cloned().collect()
 }
 
 /// The best-ranked seeds, skipping ones within T/50 samples of a seed already taken.
