@@ -8,11 +8,20 @@ use criterion::{criterion_group, criterion_main, Criterion};
 
 fn bench(c: &mut Criterion) {
     let truth = phantom(&PhantomParams::default()).mesh;
-    let sim = simulate_case(&truth, &XrayGeometry::default(), 2.0, &NoiseLevel::level(3).unwrap(), 1).unwrap();
+    let sim = simulate_case(
+        &truth,
+        &XrayGeometry::default(),
+        2.0,
+        &NoiseLevel::level(3).unwrap(),
+        1,
+    )
+    .unwrap();
     let prm = ReconParams::default();
     let mut g = c.benchmark_group("reconstruct");
     g.sample_size(10);
-    g.bench_function("phantom_level3", |b| b.iter(|| reconstruct(&sim.cameras, &sim.observed, &sim.init, &prm).unwrap()));
+    g.bench_function("phantom_level3", |b| {
+        b.iter(|| reconstruct(&sim.cameras, &sim.observed, &sim.init, &prm).unwrap())
+    });
     g.finish();
 }
 

@@ -16,14 +16,26 @@ fn blob(n: usize, stretch: f64) -> Vec<Point2<f64>> {
 
 fn bench(c: &mut Criterion) {
     let a = blob(400, 1.0);
-    let b: Vec<Point2<f64>> = blob(350, 1.1).into_iter().cycle().skip(90).take(350).collect();
+    let b: Vec<Point2<f64>> = blob(350, 1.1)
+        .into_iter()
+        .cycle()
+        .skip(90)
+        .take(350)
+        .collect();
     let mut g = c.benchmark_group("srvf");
     g.sample_size(10);
     for t in [100usize, 200, 400] {
-        let prm = SrvfParams { samples: t, ..Default::default() };
-        g.bench_with_input(BenchmarkId::new("closed", t), &prm, |bch, prm| bch.iter(|| align_closed(&a, &b, prm, false).unwrap()));
+        let prm = SrvfParams {
+            samples: t,
+            ..Default::default()
+        };
+        g.bench_with_input(BenchmarkId::new("closed", t), &prm, |bch, prm| {
+            bch.iter(|| align_closed(&a, &b, prm, false).unwrap())
+        });
         let (ao, bo) = (&a[..250], &b[..220]);
-        g.bench_with_input(BenchmarkId::new("open", t), &prm, |bch, prm| bch.iter(|| align_open(ao, bo, prm).unwrap()));
+        g.bench_with_input(BenchmarkId::new("open", t), &prm, |bch, prm| {
+            bch.iter(|| align_open(ao, bo, prm).unwrap())
+        });
     }
     g.finish();
 }

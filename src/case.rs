@@ -78,15 +78,33 @@ pub struct Case {
 #[derive(Debug, thiserror::Error)]
 pub enum CaseError {
     #[error("{path}: cannot read: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{path}: invalid JSON: {message}")]
     Json { path: PathBuf, message: String },
     #[error("{path}: field {field} = {value}: {reason}")]
-    Field { path: PathBuf, field: String, value: String, reason: String },
+    Field {
+        path: PathBuf,
+        field: String,
+        value: String,
+        reason: String,
+    },
 }
 
-fn field_err(path: &Path, field: impl Into<String>, value: impl std::fmt::Display, reason: impl Into<String>) -> CaseError {
-    CaseError::Field { path: path.to_path_buf(), field: field.into(), value: value.to_string(), reason: reason.into() }
+fn field_err(
+    path: &Path,
+    field: impl Into<String>,
+    value: impl std::fmt::Display,
+    reason: impl Into<String>,
+) -> CaseError {
+    CaseError::Field {
+        path: path.to_path_buf(),
+        field: field.into(),
+        value: value.to_string(),
+        reason: reason.into(),
+    }
 }
 
 /// Largest coordinate magnitude accepted anywhere (mm or px): beyond it the input is absurd.
@@ -95,79 +113,170 @@ const ABSURD: f64 = 1e7;
 impl CaseFile {
     /// Read and validate.
     pub fn load(path: &Path) -> Result<Case, CaseError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CaseError::Io { path: path.to_path_buf(), source })?;
-        let file: CaseFile = serde_json::from_str(&text).map_err(|e| CaseError::Json { path: path.to_path_buf(), message: e.to_string() })?;
+        let text = std::fs::read_to_string(path).map_err(|source| CaseError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let file: CaseFile = serde_json::from_str(&text).map_err(|e| CaseError::Json {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
         file.validate(path)
     }
 
     /// Check every field and build the cameras, curves and placement.
     pub fn validate(&self, path: &Path) -> Result<Case, CaseError> {
         if self.views.len() < 2 {
-            return Err(field_err(path, "views", self.views.len(), "at least 2 views are needed (3 recommended)"));
+            return Err(field_err(
+                path,
+                "views",
+                self.views.len(),
+                "at least 2 views are needed (3 recommended)",
+            ));
         }
         if self.views.len() > 64 {
-            return Err(field_err(path, "views", self.views.len(), "at most 64 views"));
+            return Err(field_err(
+                path,
+                "views",
+                self.views.len(),
+                "at most 64 views",
+            ));
         }
         let tp = &self.template;
         for (i, v) in tp.center.iter().enumerate() {
             if !v.is_finite() || v.abs() > ABSURD {
-                return Err(field_err(path, format!("template.center[{i}]"), v, "must be a finite number of mm"));
+                return Err(field_err(
+                    path,
+                    format!("template.center[{i}]"),
+                    v,
+                    "must be a finite number of mm",
+                ));
             }
         }
         if !(tp.radius.is_finite() && tp.radius > 1.0 && tp.radius < 200.0) {
-            return Err(field_err(path, "template.radius", tp.radius, "must be between 1 and 200 mm"));
+            return Err(field_err(
+                path,
+                "template.radius",
+                tp.radius,
+                "must be between 1 and 200 mm",
+            ));
         }
         let axis = Vector3::from(tp.axis);
         if !axis.iter().all(|v| v.is_finite()) || axis.norm() < 1e-9 {
-            return Err(field_err(path, "template.axis", format!("{:?}", tp.axis), "must be a finite non-zero vector"));
+            return Err(field_err(
+                path,
+                "template.axis",
+                format!("{:?}", tp.axis),
+                "must be a finite non-zero vector",
+            ));
         }
-        let init = Placement { center: Point3::from(tp.center), radius: tp.radius, axis: Unit::new_normalize(axis) };
+        let init = Placement {
+            center: Point3::from(tp.center),
+            radius: tp.radius,
+            axis: Unit::new_normalize(axis),
+        };
         let base = path.parent().unwrap_or(Path::new("."));
-        let mut case = Case { cameras: Vec::new(), observed: Vec::new(), init, images: Vec::new(), names: Vec::new() };
+        let mut case = Case {
+            cameras: Vec::new(),
+            observed: Vec::new(),
+            init,
+            images: Vec::new(),
+            names: Vec::new(),
+        };
         for (vi, v) in self.views.iter().enumerate() {
             let f = |name: &str| format!("views[{vi}].{name}");
             for (name, val) in [("k.fx", v.k.fx), ("k.fy", v.k.fy)] {
                 if !(val.is_finite() && val > 0.0 && val < ABSURD) {
-                    return Err(field_err(path, f(name), val, "focal length must be a positive finite number of pixels"));
+                    return Err(field_err(
+                        path,
+                        f(name),
+                        val,
+                        "focal length must be a positive finite number of pixels",
+                    ));
                 }
             }
             for (name, val) in [("k.cx", v.k.cx), ("k.cy", v.k.cy)] {
                 if !val.is_finite() || val.abs() > ABSURD {
-                    return Err(field_err(path, f(name), val, "principal point must be finite"));
+                    return Err(field_err(
+                        path,
+                        f(name),
+                        val,
+                        "principal point must be finite",
+                    ));
                 }
             }
             if v.width == 0 || v.height == 0 || v.width > 65536 || v.height > 65536 {
-                return Err(field_err(path, f("width/height"), format!("{}x{}", v.width, v.height), "image size must be 1..65536 pixels"));
+                return Err(field_err(
+                    path,
+                    f("width/height"),
+                    format!("{}x{}", v.width, v.height),
+                    "image size must be 1..65536 pixels",
+                ));
             }
             let r = Matrix3::from_fn(|i, j| v.r[i][j]);
             if !r.iter().all(|x| x.is_finite()) {
-                return Err(field_err(path, f("r"), format!("{:?}", v.r), "rotation entries must be finite"));
+                return Err(field_err(
+                    path,
+                    f("r"),
+                    format!("{:?}", v.r),
+                    "rotation entries must be finite",
+                ));
             }
             let orth = (r.transpose() * r - Matrix3::identity()).abs().max();
             if orth > 1e-4 {
-                return Err(field_err(path, f("r"), format!("{:?}", v.r), format!("rotation is not orthonormal (|R^T R - I| = {orth:.3e})")));
+                return Err(field_err(
+                    path,
+                    f("r"),
+                    format!("{:?}", v.r),
+                    format!("rotation is not orthonormal (|R^T R - I| = {orth:.3e})"),
+                ));
             }
             let det = r.determinant();
             if det < 0.0 {
-                return Err(field_err(path, f("r"), format!("{:?}", v.r), format!("rotation is a reflection (det = {det:.3})")));
+                return Err(field_err(
+                    path,
+                    f("r"),
+                    format!("{:?}", v.r),
+                    format!("rotation is a reflection (det = {det:.3})"),
+                ));
             }
             for (i, val) in v.t.iter().enumerate() {
                 if !val.is_finite() || val.abs() > ABSURD {
-                    return Err(field_err(path, f(&format!("t[{i}]")), val, "translation must be a finite number of mm"));
+                    return Err(field_err(
+                        path,
+                        f(&format!("t[{i}]")),
+                        val,
+                        "translation must be a finite number of mm",
+                    ));
                 }
             }
             let cam = Camera {
-                k: Intrinsics { fx: v.k.fx, fy: v.k.fy, cx: v.k.cx, cy: v.k.cy },
+                k: Intrinsics {
+                    fx: v.k.fx,
+                    fy: v.k.fy,
+                    cx: v.k.cx,
+                    cy: v.k.cy,
+                },
                 r: Rotation3::from_matrix(&r),
                 t: Vector3::from(v.t),
                 width: v.width,
                 height: v.height,
             };
             if let Err(e) = cam.project(&case.init.center) {
-                return Err(field_err(path, f("t"), format!("{:?}", v.t), format!("the template centre is not in front of the source: {e}")));
+                return Err(field_err(
+                    path,
+                    f("t"),
+                    format!("{:?}", v.t),
+                    format!("the template centre is not in front of the source: {e}"),
+                ));
             }
             if v.contours.is_empty() {
-                return Err(field_err(path, f("contours"), "[]", "each view needs at least one contour"));
+                return Err(field_err(
+                    path,
+                    f("contours"),
+                    "[]",
+                    "each view needs at least one contour",
+                ));
             }
             let mut curves = Vec::new();
             for (ci, c) in v.contours.iter().enumerate() {
@@ -175,9 +284,18 @@ impl CaseFile {
                 let margin = 0.5 * (v.width.max(v.height)) as f64;
                 for (pi, p) in c.points.iter().enumerate() {
                     if !p[0].is_finite() || !p[1].is_finite() {
-                        return Err(field_err(path, cf(&format!("points[{pi}]")), format!("{p:?}"), "coordinates must be finite"));
+                        return Err(field_err(
+                            path,
+                            cf(&format!("points[{pi}]")),
+                            format!("{p:?}"),
+                            "coordinates must be finite",
+                        ));
                     }
-                    if p[0] < -margin || p[1] < -margin || p[0] > v.width as f64 + margin || p[1] > v.height as f64 + margin {
+                    if p[0] < -margin
+                        || p[1] < -margin
+                        || p[0] > v.width as f64 + margin
+                        || p[1] > v.height as f64 + margin
+                    {
                         return Err(field_err(
                             path,
                             cf(&format!("points[{pi}]")),
@@ -186,29 +304,52 @@ impl CaseFile {
                         ));
                     }
                 }
-                let mut pts: Vec<Point2<f64>> = c.points.iter().map(|p| Point2::new(p[0], p[1])).collect();
+                let mut pts: Vec<Point2<f64>> =
+                    c.points.iter().map(|p| Point2::new(p[0], p[1])).collect();
                 pts.dedup_by(|a, b| (*a - *b).norm() < 1e-9);
                 if c.closed && pts.len() > 1 && (pts[0] - pts[pts.len() - 1]).norm() < 1e-9 {
                     pts.pop(); // an explicitly repeated first point
                 }
                 let distinct = pts.len();
                 if distinct < 4 {
-                    return Err(field_err(path, cf("points"), format!("{} distinct points", distinct), "a contour needs at least 4 distinct points"));
+                    return Err(field_err(
+                        path,
+                        cf("points"),
+                        format!("{} distinct points", distinct),
+                        "a contour needs at least 4 distinct points",
+                    ));
                 }
                 let extent = pts.iter().map(|p| (p - pts[0]).norm()).fold(0.0, f64::max);
                 if extent < 2.0 {
-                    return Err(field_err(path, cf("points"), format!("extent {extent:.3} px"), "the contour is smaller than 2 pixels"));
+                    return Err(field_err(
+                        path,
+                        cf("points"),
+                        format!("extent {extent:.3} px"),
+                        "the contour is smaller than 2 pixels",
+                    ));
                 }
                 if c.closed && signed_area(&pts) < 0.0 {
                     pts.reverse(); // all closed curves run the same way as model contours
                 }
-                curves.push(Curve { points: pts, closed: c.closed });
+                curves.push(Curve {
+                    points: pts,
+                    closed: c.closed,
+                });
             }
             let image = match &v.image {
                 Some(p) => {
-                    let full = if p.is_absolute() { p.clone() } else { base.join(p) };
+                    let full = if p.is_absolute() {
+                        p.clone()
+                    } else {
+                        base.join(p)
+                    };
                     if !full.is_file() {
-                        return Err(field_err(path, f("image"), full.display(), "image file not found or unreadable"));
+                        return Err(field_err(
+                            path,
+                            f("image"),
+                            full.display(),
+                            "image file not found or unreadable",
+                        ));
                     }
                     Some(full)
                 }
@@ -217,7 +358,8 @@ impl CaseFile {
             case.cameras.push(cam);
             case.observed.push(curves);
             case.images.push(image);
-            case.names.push(v.name.clone().unwrap_or_else(|| format!("view{vi}")));
+            case.names
+                .push(v.name.clone().unwrap_or_else(|| format!("view{vi}")));
         }
         Ok(case)
     }
@@ -231,7 +373,12 @@ impl CaseFile {
                 .enumerate()
                 .map(|(i, (c, curves))| ViewFile {
                     name: Some(format!("view{i}")),
-                    k: IntrinsicsFile { fx: c.k.fx, fy: c.k.fy, cx: c.k.cx, cy: c.k.cy },
+                    k: IntrinsicsFile {
+                        fx: c.k.fx,
+                        fy: c.k.fy,
+                        cx: c.k.cx,
+                        cy: c.k.cy,
+                    },
                     r: [0, 1, 2].map(|row| [0, 1, 2].map(|col| c.r.matrix()[(row, col)])),
                     t: [c.t.x, c.t.y, c.t.z],
                     width: c.width,
@@ -239,7 +386,10 @@ impl CaseFile {
                     image: None,
                     contours: curves
                         .iter()
-                        .map(|cv| ContourFile { points: cv.points.iter().map(|p| [p.x, p.y]).collect(), closed: cv.closed })
+                        .map(|cv| ContourFile {
+                            points: cv.points.iter().map(|p| [p.x, p.y]).collect(),
+                            closed: cv.closed,
+                        })
                         .collect(),
                 })
                 .collect(),

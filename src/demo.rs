@@ -26,7 +26,12 @@ pub struct Accuracy {
 pub fn accuracy(truth: &Mesh, recon: &Mesh) -> Accuracy {
     let pts = surface_samples(truth, 20_000, 0);
     let s = DistanceStats::from(&surface_distance(&pts, recon));
-    Accuracy { mae_mm: s.mean, sd_mm: s.sd, p95_mm: s.p95, max_mm: s.max }
+    Accuracy {
+        mae_mm: s.mean,
+        sd_mm: s.sd,
+        p95_mm: s.p95,
+        max_mm: s.max,
+    }
 }
 
 /// What `acetab demo` reports.
@@ -59,11 +64,18 @@ pub enum DemoError {
     #[error(transparent)]
     Io(#[from] MeshIoError),
     #[error("{path}: cannot write: {source}")]
-    Write { path: std::path::PathBuf, source: std::io::Error },
+    Write {
+        path: std::path::PathBuf,
+        source: std::io::Error,
+    },
 }
 
 /// Simulate the default phantom at `level`, reconstruct, and measure.
-pub fn run_demo(seed: u64, level: u32, prm: &ReconParams) -> Result<(DemoReport, Mesh, Reconstruction), DemoError> {
+pub fn run_demo(
+    seed: u64,
+    level: u32,
+    prm: &ReconParams,
+) -> Result<(DemoReport, Mesh, Reconstruction), DemoError> {
     let noise = NoiseLevel::level(level).ok_or(DemoError::Level(level))?;
     let truth = phantom(&PhantomParams::default()).mesh;
     let sim = simulate_case(&truth, &XrayGeometry::default(), 2.0, &noise, seed)?;

@@ -12,7 +12,11 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "acetab", version, about = "Acetabular surface reconstruction from pelvic X-rays and cup sizing")]
+#[command(
+    name = "acetab",
+    version,
+    about = "Acetabular surface reconstruction from pelvic X-rays and cup sizing"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -53,38 +57,76 @@ enum Command {
 }
 
 fn create_dir(out: &Path) -> Result<(), String> {
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: cannot create output folder: {e}", out.display()))
+    std::fs::create_dir_all(out)
+        .map_err(|e| format!("{}: cannot create output folder: {e}", out.display()))
 }
 
 fn run(cli: Cli) -> Result<(), String> {
     match cli.command {
-        Command::Demo { json, seed, level, method, out } => {
-            let prm = ReconParams { method, ..Default::default() };
+        Command::Demo {
+            json,
+            seed,
+            level,
+            method,
+            out,
+        } => {
+            let prm = ReconParams {
+                method,
+                ..Default::default()
+            };
             let (report, truth, rec) = run_demo(seed, level, &prm).map_err(|e| e.to_string())?;
             let report_json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
             create_dir(&out)?;
-            write_error_ply(&rec.mesh, &truth, &out.join("reconstruction.ply")).map_err(|e| e.to_string())?;
+            write_error_ply(&rec.mesh, &truth, &out.join("reconstruction.ply"))
+                .map_err(|e| e.to_string())?;
             write_ply(&truth, None, &out.join("truth.ply")).map_err(|e| e.to_string())?;
-            write_atomic(&out.join("report.json"), report_json.as_bytes()).map_err(|e| format!("{}: {e}", out.display()))?;
+            write_atomic(&out.join("report.json"), report_json.as_bytes())
+                .map_err(|e| format!("{}: {e}", out.display()))?;
             if json {
-                println!("{}", serde_json::to_string(&report).map_err(|e| e.to_string())?);
+                println!(
+                    "{}",
+                    serde_json::to_string(&report).map_err(|e| e.to_string())?
+                );
             } else {
                 println!("acetab demo: phantom, 3 views, 2 px contour noise, level {level} start, seed {seed}, method {}", method.name());
-                println!("  MAE  {:.3} mm   SD {:.3} mm   p95 {:.3} mm   (start: MAE {:.2} mm)", report.mae_mm, report.sd_mm, report.p95_mm, report.initial_mae_mm);
+                println!(
+                    "  MAE  {:.3} mm   SD {:.3} mm   p95 {:.3} mm   (start: MAE {:.2} mm)",
+                    report.mae_mm, report.sd_mm, report.p95_mm, report.initial_mae_mm
+                );
                 println!(
                     "  cup  {:.2} mm (catalogue {:.0} mm)   truth {:.2} mm   error {:+.2} mm",
-                    report.cup_diameter_mm, report.cup_catalogue_mm, report.gt_cup_diameter_mm, report.cup_error_mm
+                    report.cup_diameter_mm,
+                    report.cup_catalogue_mm,
+                    report.gt_cup_diameter_mm,
+                    report.cup_error_mm
                 );
-                println!("  {:.2} s   {} GN iterations   outputs in {}", report.seconds, report.log.gn_iterations, out.display());
+                println!(
+                    "  {:.2} s   {} GN iterations   outputs in {}",
+                    report.seconds,
+                    report.log.gn_iterations,
+                    out.display()
+                );
             }
             Ok(())
         }
-        Command::Reconstruct { case, out, method, catalogue, json } => {
-            let catalogue = CupCatalogue::parse(&catalogue).map_err(|e| format!("--catalogue: {e}"))?;
+        Command::Reconstruct {
+            case,
+            out,
+            method,
+            catalogue,
+            json,
+        } => {
+            let catalogue =
+                CupCatalogue::parse(&catalogue).map_err(|e| format!("--catalogue: {e}"))?;
             let c = CaseFile::load(&case).map_err(|e| e.to_string())?;
-            let prm = ReconParams { method, catalogue, ..Default::default() };
+            let prm = ReconParams {
+                method,
+                catalogue,
+                ..Default::default()
+            };
             let t = std::time::Instant::now();
-            let rec = reconstruct(&c.cameras, &c.observed, &c.init, &prm).map_err(|e| format!("{}: {e}", case.display()))?;
+            let rec = reconstruct(&c.cameras, &c.observed, &c.init, &prm)
+                .map_err(|e| format!("{}: {e}", case.display()))?;
             let seconds = t.elapsed().as_secs_f64();
             let report = serde_json::json!({
                 "case": case.display().to_string(),
@@ -97,10 +139,15 @@ fn run(cli: Cli) -> Result<(), String> {
             });
             let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
             create_dir(&out)?;
-            write_ply(&rec.mesh, None, &out.join("reconstruction.ply")).map_err(|e| e.to_string())?;
-            write_atomic(&out.join("report.json"), text.as_bytes()).map_err(|e| format!("{}: {e}", out.display()))?;
+            write_ply(&rec.mesh, None, &out.join("reconstruction.ply"))
+                .map_err(|e| e.to_string())?;
+            write_atomic(&out.join("report.json"), text.as_bytes())
+                .map_err(|e| format!("{}: {e}", out.display()))?;
             if json {
-                println!("{}", serde_json::to_string(&report).map_err(|e| e.to_string())?);
+                println!(
+                    "{}",
+                    serde_json::to_string(&report).map_err(|e| e.to_string())?
+                );
             } else {
                 println!(
                     "cup {:.2} mm -> catalogue {:.0} mm ({:.2} s, {} correspondences, reprojection RMS {:.2} px)",

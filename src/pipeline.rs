@@ -8,8 +8,8 @@ use crate::correspond::{correspond, CorrespondParams, Method};
 use crate::mesh::Mesh;
 use crate::report::{fit_sphere_robust, CupCatalogue, CupSize, Sphere, SphereFitError};
 use crate::solve::{
-    apply_similarity, levenberg_marquardt, DeformationGraph, EdProblem, EdWeights, GraphParams, LmParams, Observation,
-    SimilarityProblem, SolveError,
+    apply_similarity, levenberg_marquardt, DeformationGraph, EdProblem, EdWeights, GraphParams,
+    LmParams, Observation, SimilarityProblem, SolveError,
 };
 use crate::template::{hemisphere, Placement};
 use crate::views::Camera;
@@ -65,11 +65,18 @@ pub enum ReconError {
     #[error("view {view}: model contour: {source}")]
     Contour { view: usize, source: ContourError },
     #[error("view {view}, contour {contour}: correspondence: {source}")]
-    Correspond { view: usize, contour: usize, source: SrvfError },
+    Correspond {
+        view: usize,
+        contour: usize,
+        source: SrvfError,
+    },
     #[error("{stage}: too few correspondences ({count}) to solve")]
     TooFewCorrespondences { stage: &'static str, count: usize },
     #[error("{stage}: solver: {source}")]
-    Solve { stage: &'static str, source: SolveError },
+    Solve {
+        stage: &'static str,
+        source: SolveError,
+    },
     #[error("the solver diverged: {what}")]
     Diverged { what: String },
     #[error("cup sphere fit: {0}")]
@@ -106,16 +113,31 @@ pub struct Reconstruction {
 }
 
 fn contours(mesh: &Mesh, cams: &[Camera]) -> Result<Vec<ModelContour>, ReconError> {
-    cams.iter().enumerate().map(|(view, c)| model_contour(mesh, c, None).map_err(|source| ReconError::Contour { view, source })).collect()
+    cams.iter()
+        .enumerate()
+        .map(|(view, c)| {
+            model_contour(mesh, c, None).map_err(|source| ReconError::Contour { view, source })
+        })
+        .collect()
 }
 
-fn all_correspondences(mesh: &Mesh, cams: &[Camera], observed: &[Vec<Curve>], prm: &ReconParams) -> Result<Vec<Observation>, ReconError> {
+fn all_correspondences(
+    mesh: &Mesh,
+    cams: &[Camera],
+    observed: &[Vec<Curve>],
+    prm: &ReconParams,
+) -> Result<Vec<Observation>, ReconError> {
     let model = contours(mesh, cams)?;
     let mut out = Vec::new();
     for (view, curves) in observed.iter().enumerate() {
         for (ci, curve) in curves.iter().enumerate() {
-            let o = correspond(prm.method, view, &model[view], curve, &prm.correspond)
-                .map_err(|source| ReconError::Correspond { view, contour: ci, source })?;
+            let o = correspond(prm.method, view, &model[view], curve, &prm.correspond).map_err(
+                |source| ReconError::Correspond {
+                    view,
+                    contour: ci,
+                    source,
+                },
+            )?;
             out.extend(o);
         }
     }
@@ -128,35 +150,63 @@ fn all_correspondences(mesh: &Mesh, cams: &[Camera], observed: &[Vec<Curve>], pr
 fn robust_weights(mesh: &Mesh, cams: &[Camera], obs: &mut [Observation]) {
     let r: Vec<f64> = obs
         .iter()
-        .map(|o| cams[o.view].project(&mesh.vertices[o.vertex as usize]).map(|p| (p - o.target).norm()).unwrap_or(f64::INFINITY))
+        .map(|o| {
+            cams[o.view]
+                .project(&mesh.vertices[o.vertex as usize])
+                .map(|p| (p - o.target).norm())
+                .unwrap_or(f64::INFINITY)
+        })
         .collect();
     let mut s = r.clone();
     s.sort_by(f64::total_cmp);
     let c = 2.0 * 1.4826 * s.get(s.len() / 2).copied().unwrap_or(1.0).max(0.5);
     for (o, r) in obs.iter_mut().zip(r) {
-        o.weight = if r.is_finite() { 1.0 / (1.0 + (r / c).powi(2)) } else { 0.0 };
+        o.weight = if r.is_finite() {
+            1.0 / (1.0 + (r / c).powi(2))
+        } else {
+            0.0
+        };
     }
 }
 
 fn rms_px(mesh: &Mesh, cams: &[Camera], obs: &[Observation]) -> f64 {
     let s: f64 = obs
         .iter()
-        .map(|o| cams[o.view].project(&mesh.vertices[o.vertex as usize]).map(|p| (p - o.target).norm_squared()).unwrap_or(f64::INFINITY))
+        .map(|o| {
+            cams[o.view]
+                .project(&mesh.vertices[o.vertex as usize])
+                .map(|p| (p - o.target).norm_squared())
+                .unwrap_or(f64::INFINITY)
+        })
         .sum();
     (s / obs.len().max(1) as f64).sqrt()
 }
 
 fn check_finite(mesh: &Mesh) -> Result<(), ReconError> {
-    if let Some(i) = mesh.vertices.iter().position(|v| !v.coords.iter().all(|c| c.is_finite())) {
-        return Err(ReconError::Diverged { what: format!("vertex {i} is not finite") });
+    if let Some(i) = mesh
+        .vertices
+        .iter()
+        .position(|v| !v.coords.iter().all(|c| c.is_finite()))
+    {
+        return Err(ReconError::Diverged {
+            what: format!("vertex {i} is not finite"),
+        });
     }
     Ok(())
 }
 
 /// Reconstruct from cameras and observed contours (per view, one or more), starting from `init`.
-pub fn reconstruct(cams: &[Camera], observed: &[Vec<Curve>], init: &Placement, prm: &ReconParams) -> Result<Reconstruction, ReconError> {
+pub fn reconstruct(
+    cams: &[Camera],
+    observed: &[Vec<Curve>],
+    init: &Placement,
+    prm: &ReconParams,
+) -> Result<Reconstruction, ReconError> {
     if cams.len() != observed.len() {
-        return Err(ReconError::Mismatch { views: cams.len(), observed: observed.len() });
+        return Err(ReconError::Mismatch {
+            views: cams.len(),
+            observed: observed.len(),
+        });
     }
     let initial = init.place(&hemisphere(1.0, prm.template_vertices));
     let mut mesh = initial.clone();
@@ -164,19 +214,36 @@ pub fn reconstruct(cams: &[Camera], observed: &[Vec<Curve>], init: &Placement, p
     let min_corr = 12;
 
     // Stage A: similarity, correspondences recomputed each round.
-    let sim_lm = LmParams { max_iterations: 10, ..prm.lm.clone() };
+    let sim_lm = LmParams {
+        max_iterations: 10,
+        ..prm.lm.clone()
+    };
     for _ in 0..prm.similarity_rounds {
         let mut obs = all_correspondences(&mesh, cams, observed, prm)?;
         if prm.robust {
             robust_weights(&mesh, cams, &mut obs);
         }
         if obs.len() < min_corr {
-            return Err(ReconError::TooFewCorrespondences { stage: "similarity", count: obs.len() });
+            return Err(ReconError::TooFewCorrespondences {
+                stage: "similarity",
+                count: obs.len(),
+            });
         }
         let problem = SimilarityProblem::new(&mesh.vertices, cams, &obs);
-        let (x, info) = levenberg_marquardt(&problem, vec![0.0; 7], &sim_lm).map_err(|source| ReconError::Solve { stage: "similarity", source })?;
+        let (x, info) = levenberg_marquardt(&problem, vec![0.0; 7], &sim_lm).map_err(|source| {
+            ReconError::Solve {
+                stage: "similarity",
+                source,
+            }
+        })?;
         let moved = apply_similarity(&x, &problem.center, &mesh.vertices);
-        let shift = (moved.iter().zip(&mesh.vertices).map(|(a, b)| (a - b).norm_squared()).sum::<f64>() / moved.len() as f64).sqrt();
+        let shift = (moved
+            .iter()
+            .zip(&mesh.vertices)
+            .map(|(a, b)| (a - b).norm_squared())
+            .sum::<f64>()
+            / moved.len() as f64)
+            .sqrt();
         mesh = mesh.with_vertices(moved);
         check_finite(&mesh)?;
         log.similarity_rounds += 1;
@@ -189,7 +256,13 @@ pub fn reconstruct(cams: &[Camera], observed: &[Vec<Curve>], init: &Placement, p
     // Stage B: embedded deformation.
     let (rounds, lm) = match prm.method {
         Method::Srvf => (prm.correspondence_updates.max(1), prm.lm.clone()),
-        Method::Icp | Method::IcpNormvec => (prm.icp_iterations.max(1), LmParams { max_iterations: 1, ..prm.lm.clone() }),
+        Method::Icp | Method::IcpNormvec => (
+            prm.icp_iterations.max(1),
+            LmParams {
+                max_iterations: 1,
+                ..prm.lm.clone()
+            },
+        ),
     };
     let mut obs = Vec::new();
     let mut converged = true;
@@ -199,11 +272,19 @@ pub fn reconstruct(cams: &[Camera], observed: &[Vec<Curve>], init: &Placement, p
             robust_weights(&mesh, cams, &mut obs);
         }
         if obs.len() < min_corr {
-            return Err(ReconError::TooFewCorrespondences { stage: "deformation", count: obs.len() });
+            return Err(ReconError::TooFewCorrespondences {
+                stage: "deformation",
+                count: obs.len(),
+            });
         }
         let graph = DeformationGraph::new(&mesh, &prm.graph);
         let problem = EdProblem::new(&graph, cams, &obs, prm.weights.clone());
-        let (x, info) = levenberg_marquardt(&problem, graph.identity(), &lm).map_err(|source| ReconError::Solve { stage: "deformation", source })?;
+        let (x, info) = levenberg_marquardt(&problem, graph.identity(), &lm).map_err(|source| {
+            ReconError::Solve {
+                stage: "deformation",
+                source,
+            }
+        })?;
         mesh = mesh.with_vertices(graph.deform(&x));
         check_finite(&mesh)?;
         log.correspondence_updates += 1;

@@ -24,8 +24,19 @@ pub struct NoiseLevel {
 impl NoiseLevel {
     /// The paper's levels 1..5 (level 0: no initialisation noise).
     pub fn level(l: u32) -> Option<NoiseLevel> {
-        let t = [(0.0, 0.0, 1.0), (0.1, 10.0, 1.1), (0.2, 30.0, 1.2), (0.3, 50.0, 1.3), (0.4, 80.0, 1.4), (0.5, 100.0, 1.5)];
-        t.get(l as usize).map(|&(r, tr, s)| NoiseLevel { rotation_sd: r, translation_sd: tr, scale: s })
+        let t = [
+            (0.0, 0.0, 1.0),
+            (0.1, 10.0, 1.1),
+            (0.2, 30.0, 1.2),
+            (0.3, 50.0, 1.3),
+            (0.4, 80.0, 1.4),
+            (0.5, 100.0, 1.5),
+        ];
+        t.get(l as usize).map(|&(r, tr, s)| NoiseLevel {
+            rotation_sd: r,
+            translation_sd: tr,
+            scale: s,
+        })
     }
 }
 
@@ -57,7 +68,14 @@ pub fn fit_placement(truth: &Mesh) -> Result<(Placement, Sphere), SphereFitError
     let c = s.center_point();
     let dir = c - centroid(&truth.vertices);
     let axis = Unit::try_new(dir, 1e-9).unwrap_or(Vector3::z_axis());
-    Ok((Placement { center: c, radius: s.radius, axis }, s))
+    Ok((
+        Placement {
+            center: c,
+            radius: s.radius,
+            axis,
+        },
+        s,
+    ))
 }
 
 /// Perturb a placement: the axis rotated by Euler angles (x, y, z) drawn with the level's SD, the
@@ -70,22 +88,49 @@ pub fn perturb(p: &Placement, level: &NoiseLevel, rng: &mut impl rand::Rng) -> P
     let rot = Rotation3::from_euler_angles(ax, ay, az);
     let t = Vector3::new(nt.sample(rng), nt.sample(rng), nt.sample(rng));
     let s = ns.sample(rng).exp();
-    Placement { center: p.center + t, radius: p.radius * s, axis: rot * p.axis }
+    Placement {
+        center: p.center + t,
+        radius: p.radius * s,
+        axis: rot * p.axis,
+    }
 }
 
 /// Simulate: views aimed at the truth's sphere centre, alpha-shape contours with `noise_px`
 /// Gaussian noise per point, start perturbed by `level`; all draws from ChaCha8(seed).
-pub fn simulate_case(truth: &Mesh, geometry: &XrayGeometry, noise_px: f64, level: &NoiseLevel, seed: u64) -> Result<SimCase, SimError> {
+pub fn simulate_case(
+    truth: &Mesh,
+    geometry: &XrayGeometry,
+    noise_px: f64,
+    level: &NoiseLevel,
+    seed: u64,
+) -> Result<SimCase, SimError> {
     let (placement, sphere) = fit_placement(truth)?;
     let cameras = simulated_views(geometry, &placement.center);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let noise = Normal::new(0.0, noise_px.max(0.0)).expect("finite SD");
     let mut observed = Vec::new();
     for (view, cam) in cameras.iter().enumerate() {
-        let c = model_contour(truth, cam, None).map_err(|source| SimError::Contour { view, source })?;
-        let pts = c.points.iter().map(|p| nalgebra::Point2::new(p.x + noise.sample(&mut rng), p.y + noise.sample(&mut rng))).collect();
-        observed.push(vec![Curve { points: pts, closed: true }]);
+        let c =
+            model_contour(truth, cam, None).map_err(|source| SimError::Contour { view, source })?;
+        let pts = c
+            .points
+            .iter()
+            .map(|p| {
+                nalgebra::Point2::new(p.x + noise.sample(&mut rng), p.y + noise.sample(&mut rng))
+            })
+            .collect();
+        observed.push(vec![Curve {
+            points: pts,
+            closed: true,
+        }]);
     }
     let init = perturb(&placement, level, &mut rng);
-    Ok(SimCase { cameras, observed, truth_placement: placement, truth_sphere: sphere, init, seed })
+    Ok(SimCase {
+        cameras,
+        observed,
+        truth_placement: placement,
+        truth_sphere: sphere,
+        init,
+        seed,
+    })
 }

@@ -11,7 +11,10 @@ use spade::{DelaunayTriangulation, HasPosition, Triangulation};
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ContourError {
     #[error("vertex {vertex} cannot be projected: {source}")]
-    Projection { vertex: usize, source: ProjectionError },
+    Projection {
+        vertex: usize,
+        source: ProjectionError,
+    },
     #[error("too few distinct projected points ({count}) for a contour")]
     TooFewPoints { count: usize },
     #[error("the Delaunay triangulation failed: {0}")]
@@ -42,8 +45,11 @@ impl HasPosition for Site {
 
 /// Default alpha (circumradius bound, pixels): 1.2 times the 95th percentile of projected edge lengths.
 pub fn default_alpha(mesh: &Mesh, projected: &[Point2<f64>]) -> f64 {
-    let mut l: Vec<f64> =
-        mesh.edges().iter().map(|[a, b]| (projected[*a as usize] - projected[*b as usize]).norm()).collect();
+    let mut l: Vec<f64> = mesh
+        .edges()
+        .iter()
+        .map(|[a, b]| (projected[*a as usize] - projected[*b as usize]).norm())
+        .collect();
     if l.is_empty() {
         return 1.0;
     }
@@ -53,10 +59,17 @@ pub fn default_alpha(mesh: &Mesh, projected: &[Point2<f64>]) -> f64 {
 
 /// Project the mesh into the camera and take the alpha-shape outline (alpha from `default_alpha`
 /// unless given).
-pub fn model_contour(mesh: &Mesh, cam: &Camera, alpha: Option<f64>) -> Result<ModelContour, ContourError> {
+pub fn model_contour(
+    mesh: &Mesh,
+    cam: &Camera,
+    alpha: Option<f64>,
+) -> Result<ModelContour, ContourError> {
     let mut projected = Vec::with_capacity(mesh.vertex_count());
     for (vertex, v) in mesh.vertices.iter().enumerate() {
-        projected.push(cam.project(v).map_err(|source| ContourError::Projection { vertex, source })?);
+        projected.push(
+            cam.project(v)
+                .map_err(|source| ContourError::Projection { vertex, source })?,
+        );
     }
     let alpha = alpha.unwrap_or_else(|| default_alpha(mesh, &projected));
     alpha_shape_contour(&projected, alpha)
@@ -65,16 +78,25 @@ pub fn model_contour(mesh: &Mesh, cam: &Camera, alpha: Option<f64>) -> Result<Mo
 /// Alpha shape of `points`: Delaunay triangles with circumradius <= alpha are kept and their
 /// outline is traced. If the outline is not one simple loop (holes, pinches, islands), alpha is
 /// raised by half until it is; the convex hull (alpha -> infinity) always is.
-pub fn alpha_shape_contour(points: &[Point2<f64>], alpha: f64) -> Result<ModelContour, ContourError> {
+pub fn alpha_shape_contour(
+    points: &[Point2<f64>],
+    alpha: f64,
+) -> Result<ModelContour, ContourError> {
     let sites: Vec<Site> = points
         .iter()
         .enumerate()
         .filter(|(_, p)| p.x.is_finite() && p.y.is_finite())
-        .map(|(i, p)| Site { p: spade::Point2::new(p.x, p.y), id: i as u32 })
+        .map(|(i, p)| Site {
+            p: spade::Point2::new(p.x, p.y),
+            id: i as u32,
+        })
         .collect();
-    let tri = DelaunayTriangulation::<Site>::bulk_load(sites).map_err(|e| ContourError::Delaunay(format!("{e:?}")))?;
+    let tri = DelaunayTriangulation::<Site>::bulk_load(sites)
+        .map_err(|e| ContourError::Delaunay(format!("{e:?}")))?;
     if tri.num_inner_faces() == 0 {
-        return Err(ContourError::TooFewPoints { count: tri.num_vertices() });
+        return Err(ContourError::TooFewPoints {
+            count: tri.num_vertices(),
+        });
     }
     let mut alpha = alpha.max(1e-9);
     for _ in 0..60 {
@@ -85,7 +107,10 @@ pub fn alpha_shape_contour(points: &[Point2<f64>], alpha: f64) -> Result<ModelCo
                 pts.reverse();
                 ids.reverse();
             }
-            return Ok(ModelContour { vertex_ids: ids, points: pts });
+            return Ok(ModelContour {
+                vertex_ids: ids,
+                points: pts,
+            });
         }
         alpha *= 1.5;
     }
@@ -96,7 +121,11 @@ pub fn alpha_shape_contour(points: &[Point2<f64>], alpha: f64) -> Result<ModelCo
 fn circumradius(a: spade::Point2<f64>, b: spade::Point2<f64>, c: spade::Point2<f64>) -> f64 {
     let (ab, bc, ca) = (dist(a, b), dist(b, c), dist(c, a));
     let cross = ((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x)).abs();
-    if cross <= 0.0 { f64::INFINITY } else { ab * bc * ca / (2.0 * cross) }
+    if cross <= 0.0 {
+        f64::INFINITY
+    } else {
+        ab * bc * ca / (2.0 * cross)
+    }
 }
 
 fn dist(a: spade::Point2<f64>, b: spade::Point2<f64>) -> f64 {
@@ -143,7 +172,11 @@ fn trace_single_loop(tri: &DelaunayTriangulation<Site>, alpha: f64) -> Option<Ve
     let mut ids = Vec::with_capacity(count);
     let mut v = start;
     for _ in 0..count {
-        ids.push(tri.vertex(spade::handles::FixedVertexHandle::from_index(v)).data().id);
+        ids.push(
+            tri.vertex(spade::handles::FixedVertexHandle::from_index(v))
+                .data()
+                .id,
+        );
         v = next[v];
         if v == usize::MAX {
             return None;

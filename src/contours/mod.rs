@@ -4,5 +4,9 @@
 mod alpha_shape;
 mod polyline;
 
-pub use alpha_shape::{alpha_shape_contour, default_alpha, model_contour, ContourError, ModelContour};
-pub use polyline::{polyline_length, ClosedPolyline, resample_closed, resample_open, signed_area, Curve};
+pub use alpha_shape::{
+    alpha_shape_contour, default_alpha, model_contour, ContourError, ModelContour,
+};
+pub use polyline::{
+    polyline_length, resample_closed, resample_open, signed_area, ClosedPolyline, Curve,
+};

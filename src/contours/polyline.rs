@@ -21,7 +21,10 @@ pub fn polyline_length(p: &[Point2<f64>], closed: bool) -> f64 {
 /// Shoelace signed area (positive when the points run counter-clockwise in x-right, y-up axes).
 pub fn signed_area(p: &[Point2<f64>]) -> f64 {
     let n = p.len();
-    (0..n).map(|i| p[i].x * p[(i + 1) % n].y - p[(i + 1) % n].x * p[i].y).sum::<f64>() * 0.5
+    (0..n)
+        .map(|i| p[i].x * p[(i + 1) % n].y - p[(i + 1) % n].x * p[i].y)
+        .sum::<f64>()
+        * 0.5
 }
 
 /// Cumulative arc length at each vertex, plus the total (closing segment included when closed).
@@ -35,12 +38,17 @@ fn cumulative(p: &[Point2<f64>], closed: bool) -> Vec<f64> {
 
 fn sample(p: &[Point2<f64>], s: &[f64], target: f64) -> (Point2<f64>, f64) {
     // Index of the segment holding `target`, and the fractional position along it.
-    let k = match s.binary_search_by(|x| x.partial_cmp(&target).unwrap_or(std::cmp::Ordering::Less)) {
+    let k = match s.binary_search_by(|x| x.partial_cmp(&target).unwrap_or(std::cmp::Ordering::Less))
+    {
         Ok(k) => k.min(s.len() - 2),
         Err(k) => k.saturating_sub(1).min(s.len() - 2),
     };
     let len = s[k + 1] - s[k];
-    let u = if len > 0.0 { ((target - s[k]) / len).clamp(0.0, 1.0) } else { 0.0 };
+    let u = if len > 0.0 {
+        ((target - s[k]) / len).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     let a = p[k % p.len()];
     let b = p[(k + 1) % p.len()];
     (a + (b - a) * u, k as f64 + u)
@@ -64,7 +72,11 @@ impl<'a> ClosedPolyline<'a> {
 
     /// The point at arc length `s` (taken modulo the total) and its fractional vertex index.
     pub fn at(&self, s: f64) -> (Point2<f64>, f64) {
-        let s = if self.total > 0.0 { s.rem_euclid(self.total) } else { 0.0 };
+        let s = if self.total > 0.0 {
+            s.rem_euclid(self.total)
+        } else {
+            0.0
+        };
         sample(self.points, &self.cum, s)
     }
 }
@@ -74,14 +86,18 @@ impl<'a> ClosedPolyline<'a> {
 pub fn resample_closed(p: &[Point2<f64>], t: usize) -> (Vec<Point2<f64>>, Vec<f64>) {
     let s = cumulative(p, true);
     let total = s[s.len() - 1];
-    (0..t).map(|i| sample(p, &s, total * i as f64 / t as f64)).unzip()
+    (0..t)
+        .map(|i| sample(p, &s, total * i as f64 / t as f64))
+        .unzip()
 }
 
 /// Resample an open polyline to `t` points evenly spaced in arc length, both ends included.
 pub fn resample_open(p: &[Point2<f64>], t: usize) -> (Vec<Point2<f64>>, Vec<f64>) {
     let s = cumulative(p, false);
     let total = s[s.len() - 1];
-    (0..t).map(|i| sample(p, &s, total * i as f64 / (t - 1).max(1) as f64)).unzip()
+    (0..t)
+        .map(|i| sample(p, &s, total * i as f64 / (t - 1).max(1) as f64))
+        .unzip()
 }
 
 #[cfg(test)]
@@ -90,7 +106,12 @@ mod tests {
 
     #[test]
     fn square_resampling_and_area() {
-        let sq = [Point2::new(0.0, 0.0), Point2::new(1.0, 0.0), Point2::new(1.0, 1.0), Point2::new(0.0, 1.0)];
+        let sq = [
+            Point2::new(0.0, 0.0),
+            Point2::new(1.0, 0.0),
+            Point2::new(1.0, 1.0),
+            Point2::new(0.0, 1.0),
+        ];
         assert_eq!(signed_area(&sq), 1.0);
         assert_eq!(polyline_length(&sq, true), 4.0);
         let (r, idx) = resample_closed(&sq, 8);

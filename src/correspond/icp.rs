@@ -5,7 +5,11 @@ use nalgebra::{Point2, Vector2};
 
 /// Closest point on the closed model contour polyline for each sample; returns the point and the
 /// nearer end vertex of the segment it lies on.
-pub fn icp_matches(samples: &[Point2<f64>], _closed: bool, model: &[Point2<f64>]) -> Vec<Option<(Point2<f64>, usize)>> {
+pub fn icp_matches(
+    samples: &[Point2<f64>],
+    _closed: bool,
+    model: &[Point2<f64>],
+) -> Vec<Option<(Point2<f64>, usize)>> {
     let n = model.len();
     samples
         .iter()
@@ -14,7 +18,11 @@ pub fn icp_matches(samples: &[Point2<f64>], _closed: bool, model: &[Point2<f64>]
             for i in 0..n {
                 let (a, b) = (model[i], model[(i + 1) % n]);
                 let ab = b - a;
-                let u = if ab.norm_squared() > 0.0 { ((s - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0) } else { 0.0 };
+                let u = if ab.norm_squared() > 0.0 {
+                    ((s - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
                 let p = a + ab * u;
                 let d = (s - p).norm_squared();
                 if best.map_or(true, |b| d < b.0) {
@@ -37,7 +45,9 @@ fn normals(p: &[Point2<f64>], closed: bool) -> Vec<Vector2<f64>> {
                 (p[i.saturating_sub(1)], p[(i + 1).min(n - 1)])
             };
             let t = next - prev;
-            Vector2::new(t.y, -t.x).try_normalize(1e-12).unwrap_or_else(Vector2::zeros)
+            Vector2::new(t.y, -t.x)
+                .try_normalize(1e-12)
+                .unwrap_or_else(Vector2::zeros)
         })
         .collect()
 }
@@ -61,7 +71,11 @@ pub fn icp_normvec_matches(
             for (k, (m, n_m)) in model.iter().zip(&nm).enumerate() {
                 // Open annotations have no known side: compare normals up to sign.
                 let c = n_s.dot(n_m);
-                let ok = if closed { c >= cos_max } else { c.abs() >= cos_max };
+                let ok = if closed {
+                    c >= cos_max
+                } else {
+                    c.abs() >= cos_max
+                };
                 if !ok {
                     continue;
                 }
@@ -80,7 +94,12 @@ mod tests {
     use super::*;
 
     fn square() -> Vec<Point2<f64>> {
-        vec![Point2::new(0.0, 0.0), Point2::new(10.0, 0.0), Point2::new(10.0, 10.0), Point2::new(0.0, 10.0)]
+        vec![
+            Point2::new(0.0, 0.0),
+            Point2::new(10.0, 0.0),
+            Point2::new(10.0, 10.0),
+            Point2::new(0.0, 10.0),
+        ]
     }
 
     #[test]
@@ -90,11 +109,20 @@ mod tests {
         assert_eq!(r[0].unwrap().0, Point2::new(3.0, 0.0));
         // A sample near the bottom edge but whose own normal points along +x is matched to the
         // right edge by the normal test.
-        let samples = vec![Point2::new(9.0, -1.0), Point2::new(9.0, 0.0), Point2::new(9.0, 1.0)];
+        let samples = vec![
+            Point2::new(9.0, -1.0),
+            Point2::new(9.0, 0.0),
+            Point2::new(9.0, 1.0),
+        ];
         let dense: Vec<Point2<f64>> = (0..40)
             .map(|i| {
                 let (side, u) = (i / 10, (i % 10) as f64);
-                [Point2::new(u, 0.0), Point2::new(10.0, u), Point2::new(10.0 - u, 10.0), Point2::new(0.0, 10.0 - u)][side]
+                [
+                    Point2::new(u, 0.0),
+                    Point2::new(10.0, u),
+                    Point2::new(10.0 - u, 10.0),
+                    Point2::new(0.0, 10.0 - u),
+                ][side]
             })
             .collect();
         let r = icp_normvec_matches(&samples, false, &dense, 30.0);

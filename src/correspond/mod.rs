@@ -13,7 +13,19 @@ use crate::solve::Observation;
 use srvf::{CurveKind, SrvfError, SrvfParams};
 
 /// How correspondences are found.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Hash,
+    PartialOrd,
+    Ord,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
     /// SRVF elastic registration of the whole contours (the method).
@@ -46,7 +58,11 @@ pub struct CorrespondParams {
 
 impl Default for CorrespondParams {
     fn default() -> Self {
-        CorrespondParams { srvf: SrvfParams::default(), outlier_k: 3.0, normal_angle_deg: 30.0 }
+        CorrespondParams {
+            srvf: SrvfParams::default(),
+            outlier_k: 3.0,
+            normal_angle_deg: 30.0,
+        }
     }
 }
 
@@ -59,22 +75,42 @@ pub fn correspond(
     prm: &CorrespondParams,
 ) -> Result<Vec<Observation>, SrvfError> {
     let obs_pts = observed.points.as_slice();
-    let (targets, model_pos): (Vec<nalgebra::Point2<f64>>, Vec<Option<(nalgebra::Point2<f64>, usize)>>) = match method {
+    let (targets, model_pos): (
+        Vec<nalgebra::Point2<f64>>,
+        Vec<Option<(nalgebra::Point2<f64>, usize)>>,
+    ) = match method {
         Method::Srvf => {
-            let kind = if observed.closed { CurveKind::Closed } else { CurveKind::Partial };
+            let kind = if observed.closed {
+                CurveKind::Closed
+            } else {
+                CurveKind::Partial
+            };
             let al = srvf::align(obs_pts, &model.points, kind, &prm.srvf)?;
             let n = model.points.len();
-            let pos = al.b_points.iter().zip(&al.b_index).map(|(p, idx)| Some((*p, idx.round() as usize % n))).collect();
+            let pos = al
+                .b_points
+                .iter()
+                .zip(&al.b_index)
+                .map(|(p, idx)| Some((*p, idx.round() as usize % n)))
+                .collect();
             (al.a_points, pos)
         }
         Method::Icp | Method::IcpNormvec => {
             let t = prm.srvf.samples.max(8);
-            let samples =
-                if observed.closed { resample_closed(obs_pts, t).0 } else { resample_open(obs_pts, t).0 };
+            let samples = if observed.closed {
+                resample_closed(obs_pts, t).0
+            } else {
+                resample_open(obs_pts, t).0
+            };
             let pos = if method == Method::Icp {
                 icp_matches(&samples, observed.closed, &model.points)
             } else {
-                icp_normvec_matches(&samples, observed.closed, &model.points, prm.normal_angle_deg)
+                icp_normvec_matches(
+                    &samples,
+                    observed.closed,
+                    &model.points,
+                    prm.normal_angle_deg,
+                )
             };
             (samples, pos)
         }
@@ -84,12 +120,18 @@ pub fn correspond(
         .zip(&model_pos)
         .filter_map(|(t, m)| m.map(|(p, k)| (*t, p, k)))
         .collect();
-    let residuals = similarity_residuals(&pairs.iter().map(|(t, p, _)| (*p, *t)).collect::<Vec<_>>());
+    let residuals =
+        similarity_residuals(&pairs.iter().map(|(t, p, _)| (*p, *t)).collect::<Vec<_>>());
     let keep = mad_inliers(&residuals, prm.outlier_k);
     Ok(pairs
         .iter()
         .zip(keep)
         .filter(|(_, k)| *k)
-        .map(|((t, _, k), _)| Observation { view, vertex: model.vertex_ids[*k], target: *t, weight: 1.0 })
+        .map(|((t, _, k), _)| Observation {
+            view,
+            vertex: model.vertex_ids[*k],
+            target: *t,
+            weight: 1.0,
+        })
         .collect())
 }

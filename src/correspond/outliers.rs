@@ -21,7 +21,11 @@ pub fn similarity_residuals(pairs: &[(Point2<f64>, Point2<f64>)]) -> Vec<f64> {
     // 2D similarity: y ~ s R x; with complex numbers the optimum is closed form.
     let c = cov[(0, 0)] + cov[(1, 1)];
     let s_ = cov[(1, 0)] - cov[(0, 1)];
-    let (a, b) = if var > 0.0 { (c / var, s_ / var) } else { (1.0, 0.0) };
+    let (a, b) = if var > 0.0 {
+        (c / var, s_ / var)
+    } else {
+        (1.0, 0.0)
+    };
     pairs
         .iter()
         .map(|(x, y)| {
@@ -49,7 +53,11 @@ pub fn mad_inliers(residuals: &[f64], k: f64) -> Vec<bool> {
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
-    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
 }
 
 #[cfg(test)]
@@ -58,10 +66,20 @@ mod tests {
 
     #[test]
     fn similarity_residuals_vanish_for_an_exact_similarity_and_flag_an_outlier() {
-        let xs: Vec<Point2<f64>> = (0..30).map(|i| Point2::new(i as f64, ((i * i) % 7) as f64)).collect();
+        let xs: Vec<Point2<f64>> = (0..30)
+            .map(|i| Point2::new(i as f64, ((i * i) % 7) as f64))
+            .collect();
         let mut pairs: Vec<(Point2<f64>, Point2<f64>)> = xs
             .iter()
-            .map(|p| (*p, Point2::new(2.0 * (0.6 * p.x - 0.8 * p.y) + 3.0, 2.0 * (0.8 * p.x + 0.6 * p.y) - 1.0)))
+            .map(|p| {
+                (
+                    *p,
+                    Point2::new(
+                        2.0 * (0.6 * p.x - 0.8 * p.y) + 3.0,
+                        2.0 * (0.8 * p.x + 0.6 * p.y) - 1.0,
+                    ),
+                )
+            })
             .collect();
         assert!(similarity_residuals(&pairs).iter().all(|r| *r < 1e-9));
         // Small noise everywhere, one gross outlier.

@@ -10,9 +10,16 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum MeshIoError {
     #[error("{path}: cannot read: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{path}: not a valid {format} file: {reason}")]
-    Parse { path: PathBuf, format: &'static str, reason: String },
+    Parse {
+        path: PathBuf,
+        format: &'static str,
+        reason: String,
+    },
     #[error("{path}: unsupported mesh extension {ext:?} (use .stl, .ply or .obj)")]
     Extension { path: PathBuf, ext: String },
     #[error("{path}: {source}")]
@@ -23,12 +30,17 @@ pub enum MeshIoError {
 pub type Rgb = [u8; 3];
 
 fn ext_of(path: &Path) -> String {
-    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
+    path.extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default()
 }
 
 /// Read an STL, PLY or OBJ file (by extension). STL corners are welded at 1e-6 mm.
 pub fn read_mesh(path: &Path) -> Result<Mesh, MeshIoError> {
-    let io = |source| MeshIoError::Io { path: path.to_path_buf(), source };
+    let io = |source| MeshIoError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
     let (vertices, triangles) = match ext_of(path).as_str() {
         "stl" => {
             let mut f = std::fs::File::open(path).map_err(io)?;
@@ -37,36 +49,83 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, MeshIoError> {
                 format: "STL",
                 reason: e.to_string(),
             })?;
-            let v = m.vertices.iter().map(|v| Point3::new(v[0] as f64, v[1] as f64, v[2] as f64)).collect();
-            let t = m.faces.iter().map(|f| f.vertices.map(|i| i as u32)).collect();
+            let v = m
+                .vertices
+                .iter()
+                .map(|v| Point3::new(v[0] as f64, v[1] as f64, v[2] as f64))
+                .collect();
+            let t = m
+                .faces
+                .iter()
+                .map(|f| f.vertices.map(|i| i as u32))
+                .collect();
             (v, t)
         }
         "ply" => read_ply(path)?,
         "obj" => {
-            let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
+            let opts = tobj::LoadOptions {
+                triangulate: true,
+                single_index: true,
+                ..Default::default()
+            };
             let (models, _) = tobj::load_obj(path, &opts).map_err(|e| match e {
-                tobj::LoadError::OpenFileFailed => io(std::io::Error::new(std::io::ErrorKind::NotFound, "open failed")),
-                e => MeshIoError::Parse { path: path.to_path_buf(), format: "OBJ", reason: e.to_string() },
+                tobj::LoadError::OpenFileFailed => io(std::io::Error::new(
+                    std::io::ErrorKind::NotFound,
+                    "open failed",
+                )),
+                e => MeshIoError::Parse {
+                    path: path.to_path_buf(),
+                    format: "OBJ",
+                    reason: e.to_string(),
+                },
             })?;
             let mut v = Vec::new();
             let mut t = Vec::new();
             for m in models {
                 let base = v.len() as u32;
-                v.extend(m.mesh.positions.chunks_exact(3).map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)));
-                t.extend(m.mesh.indices.chunks_exact(3).map(|c| [c[0] + base, c[1] + base, c[2] + base]));
+                v.extend(
+                    m.mesh
+                        .positions
+                        .chunks_exact(3)
+                        .map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)),
+                );
+                t.extend(
+                    m.mesh
+                        .indices
+                        .chunks_exact(3)
+                        .map(|c| [c[0] + base, c[1] + base, c[2] + base]),
+                );
             }
             (v, t)
         }
-        ext => return Err(MeshIoError::Extension { path: path.to_path_buf(), ext: ext.to_string() }),
+        ext => {
+            return Err(MeshIoError::Extension {
+                path: path.to_path_buf(),
+                ext: ext.to_string(),
+            })
+        }
     };
-    let mesh = Mesh::new(vertices, triangles).map_err(|source| MeshIoError::Mesh { path: path.to_path_buf(), source })?;
-    mesh.welded(1e-6).map_err(|source| MeshIoError::Mesh { path: path.to_path_buf(), source })
+    let mesh = Mesh::new(vertices, triangles).map_err(|source| MeshIoError::Mesh {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    mesh.welded(1e-6).map_err(|source| MeshIoError::Mesh {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 fn read_ply(path: &Path) -> Result<(Vec<Point3<f64>>, Vec<[u32; 3]>), MeshIoError> {
     use ply_rs::ply::Property;
-    let parse = |reason: String| MeshIoError::Parse { path: path.to_path_buf(), format: "PLY", reason };
-    let f = std::fs::File::open(path).map_err(|source| MeshIoError::Io { path: path.to_path_buf(), source })?;
+    let parse = |reason: String| MeshIoError::Parse {
+        path: path.to_path_buf(),
+        format: "PLY",
+        reason,
+    };
+    let f = std::fs::File::open(path).map_err(|source| MeshIoError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let mut r = std::io::BufReader::new(f);
     let parser = ply_rs::parser::Parser::<ply_rs::ply::DefaultElement>::new();
     let ply = parser.read_ply(&mut r).map_err(|e| parse(e.to_string()))?;
@@ -76,15 +135,27 @@ fn read_ply(path: &Path) -> Result<(Vec<Point3<f64>>, Vec<[u32; 3]>), MeshIoErro
             Some(Property::Double(v)) => Ok(*v),
             Some(Property::Int(v)) => Ok(*v as f64),
             Some(Property::Short(v)) => Ok(*v as f64),
-            _ => Err(parse(format!("vertex {i} has no numeric property {name:?}"))),
+            _ => Err(parse(format!(
+                "vertex {i} has no numeric property {name:?}"
+            ))),
         }
     };
-    let verts = ply.payload.get("vertex").ok_or_else(|| parse("no vertex element".into()))?;
+    let verts = ply
+        .payload
+        .get("vertex")
+        .ok_or_else(|| parse("no vertex element".into()))?;
     let mut v = Vec::with_capacity(verts.len());
     for (i, e) in verts.iter().enumerate() {
-        v.push(Point3::new(scalar(e.get("x"), "x", i)?, scalar(e.get("y"), "y", i)?, scalar(e.get("z"), "z", i)?));
+        v.push(Point3::new(
+            scalar(e.get("x"), "x", i)?,
+            scalar(e.get("y"), "y", i)?,
+            scalar(e.get("z"), "z", i)?,
+        ));
     }
-    let faces = ply.payload.get("face").ok_or_else(|| parse("no face element".into()))?;
+    let faces = ply
+        .payload
+        .get("face")
+        .ok_or_else(|| parse("no face element".into()))?;
     let mut t = Vec::with_capacity(faces.len());
     for (i, e) in faces.iter().enumerate() {
         let idx: Vec<i64> = match e.get("vertex_indices").or_else(|| e.get("vertex_index")) {
@@ -96,7 +167,9 @@ fn read_ply(path: &Path) -> Result<(Vec<Point3<f64>>, Vec<[u32; 3]>), MeshIoErro
             _ => return Err(parse(format!("face {i} has no vertex_indices list"))),
         };
         if idx.len() < 3 || idx.iter().any(|&x| x < 0 || x > u32::MAX as i64) {
-            return Err(parse(format!("face {i} has invalid vertex_indices {idx:?}")));
+            return Err(parse(format!(
+                "face {i} has invalid vertex_indices {idx:?}"
+            )));
         }
         for k in 1..idx.len() - 1 {
             t.push([idx[0] as u32, idx[k] as u32, idx[k + 1] as u32]);
@@ -106,7 +179,10 @@ fn read_ply(path: &Path) -> Result<(Vec<Point3<f64>>, Vec<[u32; 3]>), MeshIoErro
 }
 
 fn write_err(path: &Path) -> impl Fn(std::io::Error) -> MeshIoError + '_ {
-    move |source| MeshIoError::Io { path: path.to_path_buf(), source }
+    move |source| MeshIoError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
 }
 
 /// Write a binary STL.
@@ -116,9 +192,15 @@ pub fn write_stl_binary(mesh: &Mesh, path: &Path) -> Result<(), MeshIoError> {
         .iter()
         .map(|t| {
             let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
-            let n = (b - a).cross(&(c - a)).try_normalize(0.0).unwrap_or_default();
+            let n = (b - a)
+                .cross(&(c - a))
+                .try_normalize(0.0)
+                .unwrap_or_default();
             let v = |p: Point3<f64>| stl_io::Vertex::new([p.x as f32, p.y as f32, p.z as f32]);
-            stl_io::Triangle { normal: stl_io::Normal::new([n.x as f32, n.y as f32, n.z as f32]), vertices: [v(a), v(b), v(c)] }
+            stl_io::Triangle {
+                normal: stl_io::Normal::new([n.x as f32, n.y as f32, n.z as f32]),
+                vertices: [v(a), v(b), v(c)],
+            }
         })
         .collect();
     let mut buf = Vec::new();
@@ -132,8 +214,15 @@ pub fn write_stl_ascii(mesh: &Mesh, path: &Path) -> Result<(), MeshIoError> {
     let mut s = String::from("solid acetab\n");
     for t in &mesh.triangles {
         let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
-        let n = (b - a).cross(&(c - a)).try_normalize(0.0).unwrap_or_default();
-        let _ = writeln!(s, "  facet normal {:e} {:e} {:e}\n    outer loop", n.x, n.y, n.z);
+        let n = (b - a)
+            .cross(&(c - a))
+            .try_normalize(0.0)
+            .unwrap_or_default();
+        let _ = writeln!(
+            s,
+            "  facet normal {:e} {:e} {:e}\n    outer loop",
+            n.x, n.y, n.z
+        );
         for p in [a, b, c] {
             let _ = writeln!(s, "      vertex {:e} {:e} {:e}", p.x, p.y, p.z);
         }
@@ -146,17 +235,24 @@ pub fn write_stl_ascii(mesh: &Mesh, path: &Path) -> Result<(), MeshIoError> {
 /// Write an ASCII PLY with optional per-vertex colour (red, green, blue as uchar).
 pub fn write_ply(mesh: &Mesh, colors: Option<&[Rgb]>, path: &Path) -> Result<(), MeshIoError> {
     use ply_rs::ply::{
-        Addable, DefaultElement, ElementDef, Encoding, Ply, Property, PropertyDef, PropertyType, ScalarType,
+        Addable, DefaultElement, ElementDef, Encoding, Ply, Property, PropertyDef, PropertyType,
+        ScalarType,
     };
     let mut ply = Ply::<DefaultElement>::new();
     ply.header.encoding = Encoding::Ascii;
     let mut vdef = ElementDef::new("vertex".to_string());
     for name in ["x", "y", "z"] {
-        vdef.properties.add(PropertyDef::new(name.to_string(), PropertyType::Scalar(ScalarType::Double)));
+        vdef.properties.add(PropertyDef::new(
+            name.to_string(),
+            PropertyType::Scalar(ScalarType::Double),
+        ));
     }
     if colors.is_some() {
         for name in ["red", "green", "blue"] {
-            vdef.properties.add(PropertyDef::new(name.to_string(), PropertyType::Scalar(ScalarType::UChar)));
+            vdef.properties.add(PropertyDef::new(
+                name.to_string(),
+                PropertyType::Scalar(ScalarType::UChar),
+            ));
         }
     }
     ply.header.elements.add(vdef);
@@ -192,14 +288,19 @@ pub fn write_ply(mesh: &Mesh, colors: Option<&[Rgb]>, path: &Path) -> Result<(),
         .iter()
         .map(|t| {
             let mut e = DefaultElement::new();
-            e.insert("vertex_indices".into(), Property::ListInt(t.iter().map(|&i| i as i32).collect()));
+            e.insert(
+                "vertex_indices".into(),
+                Property::ListInt(t.iter().map(|&i| i as i32).collect()),
+            );
             e
         })
         .collect();
     ply.payload.insert("vertex".into(), verts);
     ply.payload.insert("face".into(), faces);
     let mut buf = Vec::new();
-    ply_rs::writer::Writer::new().write_ply(&mut buf, &mut ply).map_err(write_err(path))?;
+    ply_rs::writer::Writer::new()
+        .write_ply(&mut buf, &mut ply)
+        .map_err(write_err(path))?;
     write_atomic(path, &buf).map_err(write_err(path))
 }
 
@@ -222,7 +323,10 @@ pub fn write_mesh(mesh: &Mesh, path: &Path) -> Result<(), MeshIoError> {
         "stl" => write_stl_binary(mesh, path),
         "ply" => write_ply(mesh, None, path),
         "obj" => write_obj(mesh, path),
-        ext => Err(MeshIoError::Extension { path: path.to_path_buf(), ext: ext.to_string() }),
+        ext => Err(MeshIoError::Extension {
+            path: path.to_path_buf(),
+            ext: ext.to_string(),
+        }),
     }
 }
 
@@ -268,7 +372,11 @@ mod tests {
     fn bad_files_name_the_path() {
         let d = tmpdir("bad");
         let p = d.join("broken.ply");
-        std::fs::write(&p, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1\n").unwrap();
+        std::fs::write(
+            &p,
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1\n",
+        )
+        .unwrap();
         let e = read_mesh(&p).unwrap_err().to_string();
         assert!(e.contains("broken.ply"), "{e}");
         let e = read_mesh(&d.join("nothing.stl")).unwrap_err().to_string();

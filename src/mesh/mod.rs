@@ -19,8 +19,14 @@ pub struct Mesh {
 pub enum MeshError {
     #[error("mesh has no triangles")]
     Empty,
-    #[error("triangle {triangle} refers to vertex {index}, but the mesh has {vertex_count} vertices")]
-    IndexOutOfRange { triangle: usize, index: u32, vertex_count: usize },
+    #[error(
+        "triangle {triangle} refers to vertex {index}, but the mesh has {vertex_count} vertices"
+    )]
+    IndexOutOfRange {
+        triangle: usize,
+        index: u32,
+        vertex_count: usize,
+    },
     #[error("vertex {index} has a non-finite coordinate ({value})")]
     NonFinite { index: usize, value: f64 },
     #[error("mesh is degenerate: total area {area} mm^2")]
@@ -40,10 +46,18 @@ impl Mesh {
         }
         for (t, tri) in triangles.iter().enumerate() {
             if let Some(&index) = tri.iter().find(|&&i| i as usize >= vertices.len()) {
-                return Err(MeshError::IndexOutOfRange { triangle: t, index, vertex_count: vertices.len() });
+                return Err(MeshError::IndexOutOfRange {
+                    triangle: t,
+                    index,
+                    vertex_count: vertices.len(),
+                });
             }
         }
-        let mut mesh = Mesh { vertices, triangles, normals: Vec::new() };
+        let mut mesh = Mesh {
+            vertices,
+            triangles,
+            normals: Vec::new(),
+        };
         let area = mesh.area();
         if !(area > 1e-9) {
             return Err(MeshError::Degenerate { area });
@@ -86,8 +100,8 @@ impl Mesh {
             .sum()
     }
 
-    /// Unique undirected edges (i < j).
-    pub fn edges(&self) -> Vec<[u32; 2]> {
+    /// Every triangle side as an undirected edge (i < j), sorted, with repeats.
+    fn sorted_sides(&self) -> Vec<[u32; 2]> {
         let mut e: Vec<[u32; 2]> = self
             .triangles
             .iter()
@@ -95,6 +109,12 @@ impl Mesh {
             .map(|[a, b]| if a < b { [a, b] } else { [b, a] })
             .collect();
         e.sort_unstable();
+        e
+    }
+
+    /// Unique undirected edges (i < j).
+    pub fn edges(&self) -> Vec<[u32; 2]> {
+        let mut e = self.sorted_sides();
         e.dedup();
         e
     }
@@ -105,19 +125,15 @@ impl Mesh {
         if e.is_empty() {
             return 0.0;
         }
-        e.iter().map(|[a, b]| (self.vertices[*a as usize] - self.vertices[*b as usize]).norm()).sum::<f64>()
+        e.iter()
+            .map(|[a, b]| (self.vertices[*a as usize] - self.vertices[*b as usize]).norm())
+            .sum::<f64>()
             / e.len() as f64
     }
 
     /// Edges used by exactly one triangle (the open border of a surface).
     pub fn boundary_edges(&self) -> Vec<[u32; 2]> {
-        let mut e: Vec<[u32; 2]> = self
-            .triangles
-            .iter()
-            .flat_map(|t| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
-            .map(|[a, b]| if a < b { [a, b] } else { [b, a] })
-            .collect();
-        e.sort_unstable();
+        let e = self.sorted_sides();
         let mut out = Vec::new();
         let mut i = 0;
         while i < e.len() {
@@ -156,7 +172,11 @@ impl Mesh {
     pub fn welded(&self, tol: f64) -> Result<Mesh, MeshError> {
         use std::collections::HashMap;
         let key = |p: &Point3<f64>| {
-            ((p.x / tol).round() as i64, (p.y / tol).round() as i64, (p.z / tol).round() as i64)
+            (
+                (p.x / tol).round() as i64,
+                (p.y / tol).round() as i64,
+                (p.z / tol).round() as i64,
+            )
         };
         let mut map: HashMap<(i64, i64, i64), u32> = HashMap::new();
         let mut remap = Vec::with_capacity(self.vertices.len());
@@ -190,14 +210,26 @@ impl Mesh {
 
     /// Apply `p -> s R p + t` to every vertex and rotate the normals.
     pub fn transformed(&self, s: f64, r: &nalgebra::Rotation3<f64>, t: &Vector3<f64>) -> Mesh {
-        let vertices = self.vertices.iter().map(|p| Point3::from(s * (r * p.coords) + t)).collect();
+        let vertices = self
+            .vertices
+            .iter()
+            .map(|p| Point3::from(s * (r * p.coords) + t))
+            .collect();
         let normals = self.normals.iter().map(|n| r * n).collect();
-        Mesh { vertices, triangles: self.triangles.clone(), normals }
+        Mesh {
+            vertices,
+            triangles: self.triangles.clone(),
+            normals,
+        }
     }
 
     /// Same topology, new vertex positions; normals recomputed.
     pub fn with_vertices(&self, vertices: Vec<Point3<f64>>) -> Mesh {
-        let mut m = Mesh { vertices, triangles: self.triangles.clone(), normals: Vec::new() };
+        let mut m = Mesh {
+            vertices,
+            triangles: self.triangles.clone(),
+            normals: Vec::new(),
+        };
         m.recompute_normals();
         m
     }
@@ -230,10 +262,23 @@ mod tests {
     fn bad_meshes_are_rejected_with_the_reason() {
         let v = vec![Point3::origin(); 3];
         assert_eq!(Mesh::new(v.clone(), vec![]), Err(MeshError::Empty));
-        assert!(matches!(Mesh::new(v.clone(), vec![[0, 1, 7]]), Err(MeshError::IndexOutOfRange { index: 7, .. })));
-        assert!(matches!(Mesh::new(v, vec![[0, 1, 2]]), Err(MeshError::Degenerate { .. })));
-        let v = vec![Point3::new(f64::NAN, 0.0, 0.0), Point3::origin(), Point3::origin()];
-        assert!(matches!(Mesh::new(v, vec![[0, 1, 2]]), Err(MeshError::NonFinite { index: 0, .. })));
+        assert!(matches!(
+            Mesh::new(v.clone(), vec![[0, 1, 7]]),
+            Err(MeshError::IndexOutOfRange { index: 7, .. })
+        ));
+        assert!(matches!(
+            Mesh::new(v, vec![[0, 1, 2]]),
+            Err(MeshError::Degenerate { .. })
+        ));
+        let v = vec![
+            Point3::new(f64::NAN, 0.0, 0.0),
+            Point3::origin(),
+            Point3::origin(),
+        ];
+        assert!(matches!(
+            Mesh::new(v, vec![[0, 1, 2]]),
+            Err(MeshError::NonFinite { index: 0, .. })
+        ));
     }
 
     #[test]

@@ -8,7 +8,9 @@ pub struct CupCatalogue {
 
 impl Default for CupCatalogue {
     fn default() -> Self {
-        CupCatalogue { sizes_mm: (0..=15).map(|k| 40.0 + 2.0 * k as f64).collect() }
+        CupCatalogue {
+            sizes_mm: (0..=15).map(|k| 40.0 + 2.0 * k as f64).collect(),
+        }
     }
 }
 
@@ -30,13 +32,25 @@ impl CupCatalogue {
                     let n = ((b - a) / st + 1e-9).floor() as usize;
                     (0..=n).map(|k| a + st * k as f64).collect()
                 }
-                _ => return Err(format!("catalogue {s:?}: expected min:max:step with step > 0 and max >= min")),
+                _ => {
+                    return Err(format!(
+                        "catalogue {s:?}: expected min:max:step with step > 0 and max >= min"
+                    ))
+                }
             }
         } else {
-            s.split(',').map(|x| x.trim().parse::<f64>().map_err(|_| format!("catalogue size {x:?} is not a number"))).collect::<Result<_, _>>()?
+            s.split(',')
+                .map(|x| {
+                    x.trim()
+                        .parse::<f64>()
+                        .map_err(|_| format!("catalogue size {x:?} is not a number"))
+                })
+                .collect::<Result<_, _>>()?
         };
         if sizes.is_empty() || sizes.iter().any(|v| !v.is_finite() || *v <= 0.0) {
-            return Err(format!("catalogue {s:?}: sizes must be positive finite numbers"));
+            return Err(format!(
+                "catalogue {s:?}: sizes must be positive finite numbers"
+            ));
         }
         let mut sizes = sizes;
         sizes.sort_by(f64::total_cmp);
@@ -51,7 +65,10 @@ impl CupCatalogue {
                 best = s;
             }
         }
-        CupSize { diameter_mm: diameter, catalogue_mm: best }
+        CupSize {
+            diameter_mm: diameter,
+            catalogue_mm: best,
+        }
     }
 }
 
@@ -66,8 +83,14 @@ mod tests {
         assert_eq!(c.nearest(52.9).catalogue_mm, 52.0);
         assert_eq!(c.nearest(53.0).catalogue_mm, 54.0);
         assert_eq!(c.nearest(10.0).catalogue_mm, 40.0);
-        assert_eq!(CupCatalogue::parse("44:50:3").unwrap().sizes_mm, vec![44.0, 47.0, 50.0]);
-        assert_eq!(CupCatalogue::parse("52, 48").unwrap().sizes_mm, vec![48.0, 52.0]);
+        assert_eq!(
+            CupCatalogue::parse("44:50:3").unwrap().sizes_mm,
+            vec![44.0, 47.0, 50.0]
+        );
+        assert_eq!(
+            CupCatalogue::parse("52, 48").unwrap().sizes_mm,
+            vec![48.0, 52.0]
+        );
         assert!(CupCatalogue::parse("40:30:2").is_err());
         assert!(CupCatalogue::parse("a,b").is_err());
         assert!(CupCatalogue::parse("-4").is_err());

@@ -29,7 +29,13 @@ impl DistanceStats {
         let mut s = d.to_vec();
         s.sort_by(f64::total_cmp);
         let p95 = s[((s.len() - 1) as f64 * 0.95).round() as usize];
-        DistanceStats { mean, sd, p95, max: s[s.len() - 1], count: d.len() }
+        DistanceStats {
+            mean,
+            sd,
+            p95,
+            max: s[s.len() - 1],
+            count: d.len(),
+        }
     }
 }
 
@@ -40,8 +46,14 @@ pub struct SurfaceQuery {
 
 impl SurfaceQuery {
     pub fn new(mesh: &Mesh) -> Option<SurfaceQuery> {
-        let v: Vec<PVec> = mesh.vertices.iter().map(|p| PVec::new(p.x, p.y, p.z)).collect();
-        TriMesh::new(v, mesh.triangles.clone()).ok().map(|shape| SurfaceQuery { shape })
+        let v: Vec<PVec> = mesh
+            .vertices
+            .iter()
+            .map(|p| PVec::new(p.x, p.y, p.z))
+            .collect();
+        TriMesh::new(v, mesh.triangles.clone())
+            .ok()
+            .map(|shape| SurfaceQuery { shape })
     }
 
     /// Distance from p to the closest point on the surface.
@@ -99,7 +111,11 @@ pub fn error_colors(errors: &[f64], max_mm: f64) -> Vec<[u8; 3]> {
         .iter()
         .map(|e| {
             let u = (e / max_mm.max(1e-9)).clamp(0.0, 1.0);
-            let (r, g, b) = if u < 0.5 { (0.0, 2.0 * u, 1.0 - 2.0 * u) } else { (2.0 * u - 1.0, 2.0 - 2.0 * u, 0.0) };
+            let (r, g, b) = if u < 0.5 {
+                (0.0, 2.0 * u, 1.0 - 2.0 * u)
+            } else {
+                (2.0 * u - 1.0, 2.0 - 2.0 * u, 0.0)
+            };
             [(r * 255.0) as u8, (g * 255.0) as u8, (b * 255.0) as u8]
         })
         .collect()

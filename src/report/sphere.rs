@@ -46,7 +46,16 @@ pub fn fit_sphere_robust(points: &[Point3<f64>]) -> Result<Sphere, SphereFitErro
         abs.sort_by(f64::total_cmp);
         let scale = (1.4826 * abs[abs.len() / 2]).max(1e-6);
         let cut = 4.685 * scale;
-        let w: Vec<f64> = res.iter().map(|r| if r.abs() < cut { (1.0 - (r / cut).powi(2)).powi(2) } else { 0.0 }).collect();
+        let w: Vec<f64> = res
+            .iter()
+            .map(|r| {
+                if r.abs() < cut {
+                    (1.0 - (r / cut).powi(2)).powi(2)
+                } else {
+                    0.0
+                }
+            })
+            .collect();
         if w.iter().filter(|x| **x > 0.0).count() < 4 {
             break;
         }
@@ -60,7 +69,10 @@ pub fn fit_sphere_robust(points: &[Point3<f64>]) -> Result<Sphere, SphereFitErro
     Ok(s)
 }
 
-fn fit_sphere_weighted(points: &[Point3<f64>], weights: Option<&[f64]>) -> Result<Sphere, SphereFitError> {
+fn fit_sphere_weighted(
+    points: &[Point3<f64>],
+    weights: Option<&[f64]>,
+) -> Result<Sphere, SphereFitError> {
     let wt = |i: usize| weights.map_or(1.0, |w| w[i]);
     if points.len() < 4 {
         return Err(SphereFitError::TooFewPoints(points.len()));
@@ -70,7 +82,12 @@ fn fit_sphere_weighted(points: &[Point3<f64>], weights: Option<&[f64]>) -> Resul
     if !(wsum > 0.0) {
         return Err(SphereFitError::Degenerate);
     }
-    let mean = points.iter().enumerate().map(|(i, p)| p.coords * wt(i)).sum::<Vector3<f64>>() / wsum;
+    let mean = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| p.coords * wt(i))
+        .sum::<Vector3<f64>>()
+        / wsum;
     let mut ata = Matrix4::<f64>::zeros();
     let mut atb = Vector4::<f64>::zeros();
     for (i, p) in points.iter().enumerate() {
@@ -79,7 +96,10 @@ fn fit_sphere_weighted(points: &[Point3<f64>], weights: Option<&[f64]>) -> Resul
         ata += row * row.transpose() * wt(i);
         atb += row * q.norm_squared() * wt(i);
     }
-    let sol = ata.cholesky().ok_or(SphereFitError::Degenerate)?.solve(&atb);
+    let sol = ata
+        .cholesky()
+        .ok_or(SphereFitError::Degenerate)?
+        .solve(&atb);
     let mut c = Vector3::new(sol[0], sol[1], sol[2]);
     let r2 = sol[3] + c.norm_squared();
     if !(r2 > 0.0) || !r2.is_finite() {
@@ -106,12 +126,21 @@ fn fit_sphere_weighted(points: &[Point3<f64>], weights: Option<&[f64]>) -> Resul
             break;
         }
     }
-    let rms = (points.iter().map(|p| ((p.coords - mean - c).norm() - r).powi(2)).sum::<f64>() / points.len() as f64).sqrt();
+    let rms = (points
+        .iter()
+        .map(|p| ((p.coords - mean - c).norm() - r).powi(2))
+        .sum::<f64>()
+        / points.len() as f64)
+        .sqrt();
     let center = c + mean;
     if !(r > 0.0 && r.is_finite() && center.iter().all(|v| v.is_finite())) {
         return Err(SphereFitError::Degenerate);
     }
-    Ok(Sphere { center: [center.x, center.y, center.z], radius: r.abs(), rms })
+    Ok(Sphere {
+        center: [center.x, center.y, center.z],
+        radius: r.abs(),
+        rms,
+    })
 }
 
 #[cfg(test)]
@@ -125,7 +154,9 @@ mod tests {
             .map(|i| {
                 let t = 0.6 * (i as f64 / 200.0); // a cap of 0.6 rad only
                 let p = i as f64 * 2.399;
-                Point3::from(c + 27.5 * Vector3::new(t.sin() * p.cos(), t.sin() * p.sin(), -t.cos()))
+                Point3::from(
+                    c + 27.5 * Vector3::new(t.sin() * p.cos(), t.sin() * p.sin(), -t.cos()),
+                )
             })
             .collect();
         let s = fit_sphere(&pts).unwrap();
@@ -140,7 +171,11 @@ mod tests {
             .map(|i| {
                 let t = 1.5 * ((i as f64 + 0.5) / 2000.0).sqrt();
                 let p = i as f64 * 2.399;
-                Point3::new(25.0 * t.sin() * p.cos(), 25.0 * t.sin() * p.sin(), -25.0 * t.cos())
+                Point3::new(
+                    25.0 * t.sin() * p.cos(),
+                    25.0 * t.sin() * p.sin(),
+                    -25.0 * t.cos(),
+                )
             })
             .collect();
         for p in pts.iter_mut().filter(|p| p.x > 19.0) {
@@ -148,14 +183,23 @@ mod tests {
         }
         let plain = fit_sphere(&pts).unwrap();
         let robust = fit_sphere_robust(&pts).unwrap();
-        assert!((robust.radius - 25.0).abs() < 0.05, "robust {}", robust.radius);
+        assert!(
+            (robust.radius - 25.0).abs() < 0.05,
+            "robust {}",
+            robust.radius
+        );
         assert!((plain.radius - 25.0).abs() > 0.3, "plain {}", plain.radius);
     }
 
     #[test]
     fn degenerate_inputs_are_errors() {
-        assert_eq!(fit_sphere(&[Point3::origin(); 3]), Err(SphereFitError::TooFewPoints(3)));
-        let plane: Vec<Point3<f64>> = (0..20).map(|i| Point3::new(i as f64, (i * i % 7) as f64, 0.0)).collect();
+        assert_eq!(
+            fit_sphere(&[Point3::origin(); 3]),
+            Err(SphereFitError::TooFewPoints(3))
+        );
+        let plane: Vec<Point3<f64>> = (0..20)
+            .map(|i| Point3::new(i as f64, (i * i % 7) as f64, 0.0))
+            .collect();
         assert!(fit_sphere(&plane).is_err() || fit_sphere(&plane).unwrap().radius > 1e3);
     }
 }

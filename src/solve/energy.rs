@@ -26,7 +26,11 @@ pub struct EdWeights {
 
 impl Default for EdWeights {
     fn default() -> Self {
-        EdWeights { rot: 1.0, reg: 100.0, obs: 100.0 }
+        EdWeights {
+            rot: 1.0,
+            reg: 100.0,
+            obs: 100.0,
+        }
     }
 }
 
@@ -51,11 +55,32 @@ pub struct EdProblem<'a> {
 }
 
 impl<'a> EdProblem<'a> {
-    pub fn new(graph: &'a DeformationGraph, cameras: &'a [Camera], observations: &'a [Observation], weights: EdWeights) -> Self {
+    pub fn new(
+        graph: &'a DeformationGraph,
+        cameras: &'a [Camera],
+        observations: &'a [Observation],
+        weights: EdWeights,
+    ) -> Self {
         let n = graph.rest.len().max(1) as f64;
-        let centroid = Point3::from(graph.rest.iter().map(|p| p.coords).sum::<nalgebra::Vector3<f64>>() / n);
-        let px_per_mm = cameras.iter().map(|c| c.pixels_per_mm_at(&centroid)).collect();
-        EdProblem { graph, cameras, observations, weights, px_per_mm }
+        let centroid = Point3::from(
+            graph
+                .rest
+                .iter()
+                .map(|p| p.coords)
+                .sum::<nalgebra::Vector3<f64>>()
+                / n,
+        );
+        let px_per_mm = cameras
+            .iter()
+            .map(|c| c.pixels_per_mm_at(&centroid))
+            .collect();
+        EdProblem {
+            graph,
+            cameras,
+            observations,
+            weights,
+            px_per_mm,
+        }
     }
 }
 
@@ -124,7 +149,11 @@ impl Problem for EdProblem<'_> {
             let cam = &self.cameras[o.view];
             let s = wo * o.weight.sqrt() / self.px_per_mm[o.view];
             let v = g.deform_vertex(x, o.vertex as usize);
-            let projected = if jac { cam.project_with_jacobian(&v).map(|(p, j)| (p, Some(j))) } else { cam.project(&v).map(|p| (p, None)) };
+            let projected = if jac {
+                cam.project_with_jacobian(&v).map(|(p, j)| (p, Some(j)))
+            } else {
+                cam.project(&v).map(|p| (p, None))
+            };
             let (px, jp) = match projected {
                 Ok(p) => p,
                 Err(_) => {
@@ -157,7 +186,8 @@ impl Problem for EdProblem<'_> {
                             }
                             blocks.push((j, b));
                         }
-                        let refs: Vec<(u32, &[f64])> = blocks.iter().map(|(j, b)| (*j, &b[..])).collect();
+                        let refs: Vec<(u32, &[f64])> =
+                            blocks.iter().map(|(j, b)| (*j, &b[..])).collect();
                         l.push_row(res[row], &refs);
                     }
                 }
@@ -178,7 +208,13 @@ mod tests {
 
     fn setup() -> (DeformationGraph, Vec<Camera>, Vec<Observation>) {
         let m = hemisphere(26.0, 600);
-        let g = DeformationGraph::new(&m, &GraphParams { nodes: 30, ..Default::default() });
+        let g = DeformationGraph::new(
+            &m,
+            &GraphParams {
+                nodes: 30,
+                ..Default::default()
+            },
+        );
         let cams = simulated_views(&XrayGeometry::default(), &Point3::origin());
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
         let obs = (0..60)
@@ -186,8 +222,16 @@ mod tests {
                 let view = i % 3;
                 let vertex = rng.random_range(0..m.vertex_count() as u32);
                 // Targets from a slightly scaled and shifted copy: a deformation the graph can reach.
-                let moved = Point3::from(m.vertices[vertex as usize].coords * 1.05 + nalgebra::Vector3::new(1.0, -2.0, 0.5));
-                Observation { view, vertex, target: cams[view].project(&moved).unwrap(), weight: 1.0 }
+                let moved = Point3::from(
+                    m.vertices[vertex as usize].coords * 1.05
+                        + nalgebra::Vector3::new(1.0, -2.0, 0.5),
+                );
+                Observation {
+                    view,
+                    vertex,
+                    target: cams[view].project(&moved).unwrap(),
+                    weight: 1.0,
+                }
             })
             .collect();
         (g, cams, obs)
@@ -198,7 +242,11 @@ mod tests {
         let (g, cams, obs) = setup();
         let p = EdProblem::new(&g, &cams, &obs, EdWeights::default());
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
-        let x: Vec<f64> = g.identity().iter().map(|v| v + rng.random_range(-0.05..0.05)).collect();
+        let x: Vec<f64> = g
+            .identity()
+            .iter()
+            .map(|v| v + rng.random_range(-0.05..0.05))
+            .collect();
         let j = p.linearize(&x, true).dense_jacobian();
         let r0 = p.linearize(&x, false).r;
         let h = 1e-6;
@@ -224,7 +272,9 @@ mod tests {
         let x = g.identity();
         let mut j = p.linearize(&x, true).dense_jacobian();
         let row = j.nrows() - 1;
-        let k = (0..j.ncols()).max_by(|&a, &b| j[(row, a)].abs().total_cmp(&j[(row, b)].abs())).unwrap();
+        let k = (0..j.ncols())
+            .max_by(|&a, &b| j[(row, a)].abs().total_cmp(&j[(row, b)].abs()))
+            .unwrap();
         j[(row, k)] *= 1.01; // a 1 % error in one entry
         let mut xp = x.clone();
         xp[k] += 1e-6;
@@ -240,7 +290,11 @@ mod tests {
         let p = EdProblem::new(&g, &cams, &obs, EdWeights::default());
         let (_, info) = levenberg_marquardt(&p, g.identity(), &LmParams::default()).unwrap();
         assert!(info.costs.len() > 2);
-        assert!(info.costs.windows(2).all(|w| w[1] < w[0]), "{:?}", info.costs);
+        assert!(
+            info.costs.windows(2).all(|w| w[1] < w[0]),
+            "{:?}",
+            info.costs
+        );
         assert!(info.final_cost() < 0.05 * info.costs[0], "{:?}", info.costs);
     }
 }

@@ -20,7 +20,11 @@ pub struct GraphParams {
 
 impl Default for GraphParams {
     fn default() -> Self {
-        GraphParams { nodes: 150, vertex_neighbours: 4, node_neighbours: 6 }
+        GraphParams {
+            nodes: 150,
+            vertex_neighbours: 4,
+            node_neighbours: 6,
+        }
     }
 }
 
@@ -49,12 +53,23 @@ pub fn farthest_point_sample(points: &[Point3<f64>], count: usize) -> Vec<usize>
     }
     let centroid = points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len() as f64;
     let first = (0..points.len())
-        .min_by(|&a, &b| (points[a].coords - centroid).norm().total_cmp(&(points[b].coords - centroid).norm()))
+        .min_by(|&a, &b| {
+            (points[a].coords - centroid)
+                .norm()
+                .total_cmp(&(points[b].coords - centroid).norm())
+        })
         .unwrap_or(0);
     let mut chosen = vec![first];
-    let mut d: Vec<f64> = points.iter().map(|p| (p - points[first]).norm_squared()).collect();
+    let mut d: Vec<f64> = points
+        .iter()
+        .map(|p| (p - points[first]).norm_squared())
+        .collect();
     while chosen.len() < count.min(points.len()) {
-        let (next, &far) = d.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)).expect("non-empty");
+        let (next, &far) = d
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.total_cmp(b.1))
+            .expect("non-empty");
         if far <= 0.0 {
             break; // every remaining point coincides with a node
         }
@@ -84,7 +99,9 @@ impl DeformationGraph {
                     .collect()
             })
             .collect();
-        let m = prm.vertex_neighbours.clamp(1, nodes.len().saturating_sub(1).max(1));
+        let m = prm
+            .vertex_neighbours
+            .clamp(1, nodes.len().saturating_sub(1).max(1));
         let weights = mesh
             .vertices
             .iter()
@@ -94,7 +111,16 @@ impl DeformationGraph {
                 let mut w: Vec<(u32, f64)> = near
                     .iter()
                     .take(m)
-                    .map(|&(j, d)| (j as u32, if dmax > 0.0 { (1.0 - d / dmax).max(0.0) } else { 1.0 }))
+                    .map(|&(j, d)| {
+                        (
+                            j as u32,
+                            if dmax > 0.0 {
+                                (1.0 - d / dmax).max(0.0)
+                            } else {
+                                1.0
+                            },
+                        )
+                    })
                     .collect();
                 let sum: f64 = w.iter().map(|x| x.1).sum();
                 if sum > 1e-12 {
@@ -107,7 +133,13 @@ impl DeformationGraph {
                 w
             })
             .collect();
-        DeformationGraph { nodes, node_vertex, node_neighbours, weights, rest: mesh.vertices.clone() }
+        DeformationGraph {
+            nodes,
+            node_vertex,
+            node_neighbours,
+            weights,
+            rest: mesh.vertices.clone(),
+        }
     }
 
     pub fn node_count(&self) -> usize {
@@ -128,7 +160,10 @@ impl DeformationGraph {
     /// A_j and t_j from the parameter vector.
     pub fn affine(x: &[f64], j: usize) -> (Matrix3<f64>, Vector3<f64>) {
         let p = &x[j * NODE_PARAMS..(j + 1) * NODE_PARAMS];
-        (Matrix3::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8]), Vector3::new(p[9], p[10], p[11]))
+        (
+            Matrix3::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8]),
+            Vector3::new(p[9], p[10], p[11]),
+        )
     }
 
     /// Deformed position of vertex i.
@@ -145,7 +180,9 @@ impl DeformationGraph {
 
     /// All deformed vertices.
     pub fn deform(&self, x: &[f64]) -> Vec<Point3<f64>> {
-        (0..self.rest.len()).map(|i| self.deform_vertex(x, i)).collect()
+        (0..self.rest.len())
+            .map(|i| self.deform_vertex(x, i))
+            .collect()
     }
 }
 
@@ -160,7 +197,11 @@ mod tests {
         let g = DeformationGraph::new(&m, &GraphParams::default());
         assert_eq!(g.node_count(), 150);
         let v = g.deform(&g.identity());
-        let err = v.iter().zip(&m.vertices).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+        let err = v
+            .iter()
+            .zip(&m.vertices)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
         assert!(err < 1e-12, "max error {err}");
         for w in &g.weights {
             assert!((w.iter().map(|x| x.1).sum::<f64>() - 1.0).abs() < 1e-12);
@@ -170,7 +211,13 @@ mod tests {
     #[test]
     fn a_global_affine_on_every_node_moves_every_vertex_by_it() {
         let m = hemisphere(10.0, 800);
-        let g = DeformationGraph::new(&m, &GraphParams { nodes: 40, ..Default::default() });
+        let g = DeformationGraph::new(
+            &m,
+            &GraphParams {
+                nodes: 40,
+                ..Default::default()
+            },
+        );
         let a = Matrix3::new(1.1, 0.1, 0.0, -0.05, 0.9, 0.2, 0.0, 0.0, 1.3);
         let t = Vector3::new(1.0, -2.0, 0.5);
         let mut x = g.identity();

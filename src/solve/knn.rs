@@ -13,8 +13,15 @@ pub struct Knn3 {
 impl Knn3 {
     pub fn new(points: &[Point3<f64>]) -> Knn3 {
         let entries: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
-        let tree = if entries.is_empty() { None } else { ImmutableKdTree::new_from_slice(&entries).ok() };
-        Knn3 { tree, len: entries.len() }
+        let tree = if entries.is_empty() {
+            None
+        } else {
+            ImmutableKdTree::new_from_slice(&entries).ok()
+        };
+        Knn3 {
+            tree,
+            len: entries.len(),
+        }
     }
 
     /// The `k` nearest points as (index, distance), nearest first (fewer if the set is smaller).

@@ -30,7 +30,12 @@ pub struct LmParams {
 
 impl Default for LmParams {
     fn default() -> Self {
-        LmParams { max_iterations: 30, rel_tol: 1e-5, lambda0: 1e-4, max_lambda: 1e8 }
+        LmParams {
+            max_iterations: 30,
+            rel_tol: 1e-5,
+            lambda0: 1e-4,
+            max_lambda: 1e8,
+        }
     }
 }
 
@@ -57,18 +62,28 @@ pub enum SolveError {
     #[error("the cost is not finite ({cost}) at the starting point")]
     NonFiniteStart { cost: f64 },
     #[error("linear solve failed at iteration {iteration}: {source}")]
-    Linear { iteration: usize, source: LinearSolveError },
+    Linear {
+        iteration: usize,
+        source: LinearSolveError,
+    },
 }
 
 /// Minimise the problem from x0. Returns the best x found and the log.
-pub fn levenberg_marquardt<P: Problem>(p: &P, x0: Vec<f64>, prm: &LmParams) -> Result<(Vec<f64>, LmInfo), SolveError> {
+pub fn levenberg_marquardt<P: Problem>(
+    p: &P,
+    x0: Vec<f64>,
+    prm: &LmParams,
+) -> Result<(Vec<f64>, LmInfo), SolveError> {
     let mut x = x0;
     let mut lin = p.linearize(&x, true);
     let mut cost = lin.cost();
     if !cost.is_finite() {
         return Err(SolveError::NonFiniteStart { cost });
     }
-    let mut info = LmInfo { costs: vec![cost], ..Default::default() };
+    let mut info = LmInfo {
+        costs: vec![cost],
+        ..Default::default()
+    };
     let mut lambda = prm.lambda0;
     let mut symbolic = None;
     let mut pattern: Option<Vec<(u32, u32)>> = None;
@@ -90,7 +105,12 @@ pub fn levenberg_marquardt<P: Problem>(p: &P, x0: Vec<f64>, prm: &LmParams) -> R
                     lambda *= 10.0;
                     continue;
                 }
-                Err(source) => return Err(SolveError::Linear { iteration: info.iterations, source }),
+                Err(source) => {
+                    return Err(SolveError::Linear {
+                        iteration: info.iterations,
+                        source,
+                    })
+                }
             };
             let x_new = p.retract(&x, &delta);
             let new_cost = p.linearize(&x_new, false).cost();
@@ -149,8 +169,20 @@ mod tests {
 
     #[test]
     fn lm_solves_rosenbrock_and_the_cost_never_rises() {
-        let (x, info) = levenberg_marquardt(&Rosen, vec![-1.2, 1.0], &LmParams { max_iterations: 200, rel_tol: 1e-14, ..Default::default() }).unwrap();
-        assert!((x[0] - 1.0).abs() < 1e-6 && (x[1] - 1.0).abs() < 1e-6, "{x:?}");
+        let (x, info) = levenberg_marquardt(
+            &Rosen,
+            vec![-1.2, 1.0],
+            &LmParams {
+                max_iterations: 200,
+                rel_tol: 1e-14,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert!(
+            (x[0] - 1.0).abs() < 1e-6 && (x[1] - 1.0).abs() < 1e-6,
+            "{x:?}"
+        );
         assert!(info.costs.windows(2).all(|w| w[1] < w[0]));
     }
 

@@ -21,7 +21,14 @@ pub struct Linearization {
 
 impl Linearization {
     pub fn new(block_size: usize, n_blocks: usize) -> Self {
-        Linearization { block_size, n_blocks, r: Vec::new(), row_start: vec![0], block_ids: Vec::new(), vals: Vec::new() }
+        Linearization {
+            block_size,
+            n_blocks,
+            r: Vec::new(),
+            row_start: vec![0],
+            block_ids: Vec::new(),
+            vals: Vec::new(),
+        }
     }
 
     /// Append a residual and its Jacobian row. Each slice in `blocks` has `block_size` values.
@@ -105,7 +112,13 @@ impl Linearization {
         }
         let mut keys: Vec<((u32, u32), usize)> = index.into_iter().collect();
         keys.sort_unstable();
-        NormalEquations { block_size: bs, n: self.n_params(), keys, blocks, g }
+        NormalEquations {
+            block_size: bs,
+            n: self.n_params(),
+            keys,
+            blocks,
+            g,
+        }
     }
 }
 
@@ -186,24 +199,30 @@ impl NormalEquations {
     }
 
     /// Solve (H + diag(damping)) delta = -g, reusing `symbolic` when given (same pattern).
-    pub fn solve(&self, damping: &[f64], symbolic: &mut Option<SymbolicLlt<usize>>) -> Result<Vec<f64>, LinearSolveError> {
+    pub fn solve(
+        &self,
+        damping: &[f64],
+        symbolic: &mut Option<SymbolicLlt<usize>>,
+    ) -> Result<Vec<f64>, LinearSolveError> {
         let trip = self.triplets(damping);
         let h = SparseColMat::<usize, f64>::try_new_from_triplets(self.n, self.n, &trip)
             .map_err(|e| LinearSolveError::Faer(format!("{e:?}")))?;
         let sym = match symbolic {
             Some(s) => s.clone(),
             None => {
-                let s = SymbolicLlt::try_new(h.symbolic(), Side::Lower).map_err(|e| LinearSolveError::Faer(format!("{e:?}")))?;
+                let s = SymbolicLlt::try_new(h.symbolic(), Side::Lower)
+                    .map_err(|e| LinearSolveError::Faer(format!("{e:?}")))?;
                 *symbolic = Some(s.clone());
                 s
             }
         };
-        let llt = Llt::try_new_with_symbolic(sym, h.as_ref(), Side::Lower).map_err(|e| match e {
-            faer::sparse::linalg::LltError::Numeric(faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index }) => {
-                LinearSolveError::NotPositiveDefinite { pivot: index }
-            }
-            e => LinearSolveError::Faer(format!("{e:?}")),
-        })?;
+        let llt =
+            Llt::try_new_with_symbolic(sym, h.as_ref(), Side::Lower).map_err(|e| match e {
+                faer::sparse::linalg::LltError::Numeric(
+                    faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index },
+                ) => LinearSolveError::NotPositiveDefinite { pivot: index },
+                e => LinearSolveError::Faer(format!("{e:?}")),
+            })?;
         let mut rhs = Mat::<f64>::from_fn(self.n, 1, |i, _| -self.g[i]);
         llt.solve_in_place_with_conj(Conj::No, rhs.as_mut());
         Ok((0..self.n).map(|i| rhs[(i, 0)]).collect())
@@ -263,7 +282,10 @@ mod tests {
         // (J^T J + D) d = -J^T r
         let hd = ne.h_times(&d);
         for i in 0..ne.n {
-            assert!((hd[i] + damping[i] * d[i] + ne.g[i]).abs() < 1e-9, "row {i}");
+            assert!(
+                (hd[i] + damping[i] * d[i] + ne.g[i]).abs() < 1e-9,
+                "row {i}"
+            );
         }
         // Reusing the symbolic factorisation gives the same answer.
         let d2 = ne.solve(&damping, &mut sym).unwrap();
@@ -278,7 +300,9 @@ mod tests {
         let mut d = ne.solve(&damping, &mut None).unwrap();
         d[3] += 1e-3;
         let hd = ne.h_times(&d);
-        let worst = (0..ne.n).map(|i| (hd[i] + damping[i] * d[i] + ne.g[i]).abs()).fold(0.0, f64::max);
+        let worst = (0..ne.n)
+            .map(|i| (hd[i] + damping[i] * d[i] + ne.g[i]).abs())
+            .fold(0.0, f64::max);
         assert!(worst > 1e-7);
     }
 
@@ -289,6 +313,9 @@ mod tests {
         l.push_row(1.0, &[(1, &[1.0])]);
         let ne = l.normal_equations();
         let e = ne.solve(&[-5.0, -5.0], &mut None).unwrap_err();
-        assert!(matches!(e, LinearSolveError::NotPositiveDefinite { .. }), "{e:?}");
+        assert!(
+            matches!(e, LinearSolveError::NotPositiveDefinite { .. }),
+            "{e:?}"
+        );
     }
 }

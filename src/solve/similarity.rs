@@ -29,14 +29,31 @@ pub fn apply_similarity(x: &[f64], center: &Point3<f64>, pts: &[Point3<f64>]) ->
     let r = Rotation3::new(Vector3::new(x[0], x[1], x[2]));
     let t = Vector3::new(x[3], x[4], x[5]);
     let s = x[6].exp();
-    pts.iter().map(|p| center + t + s * (r * (p - center))).collect()
+    pts.iter()
+        .map(|p| center + t + s * (r * (p - center)))
+        .collect()
 }
 
 impl<'a> SimilarityProblem<'a> {
-    pub fn new(rest: &'a [Point3<f64>], cameras: &'a [Camera], observations: &'a [Observation]) -> Self {
-        let center = Point3::from(rest.iter().map(|p| p.coords).sum::<Vector3<f64>>() / rest.len().max(1) as f64);
-        let px_per_mm = cameras.iter().map(|c| c.pixels_per_mm_at(&center)).collect();
-        SimilarityProblem { rest, center, cameras, observations, px_per_mm }
+    pub fn new(
+        rest: &'a [Point3<f64>],
+        cameras: &'a [Camera],
+        observations: &'a [Observation],
+    ) -> Self {
+        let center = Point3::from(
+            rest.iter().map(|p| p.coords).sum::<Vector3<f64>>() / rest.len().max(1) as f64,
+        );
+        let px_per_mm = cameras
+            .iter()
+            .map(|c| c.pixels_per_mm_at(&center))
+            .collect();
+        SimilarityProblem {
+            rest,
+            center,
+            cameras,
+            observations,
+            px_per_mm,
+        }
     }
 }
 
@@ -78,9 +95,18 @@ impl Problem for SimilarityProblem<'_> {
         l
     }
     fn retract(&self, x: &[f64], d: &[f64]) -> Vec<f64> {
-        let r = Rotation3::new(Vector3::new(d[0], d[1], d[2])) * Rotation3::new(Vector3::new(x[0], x[1], x[2]));
+        let r = Rotation3::new(Vector3::new(d[0], d[1], d[2]))
+            * Rotation3::new(Vector3::new(x[0], x[1], x[2]));
         let w = r.scaled_axis();
-        vec![w.x, w.y, w.z, x[3] + d[3], x[4] + d[4], x[5] + d[5], x[6] + d[6]]
+        vec![
+            w.x,
+            w.y,
+            w.z,
+            x[3] + d[3],
+            x[4] + d[4],
+            x[5] + d[5],
+            x[6] + d[6],
+        ]
     }
 }
 
@@ -96,18 +122,34 @@ mod tests {
         let m = hemisphere(26.0, 500);
         let cams = simulated_views(&XrayGeometry::default(), &Point3::origin());
         let truth = [0.2, -0.1, 0.15, 5.0, -8.0, 3.0, 0.2f64];
-        let center = Point3::from(m.vertices.iter().map(|p| p.coords).sum::<Vector3<f64>>() / m.vertex_count() as f64);
+        let center = Point3::from(
+            m.vertices.iter().map(|p| p.coords).sum::<Vector3<f64>>() / m.vertex_count() as f64,
+        );
         let moved = apply_similarity(&truth, &center, &m.vertices);
         let obs: Vec<Observation> = (0..m.vertex_count())
             .step_by(5)
             .flat_map(|i| {
                 let moved = &moved;
                 let cams = &cams;
-                (0..3).map(move |v| Observation { view: v, vertex: i as u32, target: cams[v].project(&moved[i]).unwrap(), weight: 1.0 })
+                (0..3).map(move |v| Observation {
+                    view: v,
+                    vertex: i as u32,
+                    target: cams[v].project(&moved[i]).unwrap(),
+                    weight: 1.0,
+                })
             })
             .collect();
         let p = SimilarityProblem::new(&m.vertices, &cams, &obs);
-        let (x, info) = levenberg_marquardt(&p, vec![0.0; 7], &LmParams { rel_tol: 1e-14, max_iterations: 100, ..Default::default() }).unwrap();
+        let (x, info) = levenberg_marquardt(
+            &p,
+            vec![0.0; 7],
+            &LmParams {
+                rel_tol: 1e-14,
+                max_iterations: 100,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert!(info.costs.windows(2).all(|w| w[1] < w[0]));
         for (a, b) in x.iter().zip(&truth) {
             assert!((a - b).abs() < 1e-6, "{x:?}");

@@ -16,9 +16,8 @@ impl Placement {
     /// Rotation taking the template's local +z (opening axis) onto `axis` (shortest arc; about
     /// the local x axis when the axis points straight down).
     pub fn rotation(&self) -> Rotation3<f64> {
-        Rotation3::rotation_between(&Vector3::z(), &self.axis).unwrap_or_else(|| {
-            Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
-        })
+        Rotation3::rotation_between(&Vector3::z(), &self.axis)
+            .unwrap_or_else(|| Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI))
     }
 
     /// The unit-radius template placed here.
@@ -33,8 +32,9 @@ impl Placement {
 /// each ring gets as many points as its circumference allows).
 pub fn spherical_cap(radius: f64, target_vertices: usize, max_polar: f64) -> Mesh {
     let area_ratio = 1.0 - max_polar.cos(); // cap area / (2 pi R^2)
-    // Vertex spacing h so that area / (h^2 sqrt(3)/2) ~ target.
-    let h = (2.0 * std::f64::consts::PI * area_ratio / (target_vertices.max(16) as f64 * 0.866)).sqrt();
+                                            // Vertex spacing h so that area / (h^2 sqrt(3)/2) ~ target.
+    let h =
+        (2.0 * std::f64::consts::PI * area_ratio / (target_vertices.max(16) as f64 * 0.866)).sqrt();
     let rings = ((max_polar / h).round() as usize).max(2);
     let mut vertices = vec![Point3::new(0.0, 0.0, -radius)];
     let mut ring_start = vec![0usize];
@@ -47,14 +47,29 @@ pub fn spherical_cap(radius: f64, target_vertices: usize, max_polar: f64) -> Mes
         let offset = if k % 2 == 0 { 0.5 } else { 0.0 };
         for j in 0..n {
             let p = 2.0 * std::f64::consts::PI * (j as f64 + offset) / n as f64;
-            vertices.push(Point3::new(radius * t.sin() * p.cos(), radius * t.sin() * p.sin(), -radius * t.cos()));
+            vertices.push(Point3::new(
+                radius * t.sin() * p.cos(),
+                radius * t.sin() * p.sin(),
+                -radius * t.cos(),
+            ));
         }
     }
     let mut triangles = Vec::new();
     for k in 0..rings {
-        zip_rings(&vertices, ring_start[k], ring_len[k], ring_start[k + 1], ring_len[k + 1], &mut triangles);
+        zip_rings(
+            &vertices,
+            ring_start[k],
+            ring_len[k],
+            ring_start[k + 1],
+            ring_len[k + 1],
+            &mut triangles,
+        );
     }
-    let mut mesh = Mesh { vertices, triangles, normals: Vec::new() };
+    let mut mesh = Mesh {
+        vertices,
+        triangles,
+        normals: Vec::new(),
+    };
     orient_outward(&mut mesh);
     mesh.recompute_normals();
     mesh
@@ -71,7 +86,14 @@ fn azimuth(p: &Point3<f64>) -> f64 {
 
 /// Triangulate the band between an inner ring and an outer ring by merging them in azimuth order.
 /// Each ring's points are stored in increasing azimuth starting just after 0.
-fn zip_rings(v: &[Point3<f64>], a0: usize, na: usize, b0: usize, nb: usize, out: &mut Vec<[u32; 3]>) {
+fn zip_rings(
+    v: &[Point3<f64>],
+    a0: usize,
+    na: usize,
+    b0: usize,
+    nb: usize,
+    out: &mut Vec<[u32; 3]>,
+) {
     if na == 1 {
         for j in 0..nb {
             out.push([a0 as u32, (b0 + j) as u32, (b0 + (j + 1) % nb) as u32]);
@@ -79,7 +101,8 @@ fn zip_rings(v: &[Point3<f64>], a0: usize, na: usize, b0: usize, nb: usize, out:
         return;
     }
     let turn = 2.0 * std::f64::consts::PI;
-    let angle = |start: usize, n: usize, i: usize| azimuth(&v[start + i % n]) + turn * (i / n) as f64;
+    let angle =
+        |start: usize, n: usize, i: usize| azimuth(&v[start + i % n]) + turn * (i / n) as f64;
     let ai = |i: usize| (a0 + i % na) as u32;
     let bj = |j: usize| (b0 + j % nb) as u32;
     let (mut i, mut j) = (0usize, 0usize);
@@ -114,9 +137,17 @@ mod tests {
     #[test]
     fn hemisphere_is_a_watertight_cap_with_outward_normals() {
         let m = hemisphere(26.0, 2500);
-        assert!((2000..3100).contains(&m.vertex_count()), "{}", m.vertex_count());
+        assert!(
+            (2000..3100).contains(&m.vertex_count()),
+            "{}",
+            m.vertex_count()
+        );
         let exact = 2.0 * std::f64::consts::PI * 26.0 * 26.0;
-        assert!((m.area() - exact).abs() / exact < 0.01, "area {} vs {exact}", m.area());
+        assert!(
+            (m.area() - exact).abs() / exact < 0.01,
+            "area {} vs {exact}",
+            m.area()
+        );
         for (p, n) in m.vertices.iter().zip(&m.normals) {
             assert!((p.coords.norm() - 26.0).abs() < 1e-9);
             assert!(p.z <= 1e-9);

@@ -81,9 +81,17 @@ pub fn phantom(p: &PhantomParams) -> Phantom {
         .map(|v| {
             let u = v.coords; // unit sphere point
             let ang = u.dot(&fossa_dir).clamp(-1.0, 1.0).acos();
-            let bump = if ang < fossa_r { 0.5 * (1.0 + (std::f64::consts::PI * ang / fossa_r).cos()) } else { 0.0 };
+            let bump = if ang < fossa_r {
+                0.5 * (1.0 + (std::f64::consts::PI * ang / fossa_r).cos())
+            } else {
+                0.0
+            };
             let r = p.radius + p.fossa_depth * bump;
-            Point3::new(u.x * r * p.ellipticity[0], u.y * r * p.ellipticity[1], u.z * r)
+            Point3::new(
+                u.x * r * p.ellipticity[0],
+                u.y * r * p.ellipticity[1],
+                u.z * r,
+            )
         })
         .collect();
     // Cut the notch: drop triangles whose centroid lies in the inferior wedge below the start angle.
@@ -91,22 +99,37 @@ pub fn phantom(p: &PhantomParams) -> Phantom {
     let start = p.notch_start_deg.to_radians();
     let keep: Vec<usize> = (0..cap.triangles.len())
         .filter(|&t| {
-            let c = cap.triangles[t].iter().map(|&i| cap.vertices[i as usize].coords).sum::<Vector3<f64>>() / 3.0;
+            let c = cap.triangles[t]
+                .iter()
+                .map(|&i| cap.vertices[i as usize].coords)
+                .sum::<Vector3<f64>>()
+                / 3.0;
             let polar = (-c.z / c.norm()).clamp(-1.0, 1.0).acos();
             let az = c.y.atan2(c.x); // inferior is -pi/2
-            let off = (az + std::f64::consts::FRAC_PI_2 + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
+            let off = (az + std::f64::consts::FRAC_PI_2 + std::f64::consts::PI)
+                .rem_euclid(2.0 * std::f64::consts::PI)
                 - std::f64::consts::PI;
             !(polar > start && off.abs() < half)
         })
         .collect();
-    let local = cap.with_vertices(vertices).submesh(&keep).expect("the phantom keeps most of a valid cap");
+    let local = cap
+        .with_vertices(vertices)
+        .submesh(&keep)
+        .expect("the phantom keeps most of a valid cap");
     let axis = radiographic_axis(p.anteversion_deg, p.inclination_deg);
     let superior = Vector3::z() - axis.into_inner() * axis.z;
     let ey = superior.try_normalize(1e-9).unwrap_or_else(Vector3::y);
     let ex = ey.cross(&axis);
     let rot = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[ex, ey, axis.into_inner()]));
     let mesh = local.transformed(1.0, &rot, &p.center.coords);
-    Phantom { mesh, placement: Placement { center: p.center, radius: p.radius, axis } }
+    Phantom {
+        mesh,
+        placement: Placement {
+            center: p.center,
+            radius: p.radius,
+            axis,
+        },
+    }
 }
 
 #[cfg(test)]
@@ -117,21 +140,37 @@ mod tests {
     fn phantom_is_not_a_hemisphere() {
         let p = PhantomParams::default();
         let ph = phantom(&p);
-        let d: Vec<f64> = ph.mesh.vertices.iter().map(|v| (v - p.center).norm()).collect();
+        let d: Vec<f64> = ph
+            .mesh
+            .vertices
+            .iter()
+            .map(|v| (v - p.center).norm())
+            .collect();
         let max = d.iter().cloned().fold(0.0, f64::max);
         let min = d.iter().cloned().fold(f64::INFINITY, f64::min);
         assert!(max > 26.9 && min < 25.5, "radii {min}..{max}");
         // Shallower than a hemisphere: no point beyond the rim plane, the rim well inside it.
-        let depth_min =
-            ph.mesh.vertices.iter().map(|v| (v - p.center).dot(&ph.placement.axis)).fold(f64::INFINITY, f64::min);
-        let depth_max = ph.mesh.vertices.iter().map(|v| (v - p.center).dot(&ph.placement.axis)).fold(-1e9, f64::max);
+        let depth_min = ph
+            .mesh
+            .vertices
+            .iter()
+            .map(|v| (v - p.center).dot(&ph.placement.axis))
+            .fold(f64::INFINITY, f64::min);
+        let depth_max = ph
+            .mesh
+            .vertices
+            .iter()
+            .map(|v| (v - p.center).dot(&ph.placement.axis))
+            .fold(-1e9, f64::max);
         assert!(depth_max < -2.0, "rim offset {depth_max}");
         assert!(depth_min < -25.0);
         // The notch opens a gap: the rim boundary dips towards the pole.
         let boundary = ph.mesh.boundary_edges();
         let dips = boundary
             .iter()
-            .filter(|[i, _]| (ph.mesh.vertices[*i as usize] - p.center).dot(&ph.placement.axis) < -10.0)
+            .filter(|[i, _]| {
+                (ph.mesh.vertices[*i as usize] - p.center).dot(&ph.placement.axis) < -10.0
+            })
             .count();
         assert!(dips > 3, "notch edges {dips}");
     }

@@ -43,17 +43,26 @@ impl Camera {
         if !(c.z > MIN_DEPTH) {
             return Err(ProjectionError::BehindCamera { depth: c.z });
         }
-        Ok(Point2::new(self.k.fx * c.x / c.z + self.k.cx, self.k.fy * c.y / c.z + self.k.cy))
+        Ok(Point2::new(
+            self.k.fx * c.x / c.z + self.k.cx,
+            self.k.fy * c.y / c.z + self.k.cy,
+        ))
     }
 
     /// Project and return d(pixel)/d(world point) as well.
-    pub fn project_with_jacobian(&self, p: &Point3<f64>) -> Result<(Point2<f64>, Matrix2x3<f64>), ProjectionError> {
+    pub fn project_with_jacobian(
+        &self,
+        p: &Point3<f64>,
+    ) -> Result<(Point2<f64>, Matrix2x3<f64>), ProjectionError> {
         let c = self.to_camera(p);
         if !(c.z > MIN_DEPTH) {
             return Err(ProjectionError::BehindCamera { depth: c.z });
         }
         let iz = 1.0 / c.z;
-        let px = Point2::new(self.k.fx * c.x * iz + self.k.cx, self.k.fy * c.y * iz + self.k.cy);
+        let px = Point2::new(
+            self.k.fx * c.x * iz + self.k.cx,
+            self.k.fy * c.y * iz + self.k.cy,
+        );
         let dcam = Matrix2x3::new(
             self.k.fx * iz,
             0.0,
@@ -78,7 +87,11 @@ impl Camera {
 
     /// Unit ray direction (world) through pixel `px`.
     pub fn ray(&self, px: &Point2<f64>) -> Vector3<f64> {
-        let d = Vector3::new((px.x - self.k.cx) / self.k.fx, (px.y - self.k.cy) / self.k.fy, 1.0);
+        let d = Vector3::new(
+            (px.x - self.k.cx) / self.k.fx,
+            (px.y - self.k.cy) / self.k.fy,
+            1.0,
+        );
         (self.r.inverse() * d).normalize()
     }
 }
@@ -98,7 +111,11 @@ mod tests {
                 let mut q = p;
                 q[k] += 1e-5;
                 let d = (cam.project(&q).unwrap() - px) / 1e-5;
-                assert!((d - j.column(k)).norm() < 1e-4, "column {k}: {d} vs {}", j.column(k));
+                assert!(
+                    (d - j.column(k)).norm() < 1e-4,
+                    "column {k}: {d} vs {}",
+                    j.column(k)
+                );
             }
         }
     }
@@ -107,6 +124,9 @@ mod tests {
     fn points_behind_the_source_are_refused() {
         let cams = simulated_views(&XrayGeometry::default(), &Point3::origin());
         let behind = cams[0].center() + (cams[0].center() - Point3::origin());
-        assert!(matches!(cams[0].project(&behind), Err(ProjectionError::BehindCamera { .. })));
+        assert!(matches!(
+            cams[0].project(&behind),
+            Err(ProjectionError::BehindCamera { .. })
+        ));
     }
 }

@@ -42,9 +42,24 @@ pub fn simulated_views(g: &XrayGeometry, target: &Point3<f64>) -> Vec<Camera> {
             let zc = -toward_source;
             let yc = -Vector3::z();
             let xc = yc.cross(&zc);
-            let r = Rotation3::from_matrix_unchecked(Matrix3::from_rows(&[xc.transpose(), yc.transpose(), zc.transpose()]));
+            let r = Rotation3::from_matrix_unchecked(Matrix3::from_rows(&[
+                xc.transpose(),
+                yc.transpose(),
+                zc.transpose(),
+            ]));
             let t = -(r * source.coords);
-            Camera { k: Intrinsics { fx: f, fy: f, cx: c, cy: c }, r, t, width: g.image_size, height: g.image_size }
+            Camera {
+                k: Intrinsics {
+                    fx: f,
+                    fy: f,
+                    cx: c,
+                    cy: c,
+                },
+                r,
+                t,
+                width: g.image_size,
+                height: g.image_size,
+            }
         })
         .collect()
 }

@@ -37,7 +37,13 @@ pub struct SrvfParams {
 
 impl Default for SrvfParams {
     fn default() -> Self {
-        SrvfParams { samples: 200, neighbourhood: 5, seed_candidates: 6, max_alternations: 6, rel_tol: 1e-4 }
+        SrvfParams {
+            samples: 200,
+            neighbourhood: 5,
+            seed_candidates: 6,
+            max_alternations: 6,
+            rel_tol: 1e-4,
+        }
     }
 }
 
@@ -81,7 +87,10 @@ fn check(curve: &'static str, p: &[Point2<f64>]) -> Result<(), SrvfError> {
         return Err(SrvfError::NonFinite { curve, index });
     }
     if p.len() < 3 {
-        return Err(SrvfError::TooFewPoints { curve, count: p.len() });
+        return Err(SrvfError::TooFewPoints {
+            curve,
+            count: p.len(),
+        });
     }
     if polyline_length(p, false) <= 1e-12 {
         return Err(SrvfError::ZeroLength { curve });
@@ -90,7 +99,13 @@ fn check(curve: &'static str, p: &[Point2<f64>]) -> Result<(), SrvfError> {
 }
 
 /// Optimal rotation + warp with alternation, starting from rotation `theta`.
-fn rotate_and_warp(q1: &[Vector2<f64>], q2: &[Vector2<f64>], theta: f64, prm: &SrvfParams, steps: &[(usize, usize)]) -> (f64, Warp) {
+fn rotate_and_warp(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    theta: f64,
+    prm: &SrvfParams,
+    steps: &[(usize, usize)],
+) -> (f64, Warp) {
     let mut theta = theta;
     let mut w = dp_warp(q1, &rotate(q2, theta), steps);
     let mut energy = w.energy;
@@ -142,7 +157,12 @@ fn closed_grid(q: &[Vector2<f64>], shift: usize) -> Vec<Vector2<f64>> {
 
 /// Align closed curve B onto closed curve A. With `exhaustive`, every seed is refined (the test
 /// oracle); otherwise the `seed_candidates` best by rotation-only energy.
-pub fn align_closed(a: &[Point2<f64>], b: &[Point2<f64>], prm: &SrvfParams, exhaustive: bool) -> Result<Alignment, SrvfError> {
+pub fn align_closed(
+    a: &[Point2<f64>],
+    b: &[Point2<f64>],
+    prm: &SrvfParams,
+    exhaustive: bool,
+) -> Result<Alignment, SrvfError> {
     check("A", a)?;
     check("B", b)?;
     if prm.samples < 8 {
@@ -176,7 +196,10 @@ pub fn align_closed(a: &[Point2<f64>], b: &[Point2<f64>], prm: &SrvfParams, exha
         // Coarse to fine: rank the candidate seeds by a DP at <= 48 samples, then refine the two
         // best (and their neighbouring full-resolution seeds) at the full sample count.
         let tc = t.min(48);
-        let coarse_prm = SrvfParams { max_alternations: 2, ..prm.clone() };
+        let coarse_prm = SrvfParams {
+            max_alternations: 2,
+            ..prm.clone()
+        };
         let (ca, _) = resample_closed(&ra, tc);
         let cq1 = closed_grid(&srvf(&ca, true), 0);
         let mut ranked: Vec<(f64, usize)> = order
@@ -241,7 +264,11 @@ fn pick_distinct_seeds(order: &[usize], t: usize, k: usize) -> Vec<usize> {
 }
 
 /// Align open curve B onto open curve A (ends correspond).
-pub fn align_open(a: &[Point2<f64>], b: &[Point2<f64>], prm: &SrvfParams) -> Result<Alignment, SrvfError> {
+pub fn align_open(
+    a: &[Point2<f64>],
+    b: &[Point2<f64>],
+    prm: &SrvfParams,
+) -> Result<Alignment, SrvfError> {
     check("A", a)?;
     check("B", b)?;
     if prm.samples < 8 {
@@ -276,18 +303,27 @@ fn open_positions(b: &[Point2<f64>], arclength: &[f64]) -> (Vec<Point2<f64>>, Ve
     // An open polyline is a closed one whose closing segment is never reached.
     let poly = ClosedPolyline::new(b);
     let open_total = polyline_length(b, false);
-    arclength.iter().map(|&s| poly.at(s.clamp(0.0, open_total))).unzip()
+    arclength
+        .iter()
+        .map(|&s| poly.at(s.clamp(0.0, open_total)))
+        .unzip()
 }
 
 /// The open arc of closed curve B from arc length `start` over `len`, sampled at `t` points.
 fn sub_arc(poly: &ClosedPolyline, start: f64, len: f64, t: usize) -> Vec<Point2<f64>> {
-    (0..t).map(|i| poly.at(start + len * i as f64 / (t - 1) as f64).0).collect()
+    (0..t)
+        .map(|i| poly.at(start + len * i as f64 / (t - 1) as f64).0)
+        .collect()
 }
 
 /// Match the open arc A against the best sub-arc of the closed curve B, trying both directions of
 /// A. A coarse search over start and length (at most 64 samples) picks candidates that are then
 /// refined at the full sample count.
-pub fn align_partial(a: &[Point2<f64>], b: &[Point2<f64>], prm: &SrvfParams) -> Result<Alignment, SrvfError> {
+pub fn align_partial(
+    a: &[Point2<f64>],
+    b: &[Point2<f64>],
+    prm: &SrvfParams,
+) -> Result<Alignment, SrvfError> {
     check("A", a)?;
     check("B", b)?;
     if prm.samples < 8 {
@@ -295,10 +331,17 @@ pub fn align_partial(a: &[Point2<f64>], b: &[Point2<f64>], prm: &SrvfParams) -> 
     }
     let poly = ClosedPolyline::new(b);
     let ratio = (polyline_length(a, false) / poly.total).clamp(0.05, 1.0);
-    let coarse = SrvfParams { samples: prm.samples.min(64), max_alternations: 2, ..prm.clone() };
+    let coarse = SrvfParams {
+        samples: prm.samples.min(64),
+        max_alternations: 2,
+        ..prm.clone()
+    };
     let steps_c = coprime_steps(coarse.neighbourhood.min(4));
     let starts = 48usize;
-    let fracs: Vec<f64> = [0.7, 0.85, 1.0, 1.15, 1.35].iter().map(|f| (ratio * f).min(0.98)).collect();
+    let fracs: Vec<f64> = [0.7, 0.85, 1.0, 1.15, 1.35]
+        .iter()
+        .map(|f| (ratio * f).min(0.98))
+        .collect();
     // (energy, reversed, start, len)
     let mut cands: Vec<(f64, bool, f64, f64)> = Vec::new();
     for reversed in [false, true] {
@@ -360,7 +403,11 @@ pub fn align_partial(a: &[Point2<f64>], b: &[Point2<f64>], prm: &SrvfParams) -> 
         seed: ((start.rem_euclid(poly.total) / poly.total) * t as f64).round() as usize % t,
         gamma: w.gamma.clone(),
         a_points: ra,
-        b_arclength: w.gamma.iter().map(|g| (start + g * len).rem_euclid(poly.total)).collect(),
+        b_arclength: w
+            .gamma
+            .iter()
+            .map(|g| (start + g * len).rem_euclid(poly.total))
+            .collect(),
         b_points: Vec::new(),
         b_index: Vec::new(),
         reversed,
@@ -378,7 +425,12 @@ pub fn align_partial(a: &[Point2<f64>], b: &[Point2<f64>], prm: &SrvfParams) -> 
 }
 
 /// Align with the given kind.
-pub fn align(a: &[Point2<f64>], b: &[Point2<f64>], kind: CurveKind, prm: &SrvfParams) -> Result<Alignment, SrvfError> {
+pub fn align(
+    a: &[Point2<f64>],
+    b: &[Point2<f64>],
+    kind: CurveKind,
+    prm: &SrvfParams,
+) -> Result<Alignment, SrvfError> {
     match kind {
         CurveKind::Closed => align_closed(a, b, prm, false),
         CurveKind::Open => align_open(a, b, prm),

@@ -10,7 +10,11 @@ pub fn srvf(b: &[Point2<f64>], closed: bool) -> Vec<Vector2<f64>> {
     if n < 2 {
         return vec![Vector2::zeros(); n];
     }
-    let dt = if closed { 1.0 / n as f64 } else { 1.0 / (n - 1) as f64 };
+    let dt = if closed {
+        1.0 / n as f64
+    } else {
+        1.0 / (n - 1) as f64
+    };
     let mut q: Vec<Vector2<f64>> = (0..n)
         .map(|i| {
             let d = if closed {
@@ -23,7 +27,11 @@ pub fn srvf(b: &[Point2<f64>], closed: bool) -> Vec<Vector2<f64>> {
                 (b[i + 1] - b[i - 1]) / (2.0 * dt)
             };
             let s = d.norm();
-            if s > 1e-12 { d / s.sqrt() } else { Vector2::zeros() }
+            if s > 1e-12 {
+                d / s.sqrt()
+            } else {
+                Vector2::zeros()
+            }
         })
         .collect();
     let norm = inner(&q, &q).sqrt();
@@ -42,7 +50,11 @@ pub fn inner(a: &[Vector2<f64>], b: &[Vector2<f64>]) -> f64 {
 
 /// ||a - b||^2 in the same discrete norm.
 pub fn dist2(a: &[Vector2<f64>], b: &[Vector2<f64>]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y).norm_squared()).sum::<f64>() / a.len().max(1) as f64
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).norm_squared())
+        .sum::<f64>()
+        / a.len().max(1) as f64
 }
 
 /// The rotation angle theta maximising <q1, R(theta) q2> (Kabsch in 2D: always a proper rotation,
@@ -59,7 +71,9 @@ pub fn best_rotation(q1: &[Vector2<f64>], q2: &[Vector2<f64>]) -> f64 {
 /// Rotate every vector by theta.
 pub fn rotate(q: &[Vector2<f64>], theta: f64) -> Vec<Vector2<f64>> {
     let (s, c) = theta.sin_cos();
-    q.iter().map(|v| Vector2::new(c * v.x - s * v.y, s * v.x + c * v.y)).collect()
+    q.iter()
+        .map(|v| Vector2::new(c * v.x - s * v.y, s * v.x + c * v.y))
+        .collect()
 }
 
 #[cfg(test)]
@@ -68,19 +82,26 @@ mod tests {
 
     #[test]
     fn srvf_has_unit_norm_and_ignores_translation_and_scale() {
-        let b: Vec<Point2<f64>> = (0..50).map(|i| {
-            let t = i as f64 / 50.0 * std::f64::consts::TAU;
-            Point2::new(3.0 * t.cos(), t.sin())
-        }).collect();
+        let b: Vec<Point2<f64>> = (0..50)
+            .map(|i| {
+                let t = i as f64 / 50.0 * std::f64::consts::TAU;
+                Point2::new(3.0 * t.cos(), t.sin())
+            })
+            .collect();
         let q = srvf(&b, true);
         assert!((inner(&q, &q) - 1.0).abs() < 1e-12);
-        let moved: Vec<Point2<f64>> = b.iter().map(|p| Point2::new(7.0 * p.x + 5.0, 7.0 * p.y - 2.0)).collect();
+        let moved: Vec<Point2<f64>> = b
+            .iter()
+            .map(|p| Point2::new(7.0 * p.x + 5.0, 7.0 * p.y - 2.0))
+            .collect();
         assert!(dist2(&q, &srvf(&moved, true)) < 1e-20);
     }
 
     #[test]
     fn best_rotation_recovers_a_known_angle() {
-        let b: Vec<Point2<f64>> = (0..40).map(|i| Point2::new(i as f64, (i as f64 * 0.3).sin())).collect();
+        let b: Vec<Point2<f64>> = (0..40)
+            .map(|i| Point2::new(i as f64, (i as f64 * 0.3).sin()))
+            .collect();
         let q = srvf(&b, false);
         let r = rotate(&q, 0.7);
         assert!((best_rotation(&r, &q) - 0.7).abs() < 1e-12);

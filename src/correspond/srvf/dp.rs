@@ -8,7 +8,11 @@ use nalgebra::Vector2;
 /// The coprime step set for neighbourhood size `n` (n = 1 gives only the diagonal).
 pub fn coprime_steps(n: usize) -> Vec<(usize, usize)> {
     fn gcd(a: usize, b: usize) -> usize {
-        if b == 0 { a } else { gcd(b, a % b) }
+        if b == 0 {
+            a
+        } else {
+            gcd(b, a % b)
+        }
     }
     let mut s = Vec::new();
     for a in 1..=n.max(1) {
@@ -28,13 +32,24 @@ fn interp(q: &[Vector2<f64>], y: f64) -> Vector2<f64> {
     let y = y.clamp(0.0, last as f64);
     let k = (y as usize).min(last.saturating_sub(1));
     let u = y - k as f64;
-    if last == 0 { q[0] } else { q[k] * (1.0 - u) + q[k + 1] * u }
+    if last == 0 {
+        q[0]
+    } else {
+        q[k] * (1.0 - u) + q[k + 1] * u
+    }
 }
 
 /// Cost of the straight piece from node (k, l) to node (i, j): the samples s = k..i-1 of q1
 /// against q2 warped linearly with slope m = (j - l) / (i - k).
 #[inline]
-pub fn edge_cost(q1: &[Vector2<f64>], q2: &[Vector2<f64>], k: usize, l: usize, i: usize, j: usize) -> f64 {
+pub fn edge_cost(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    k: usize,
+    l: usize,
+    i: usize,
+    j: usize,
+) -> f64 {
     let m = (j - l) as f64 / (i - k) as f64;
     let sm = m.sqrt();
     let mut c = 0.0;
@@ -129,7 +144,12 @@ pub fn warp_from_path(q1: &[Vector2<f64>], q2: &[Vector2<f64>], path: &[(usize, 
         warped[n - 1] = q2[n - 1] * m.sqrt();
     }
     let energy = super::curve::dist2(q1, &warped);
-    Warp { gamma, warped, energy, path: path.to_vec() }
+    Warp {
+        gamma,
+        warped,
+        energy,
+        path: path.to_vec(),
+    }
 }
 
 #[cfg(test)]
@@ -137,12 +157,20 @@ mod tests {
     use super::*;
 
     fn path_cost(q1: &[Vector2<f64>], q2: &[Vector2<f64>], p: &[(usize, usize)]) -> f64 {
-        p.windows(2).map(|w| edge_cost(q1, q2, w[0].0, w[0].1, w[1].0, w[1].1)).sum()
+        p.windows(2)
+            .map(|w| edge_cost(q1, q2, w[0].0, w[0].1, w[1].0, w[1].1))
+            .sum()
     }
 
     /// Every monotone path through the step set, by exhaustive recursion (tiny grids only).
     fn brute(q1: &[Vector2<f64>], q2: &[Vector2<f64>], steps: &[(usize, usize)]) -> f64 {
-        fn go(q1: &[Vector2<f64>], q2: &[Vector2<f64>], steps: &[(usize, usize)], at: (usize, usize), acc: f64) -> f64 {
+        fn go(
+            q1: &[Vector2<f64>],
+            q2: &[Vector2<f64>],
+            steps: &[(usize, usize)],
+            at: (usize, usize),
+            acc: f64,
+        ) -> f64 {
             let n = q1.len();
             if at == (n - 1, n - 1) {
                 return acc;
@@ -151,7 +179,13 @@ mod tests {
             for &(a, b) in steps {
                 let (i, j) = (at.0 + a, at.1 + b);
                 if i < n && j < n {
-                    best = best.min(go(q1, q2, steps, (i, j), acc + edge_cost(q1, q2, at.0, at.1, i, j)));
+                    best = best.min(go(
+                        q1,
+                        q2,
+                        steps,
+                        (i, j),
+                        acc + edge_cost(q1, q2, at.0, at.1, i, j),
+                    ));
                 }
             }
             best
@@ -160,7 +194,9 @@ mod tests {
     }
 
     fn lcg(seed: &mut u64) -> f64 {
-        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         (*seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
     }
 
@@ -170,8 +206,12 @@ mod tests {
         for n in [4usize, 6, 8] {
             for nb in [1usize, 2, 3] {
                 let steps = coprime_steps(nb);
-                let q1: Vec<Vector2<f64>> = (0..n).map(|_| Vector2::new(lcg(&mut seed), lcg(&mut seed))).collect();
-                let q2: Vec<Vector2<f64>> = (0..n).map(|_| Vector2::new(lcg(&mut seed), lcg(&mut seed))).collect();
+                let q1: Vec<Vector2<f64>> = (0..n)
+                    .map(|_| Vector2::new(lcg(&mut seed), lcg(&mut seed)))
+                    .collect();
+                let q2: Vec<Vector2<f64>> = (0..n)
+                    .map(|_| Vector2::new(lcg(&mut seed), lcg(&mut seed)))
+                    .collect();
                 let w = dp_warp(&q1, &q2, &steps);
                 let b = brute(&q1, &q2, &steps);
                 let p = path_cost(&q1, &q2, &w.path);
@@ -189,19 +229,30 @@ mod tests {
         let mut seed = 3u64;
         let n = 7;
         let steps = coprime_steps(3);
-        let q1: Vec<Vector2<f64>> = (0..n).map(|_| Vector2::new(lcg(&mut seed), lcg(&mut seed))).collect();
-        let q2: Vec<Vector2<f64>> = (0..n).map(|_| Vector2::new(lcg(&mut seed), lcg(&mut seed))).collect();
+        let q1: Vec<Vector2<f64>> = (0..n)
+            .map(|_| Vector2::new(lcg(&mut seed), lcg(&mut seed)))
+            .collect();
+        let q2: Vec<Vector2<f64>> = (0..n)
+            .map(|_| Vector2::new(lcg(&mut seed), lcg(&mut seed)))
+            .collect();
         let b = brute(&q1, &q2, &steps);
         let diag: Vec<(usize, usize)> = (0..n).map(|i| (i, i)).collect();
         let wrong = path_cost(&q1, &q2, &diag);
-        assert!((wrong - b).abs() > 1e-6, "the diagonal happened to be optimal; pick another seed");
+        assert!(
+            (wrong - b).abs() > 1e-6,
+            "the diagonal happened to be optimal; pick another seed"
+        );
     }
 
     #[test]
     fn warp_is_monotone_and_pinned() {
         let n = 30;
-        let q1: Vec<Vector2<f64>> = (0..n).map(|i| Vector2::new((i as f64 * 0.2).cos(), (i as f64 * 0.2).sin())).collect();
-        let q2: Vec<Vector2<f64>> = (0..n).map(|i| Vector2::new((i as f64 * 0.25).cos(), (i as f64 * 0.15).sin())).collect();
+        let q1: Vec<Vector2<f64>> = (0..n)
+            .map(|i| Vector2::new((i as f64 * 0.2).cos(), (i as f64 * 0.2).sin()))
+            .collect();
+        let q2: Vec<Vector2<f64>> = (0..n)
+            .map(|i| Vector2::new((i as f64 * 0.25).cos(), (i as f64 * 0.15).sin()))
+            .collect();
         let w = dp_warp(&q1, &q2, &coprime_steps(4));
         assert_eq!(w.gamma[0], 0.0);
         assert_eq!(w.gamma[n - 1], 1.0);

@@ -4,7 +4,9 @@ mod align;
 mod curve;
 mod dp;
 
-pub use align::{align, align_closed, align_open, align_partial, Alignment, CurveKind, SrvfError, SrvfParams};
+pub use align::{
+    align, align_closed, align_open, align_partial, Alignment, CurveKind, SrvfError, SrvfParams,
+};
 pub use curve::{best_rotation, dist2, inner, rotate, srvf};
 pub use dp::{coprime_steps, dp_warp, edge_cost, traceback, warp_from_path, Warp};
 
@@ -26,7 +28,9 @@ mod tests {
 
     fn similarity(p: &[Point2<f64>], theta: f64, s: f64, tx: f64, ty: f64) -> Vec<Point2<f64>> {
         let (sn, c) = theta.sin_cos();
-        p.iter().map(|q| Point2::new(s * (c * q.x - sn * q.y) + tx, s * (sn * q.x + c * q.y) + ty)).collect()
+        p.iter()
+            .map(|q| Point2::new(s * (c * q.x - sn * q.y) + tx, s * (sn * q.x + c * q.y) + ty))
+            .collect()
     }
 
     /// Re-parameterise: sample the same curve at unevenly spaced parameter values.
@@ -43,7 +47,10 @@ mod tests {
     }
 
     fn prm(t: usize) -> SrvfParams {
-        SrvfParams { samples: t, ..Default::default() }
+        SrvfParams {
+            samples: t,
+            ..Default::default()
+        }
     }
 
     #[test]
@@ -53,19 +60,33 @@ mod tests {
         let b: Vec<Point2<f64>> = b[80..].iter().chain(&b[..80]).cloned().collect(); // new start
         let al = align_closed(&a, &b, &prm(100), false).unwrap();
         assert!(al.distance < 0.05, "distance {}", al.distance);
-        assert!(((al.rotation + 0.9 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI).abs() < 0.05, "rotation {}", al.rotation);
+        assert!(
+            ((al.rotation + 0.9 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI)
+                .abs()
+                < 0.05,
+            "rotation {}",
+            al.rotation
+        );
         // The matched points map back onto A under the inverse similarity.
         let back = similarity(&al.b_points, -0.9, 1.0 / 2.5, 0.0, 0.0);
         let off = nalgebra::Vector2::new(40.0, -7.0);
         let (sn, c) = (-0.9f64).sin_cos();
         let off = nalgebra::Vector2::new(c * off.x - sn * off.y, sn * off.x + c * off.y) / 2.5;
-        let err = al.a_points.iter().zip(&back).map(|(a, b)| (a - (b - off)).norm()).fold(0.0, f64::max);
+        let err = al
+            .a_points
+            .iter()
+            .zip(&back)
+            .map(|(a, b)| (a - (b - off)).norm())
+            .fold(0.0, f64::max);
         assert!(err < 0.1, "max correspondence error {err}");
         // The companion: a different shape is far.
-        let other: Vec<Point2<f64>> = (0..200).map(|i| {
-            let t = std::f64::consts::TAU * i as f64 / 200.0;
-            Point2::new(t.cos(), 0.3 * t.sin())
-        }).collect();
+        let other: Vec<Point2<f64>> = (0..200)
+            .map(|i| {
+                let t = std::f64::consts::TAU * i as f64 / 200.0;
+                Point2::new(t.cos(), 0.3 * t.sin())
+            })
+            .collect();
         assert!(align_closed(&a, &other, &prm(100), false).unwrap().distance > 0.2);
     }
 
@@ -83,7 +104,12 @@ mod tests {
             let l = crate::contours::polyline_length(&a, true);
             let expect = (((l - s) / l * t as f64).round() as usize) % t;
             let d = (al.seed as isize - expect as isize).rem_euclid(t as isize) as usize;
-            assert!(d.min(t - d) <= 1, "shift {shift}: seed {} expected {expect}, distance {}", al.seed, al.distance);
+            assert!(
+                d.min(t - d) <= 1,
+                "shift {shift}: seed {} expected {expect}, distance {}",
+                al.seed,
+                al.distance
+            );
             assert!(al.distance < 0.05, "distance {}", al.distance);
         }
     }
@@ -96,16 +122,23 @@ mod tests {
         let p = prm(48);
         let fast = align_closed(&a, &b, &p, false).unwrap();
         let exact = align_closed(&a, &b, &p, true).unwrap();
-        assert!(fast.distance <= exact.distance * 1.01 + 1e-9, "fast {} exhaustive {}", fast.distance, exact.distance);
+        assert!(
+            fast.distance <= exact.distance * 1.01 + 1e-9,
+            "fast {} exhaustive {}",
+            fast.distance,
+            exact.distance
+        );
         assert!(exact.distance <= fast.distance + 1e-12);
     }
 
     #[test]
     fn open_curves_align_up_to_similarity() {
-        let a: Vec<Point2<f64>> = (0..90).map(|i| {
-            let t = i as f64 / 89.0 * 3.0;
-            Point2::new(t, (2.0 * t).sin() + 0.2 * t * t)
-        }).collect();
+        let a: Vec<Point2<f64>> = (0..90)
+            .map(|i| {
+                let t = i as f64 / 89.0 * 3.0;
+                Point2::new(t, (2.0 * t).sin() + 0.2 * t * t)
+            })
+            .collect();
         let b = similarity(&a, -1.2, 0.5, 3.0, 3.0);
         let al = align_open(&a, &b, &prm(100)).unwrap();
         assert!(al.distance < 0.05, "{}", al.distance);
@@ -135,11 +168,27 @@ mod tests {
         let p = prm(50);
         let one = vec![Point2::new(0.0, 0.0)];
         let dup = vec![Point2::new(1.0, 1.0); 10];
-        let nan = vec![Point2::new(0.0, 0.0), Point2::new(f64::NAN, 1.0), Point2::new(1.0, 0.0)];
+        let nan = vec![
+            Point2::new(0.0, 0.0),
+            Point2::new(f64::NAN, 1.0),
+            Point2::new(1.0, 0.0),
+        ];
         let ok = blob(20, 0.0);
-        assert!(matches!(align_closed(&one, &ok, &p, false), Err(SrvfError::TooFewPoints { .. })));
-        assert!(matches!(align_open(&ok, &dup, &p), Err(SrvfError::ZeroLength { curve: "B" })));
-        assert!(matches!(align_partial(&nan, &ok, &p), Err(SrvfError::NonFinite { index: 1, .. })));
-        assert!(matches!(align_closed(&ok, &ok, &prm(3), false), Err(SrvfError::TooFewSamples(3))));
+        assert!(matches!(
+            align_closed(&one, &ok, &p, false),
+            Err(SrvfError::TooFewPoints { .. })
+        ));
+        assert!(matches!(
+            align_open(&ok, &dup, &p),
+            Err(SrvfError::ZeroLength { curve: "B" })
+        ));
+        assert!(matches!(
+            align_partial(&nan, &ok, &p),
+            Err(SrvfError::NonFinite { index: 1, .. })
+        ));
+        assert!(matches!(
+            align_closed(&ok, &ok, &prm(3), false),
+            Err(SrvfError::TooFewSamples(3))
+        ));
     }
 }
