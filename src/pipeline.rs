@@ -148,15 +148,7 @@ fn all_correspondences(
 /// (1.4826 * median), so that contour parts the template cannot follow (a notch, a shallow rim)
 /// pull less than the parts it can.
 fn robust_weights(mesh: &Mesh, cams: &[Camera], obs: &mut [Observation]) {
-    let r: Vec<f64> = obs
-        .iter()
-        .map(|o| {
-            cams[o.view]
-                .project(&mesh.vertices[o.vertex as usize])
-                .map(|p| (p - o.target).norm())
-                .unwrap_or(f64::INFINITY)
-        })
-        .collect();
+    let r = residuals_px(mesh, cams, obs);
     let mut s = r.clone();
     s.sort_by(f64::total_cmp);
     let c = 2.0 * 1.4826 * s.get(s.len() / 2).copied().unwrap_or(1.0).max(0.5);
@@ -169,16 +161,20 @@ fn robust_weights(mesh: &Mesh, cams: &[Camera], obs: &mut [Observation]) {
     }
 }
 
-fn rms_px(mesh: &Mesh, cams: &[Camera], obs: &[Observation]) -> f64 {
-    let s: f64 = obs
-        .iter()
+/// Reprojection residual of each correspondence in pixels (infinite behind the source).
+fn residuals_px(mesh: &Mesh, cams: &[Camera], obs: &[Observation]) -> Vec<f64> {
+    obs.iter()
         .map(|o| {
             cams[o.view]
                 .project(&mesh.vertices[o.vertex as usize])
-                .map(|p| (p - o.target).norm_squared())
+                .map(|p| (p - o.target).norm())
                 .unwrap_or(f64::INFINITY)
         })
-        .sum();
+        .collect()
+}
+
+fn rms_px(mesh: &Mesh, cams: &[Camera], obs: &[Observation]) -> f64 {
+    let s: f64 = residuals_px(mesh, cams, obs).iter().map(|r| r * r).sum();
     (s / obs.len().max(1) as f64).sqrt()
 }
 
