@@ -200,18 +200,17 @@ mod tests {
         (*seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
     }
 
+    fn random_q(n: usize, seed: &mut u64) -> Vec<Vector2<f64>> {
+        (0..n).map(|_| Vector2::new(lcg(seed), lcg(seed))).collect()
+    }
+
     #[test]
     fn dp_equals_brute_force_on_tiny_grids() {
         let mut seed = 7u64;
         for n in [4usize, 6, 8] {
             for nb in [1usize, 2, 3] {
                 let steps = coprime_steps(nb);
-                let q1: Vec<Vector2<f64>> = (0..n)
-                    .map(|_| Vector2::new(lcg(&mut seed), lcg(&mut seed)))
-                    .collect();
-                let q2: Vec<Vector2<f64>> = (0..n)
-                    .map(|_| Vector2::new(lcg(&mut seed), lcg(&mut seed)))
-                    .collect();
+                let (q1, q2) = (random_q(n, &mut seed), random_q(n, &mut seed));
                 let w = dp_warp(&q1, &q2, &steps);
                 let b = brute(&q1, &q2, &steps);
                 let p = path_cost(&q1, &q2, &w.path);
@@ -229,12 +228,7 @@ mod tests {
         let mut seed = 3u64;
         let n = 7;
         let steps = coprime_steps(3);
-        let q1: Vec<Vector2<f64>> = (0..n)
-            .map(|_| Vector2::new(lcg(&mut seed), lcg(&mut seed)))
-            .collect();
-        let q2: Vec<Vector2<f64>> = (0..n)
-            .map(|_| Vector2::new(lcg(&mut seed), lcg(&mut seed)))
-            .collect();
+        let (q1, q2) = (random_q(n, &mut seed), random_q(n, &mut seed));
         let b = brute(&q1, &q2, &steps);
         let diag: Vec<(usize, usize)> = (0..n).map(|i| (i, i)).collect();
         let wrong = path_cost(&q1, &q2, &diag);
