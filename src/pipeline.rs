@@ -38,6 +38,10 @@ pub struct ReconParams {
     pub catalogue: CupCatalogue,
     /// Cauchy robust weights on the reprojection residuals (default on).
     pub robust: bool,
+    /// Weight of correspondences on the template's rim during the similarity stage (default
+    /// 0.1). A real acetabulum is shallower than a hemisphere and notched, so its rim outline is
+    /// not the hemisphere's; the dome's silhouette (a sphere's limb) fixes centre and size.
+    pub similarity_rim_weight: f64,
 }
 
 impl Default for ReconParams {
@@ -55,6 +59,7 @@ impl Default for ReconParams {
             icp_iterations: 20,
             catalogue: CupCatalogue::default(),
             robust: true,
+            similarity_rim_weight: 0.1,
         }
     }
 }
@@ -214,10 +219,18 @@ pub fn reconstruct(
         max_iterations: 10,
         ..prm.lm.clone()
     };
+    let mut on_rim = vec![false; mesh.vertex_count()];
+    for [a, b] in mesh.boundary_edges() {
+        on_rim[a as usize] = true;
+        on_rim[b as usize] = true;
+    }
     for _ in 0..prm.similarity_rounds {
         let mut obs = all_correspondences(&mesh, cams, observed, prm)?;
         if prm.robust {
             robust_weights(&mesh, cams, &mut obs);
+        }
+        for o in obs.iter_mut().filter(|o| on_rim[o.vertex as usize]) {
+            o.weight *= prm.similarity_rim_weight;
         }
         if obs.len() < min_corr {
             return Err(ReconError::TooFewCorrespondences {
@@ -225,7 +238,8 @@ pub fn reconstruct(
                 count: obs.len(),
             });
         }
-        let problem = SimilarityProblem::new(&mesh.vertices, cams, &obs);
+        let mut problem = SimilarityProblem::new(&mesh.vertices, cams, &obs);
+        problem.tangential = prm.weights.tangential;
         let (x, info) = levenberg_marquardt(&problem, vec![0.0; 7], &sim_lm).map_err(|source| {
             ReconError::Solve {
                 stage: "similarity",

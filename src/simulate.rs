@@ -57,6 +57,8 @@ pub struct SimCase {
 pub enum SimError {
     #[error("ground truth sphere fit: {0}")]
     Sphere(#[from] SphereFitError),
+    #[error("ground truth outer side: {0}")]
+    Surface(crate::mesh::MeshError),
     #[error("ground truth contour in view {view}: {source}")]
     Contour { view: usize, source: ContourError },
 }
@@ -77,6 +79,46 @@ pub fn fit_placement(truth: &Mesh) -> Result<(Placement, Sphere), SphereFitError
         s,
     ))
 }
+
+/// The ground-truth surface of a mesh: a closed shell (no boundary edges, like the cartilage
+/// shells in ../shared) is reduced to its outer side, the faces whose normal points away from the
+/// fitted sphere centre; an open surface is used as it is.
+pub fn ground_truth_surface(mesh: &Mesh) -> Result<Mesh, SimError> {
+    if !mesh.boundary_edges().is_empty() {
+        return Ok(mesh.clone());
+    }
+    let c = fit_sphere(&mesh.vertices)?.center_point();
+    let keep: Vec<usize> = (0..mesh.triangles.len())
+        .filter(|&t| {
+            let [a, b, d] = mesh.triangles[t].map(|i| mesh.vertices[i as usize]);
+            let n = (b - a).cross(&(d - a));
+            n.dot(&((a.coords + b.coords + d.coords) / 3.0 - c.coords)) > 0.0
+        })
+        .collect();
+    mesh.submesh(&keep).map_err(SimError::Surface)
+}
+
+/// Alpha radius (pixels) of the simulated annotation: concavities narrower than half the
+/// acetabulum's radius (the notch, the fossa of a horseshoe-shaped cartilage surface, gaps between
+/// mesh vertices) are bridged, as an annotator tracing the bony outline on an X-ray bridges them.
+/// Never below the mesh-resolution default.
+pub fn observed_alpha(truth: &Mesh, cam: &Camera, placement: &Placement) -> f64 {
+    let projected: Vec<_> = truth
+        .vertices
+        .iter()
+        .filter_map(|v| cam.project(v).ok())
+        .collect();
+    let by_edges = if projected.len() == truth.vertex_count() {
+        crate::contours::default_alpha(truth, &projected)
+    } else {
+        0.0
+    };
+    by_edges
+        .max(OBSERVED_ALPHA_FRACTION * placement.radius * cam.pixels_per_mm_at(&placement.center))
+}
+
+/// See `observed_alpha`.
+pub const OBSERVED_ALPHA_FRACTION: f64 = 0.5;
 
 /// Perturb a placement: the axis rotated by Euler angles (x, y, z) drawn with the level's SD, the
 /// centre shifted per axis, the radius scaled.
@@ -110,8 +152,8 @@ pub fn simulate_case(
     let noise = Normal::new(0.0, noise_px.max(0.0)).expect("finite SD");
     let mut observed = Vec::new();
     for (view, cam) in cameras.iter().enumerate() {
-        let c =
-            model_contour(truth, cam, None).map_err(|source| SimError::Contour { view, source })?;
+        let c = model_contour(truth, cam, Some(observed_alpha(truth, cam, &placement)))
+            .map_err(|source| SimError::Contour { view, source })?;
         let pts = c
             .points
             .iter()

@@ -132,8 +132,10 @@ fn dist(a: spade::Point2<f64>, b: spade::Point2<f64>) -> f64 {
     ((a.x - b.x).powi(2) + (a.y - b.y).powi(2)).sqrt()
 }
 
-/// Trace the boundary of the kept faces; `None` unless it is exactly one simple loop covering
-/// every kept face's outline.
+/// Trace the boundary of the kept faces. Holes (clockwise loops, e.g. the fossa of a
+/// horseshoe-shaped surface) are ignored; the outline is the largest counter-clockwise loop.
+/// `None` when a vertex is pinched (two outgoing boundary edges) or when that loop holds less
+/// than 95 % of the outer area (the shape fell apart into islands): alpha must grow.
 fn trace_single_loop(tri: &DelaunayTriangulation<Site>, alpha: f64) -> Option<Vec<u32>> {
     let kept: Vec<bool> = tri
         .all_faces()
@@ -147,8 +149,7 @@ fn trace_single_loop(tri: &DelaunayTriangulation<Site>, alpha: f64) -> Option<Ve
         .collect();
     // Directed boundary edges (kept face on the left): from -> to, by spade vertex index.
     let mut next = vec![usize::MAX; tri.num_vertices()];
-    let mut count = 0usize;
-    let mut start = usize::MAX;
+    let mut starts = Vec::new();
     for f in tri.inner_faces() {
         if !kept[f.fix().index()] {
             continue;
@@ -161,31 +162,57 @@ fn trace_single_loop(tri: &DelaunayTriangulation<Site>, alpha: f64) -> Option<Ve
                     return None; // a pinch vertex: two outgoing boundary edges
                 }
                 next[from] = to;
-                count += 1;
-                start = from;
+                starts.push(from);
             }
         }
     }
-    if count < 3 {
-        return None;
-    }
-    let mut ids = Vec::with_capacity(count);
-    let mut v = start;
-    for _ in 0..count {
-        ids.push(
-            tri.vertex(spade::handles::FixedVertexHandle::from_index(v))
-                .data()
-                .id,
-        );
-        v = next[v];
-        if v == usize::MAX {
+    let pos = |v: usize| {
+        let p = tri
+            .vertex(spade::handles::FixedVertexHandle::from_index(v))
+            .position();
+        Point2::new(p.x, p.y)
+    };
+    let mut visited = vec![false; tri.num_vertices()];
+    let mut best: Option<(f64, Vec<usize>)> = None;
+    let mut outer_total = 0.0;
+    for &s in &starts {
+        if visited[s] {
+            continue;
+        }
+        let mut lp = Vec::new();
+        let mut v = s;
+        while !visited[v] {
+            visited[v] = true;
+            lp.push(v);
+            v = next[v];
+            if v == usize::MAX {
+                return None;
+            }
+        }
+        if v != s || lp.len() < 3 {
             return None;
         }
-        if v == start {
-            break;
+        let area = signed_area(&lp.iter().map(|&v| pos(v)).collect::<Vec<_>>());
+        if area > 0.0 {
+            outer_total += area;
+            if best.as_ref().map_or(true, |b| area > b.0) {
+                best = Some((area, lp));
+            }
         }
     }
-    (v == start && ids.len() == count).then_some(ids)
+    let (area, lp) = best?;
+    if area < 0.95 * outer_total {
+        return None;
+    }
+    Some(
+        lp.iter()
+            .map(|&v| {
+                tri.vertex(spade::handles::FixedVertexHandle::from_index(v))
+                    .data()
+                    .id
+            })
+            .collect(),
+    )
 }
 
 #[cfg(test)]
@@ -225,6 +252,22 @@ mod tests {
         assert!((75.0..=75.5 + 1e-9).contains(&a), "area {a}");
         let hull = alpha_shape_contour(&pts, 1e9).unwrap();
         assert!(signed_area(&hull.points) > 85.0);
+    }
+
+    #[test]
+    fn a_hole_is_left_out_and_the_outline_kept_tight() {
+        // A 20 x 20 grid with a 10 x 10 hole in the middle (a horseshoe's fossa seen en face).
+        let mut pts = Vec::new();
+        for i in 0..=20 {
+            for j in 0..=20 {
+                if !((6..=14).contains(&i) && (6..=14).contains(&j)) {
+                    pts.push(Point2::new(i as f64, j as f64));
+                }
+            }
+        }
+        let c = alpha_shape_contour(&pts, 1.0).unwrap();
+        assert_eq!(c.points.len(), 80, "the outer square's 80 boundary points");
+        assert!((signed_area(&c.points) - 400.0).abs() < 1e-9);
     }
 
     #[test]

@@ -35,7 +35,7 @@ pub fn icp_matches(
 }
 
 /// Unit normals of a polyline (tangent by central differences, turned by -90 degrees).
-fn normals(p: &[Point2<f64>], closed: bool) -> Vec<Vector2<f64>> {
+pub fn curve_normals(p: &[Point2<f64>], closed: bool) -> Vec<Vector2<f64>> {
     let n = p.len();
     (0..n)
         .map(|i| {
@@ -60,8 +60,8 @@ pub fn icp_normvec_matches(
     model: &[Point2<f64>],
     max_angle_deg: f64,
 ) -> Vec<Option<(Point2<f64>, usize)>> {
-    let ns = normals(samples, closed);
-    let nm = normals(model, true);
+    let ns = curve_normals(samples, closed);
+    let nm = curve_normals(model, true);
     let cos_max = max_angle_deg.to_radians().cos();
     samples
         .iter()

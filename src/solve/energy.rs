@@ -14,7 +14,7 @@ use super::graph::{DeformationGraph, NODE_PARAMS};
 use super::lm::Problem;
 use super::normal::Linearization;
 use crate::views::Camera;
-use nalgebra::{Point2, Point3};
+use nalgebra::{Matrix2, Point2, Point3, Vector2};
 
 /// Energy weights.
 #[derive(Clone, Debug, PartialEq)]
@@ -22,6 +22,8 @@ pub struct EdWeights {
     pub rot: f64,
     pub reg: f64,
     pub obs: f64,
+    /// Weight of the reprojection error along the observed contour relative to across it.
+    pub tangential: f64,
 }
 
 impl Default for EdWeights {
@@ -30,6 +32,7 @@ impl Default for EdWeights {
             rot: 1.0,
             reg: 100.0,
             obs: 100.0,
+            tangential: 0.1,
         }
     }
 }
@@ -42,6 +45,22 @@ pub struct Observation {
     pub target: Point2<f64>,
     /// Robustness weight in [0, 1] (multiplies the squared residual).
     pub weight: f64,
+    /// Unit normal of the observed contour at `target` (zero when unknown).
+    pub normal: Vector2<f64>,
+}
+
+impl Observation {
+    /// The 2x2 map applied to the pixel residual: rows n^T and `tangential` t^T (t the contour
+    /// tangent). A silhouette point may slide along the outline, so the component along the
+    /// contour is down-weighted (point-to-line distance plus a little point-to-point); with no
+    /// normal it is the identity (plain reprojection error).
+    pub fn residual_frame(&self, tangential: f64) -> Matrix2<f64> {
+        let n = self.normal;
+        if n.norm_squared() < 0.5 {
+            return Matrix2::identity();
+        }
+        Matrix2::new(n.x, n.y, -tangential * n.y, tangential * n.x)
+    }
 }
 
 /// The ED problem over a graph, the cameras and fixed correspondences.
@@ -164,7 +183,9 @@ impl Problem for EdProblem<'_> {
                     continue;
                 }
             };
-            let res = (px - o.target) * s;
+            let frame = o.residual_frame(self.weights.tangential);
+            let res = frame * (px - o.target) * s;
+            let jp = jp.map(|j| frame * j);
             match jp {
                 None => {
                     l.push_residual(res.x);
@@ -231,6 +252,7 @@ mod tests {
                     vertex,
                     target: cams[view].project(&moved).unwrap(),
                     weight: 1.0,
+                    normal: Vector2::zeros(),
                 }
             })
             .collect();

@@ -22,6 +22,8 @@ pub struct SimilarityProblem<'a> {
     pub cameras: &'a [Camera],
     pub observations: &'a [Observation],
     pub px_per_mm: Vec<f64>,
+    /// Along-contour weight of the reprojection error (see `Observation::residual_frame`).
+    pub tangential: f64,
 }
 
 /// Apply a similarity state to points.
@@ -53,6 +55,7 @@ impl<'a> SimilarityProblem<'a> {
             cameras,
             observations,
             px_per_mm,
+            tangential: 1.0,
         }
     }
 }
@@ -79,7 +82,9 @@ impl Problem for SimilarityProblem<'_> {
                 l.push_residual(f64::INFINITY);
                 continue;
             };
-            let res = (px - o.target) * k;
+            let frame = o.residual_frame(self.tangential);
+            let res = frame * (px - o.target) * k;
+            let jp = frame * jp;
             for row in 0..2 {
                 if !jac {
                     l.push_residual(res[row]);
@@ -136,6 +141,7 @@ mod tests {
                     vertex: i as u32,
                     target: cams[v].project(&moved[i]).unwrap(),
                     weight: 1.0,
+                    normal: nalgebra::Vector2::zeros(),
                 })
             })
             .collect();

@@ -182,7 +182,7 @@ pub fn align_closed(
     }
     let q1g = closed_grid(&q1, 0);
     let mut best: Option<(f64, usize, f64, Warp)> = None;
-    let mut refine = |s: usize, best: &mut Option<(f64, usize, f64, Warp)>| {
+    let refine = |s: usize, best: &mut Option<(f64, usize, f64, Warp)>| {
         let (theta, w) = rotate_and_warp(&q1g, &closed_grid(&q2, s), energies[s].1, prm, &steps);
         if best.as_ref().map_or(true, |b| w.energy < b.0) {
             *best = Some((w.energy, s, theta, w));
