@@ -1,0 +1,137 @@
+//! The command line: the demo's JSON, a case file through `acetab reconstruct`, and bad input.
+
+use acetab::case::CaseFile;
+use acetab::simulate::{simulate_case, NoiseLevel};
+use acetab::template::{phantom, PhantomParams};
+use acetab::views::XrayGeometry;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_acetab"))
+}
+
+fn tmp(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("acetab-cli-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn phantom_case(dir: &Path) -> PathBuf {
+    let truth = phantom(&PhantomParams::default()).mesh;
+    let sim = simulate_case(
+        &truth,
+        &XrayGeometry::default(),
+        2.0,
+        &NoiseLevel::level(2).unwrap(),
+        4,
+    )
+    .unwrap();
+    let file = CaseFile::from_parts(&sim.cameras, &sim.observed, &sim.init);
+    let path = dir.join("case.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&file).unwrap()).unwrap();
+    path
+}
+
+#[test]
+fn demo_json_has_the_documented_fields_and_writes_its_files() {
+    let out = tmp("demo");
+    let o = bin()
+        .args(["demo", "--json", "--seed", "7", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for k in [
+        "mae_mm",
+        "sd_mm",
+        "p95_mm",
+        "cup_diameter_mm",
+        "gt_cup_diameter_mm",
+        "seconds",
+    ] {
+        assert!(
+            v[k].as_f64().is_some_and(|x| x.is_finite()),
+            "{k}: {}",
+            v[k]
+        );
+    }
+    assert_eq!(v["seed"], 7);
+    for f in ["reconstruction.ply", "truth.ply", "report.json"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let ply = std::fs::read_to_string(out.join("reconstruction.ply")).unwrap();
+    assert!(ply.contains("property uchar red"));
+}
+
+#[test]
+fn a_case_file_reconstructs_through_the_cli() {
+    let dir = tmp("case");
+    let case = phantom_case(&dir);
+    let out = dir.join("out");
+    let o = bin()
+        .arg("reconstruct")
+        .arg(&case)
+        .arg("--out")
+        .arg(&out)
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let d = v["cup_diameter_mm"].as_f64().unwrap();
+    // The phantom's fitted sphere is 52.45 mm across.
+    assert!((d - 52.45).abs() < 2.0, "cup {d}");
+    assert!(out.join("reconstruction.ply").is_file() && out.join("report.json").is_file());
+}
+
+#[test]
+fn a_bad_case_fails_cleanly_and_writes_nothing() {
+    let dir = tmp("bad");
+    let case = phantom_case(&dir);
+    let good: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&case).unwrap()).unwrap();
+    let mut cases: Vec<(&str, String)> = Vec::new();
+    let mut v = good.clone();
+    v["views"][1]["k"]["fx"] = serde_json::json!(-5500.0);
+    cases.push(("views[1].k.fx", v.to_string()));
+    let mut v = good.clone();
+    v["views"][0]["r"][0][0] = serde_json::json!(0.5);
+    cases.push(("not orthonormal", v.to_string()));
+    let mut v = good.clone();
+    for c in 0..3 {
+        let x = v["views"][0]["r"][0][c].as_f64().unwrap();
+        v["views"][0]["r"][0][c] = serde_json::json!(-x);
+    }
+    cases.push(("reflection", v.to_string()));
+    let mut v = good.clone();
+    v["views"][2]["contours"][0]["points"] =
+        serde_json::json!([[1000.0, 1000.0], [1000.0, 1000.0]]);
+    cases.push(("views[2].contours[0].points", v.to_string()));
+    let mut v = good.clone();
+    v["template"].as_object_mut().unwrap().remove("radius");
+    cases.push(("radius", v.to_string()));
+    cases.push(("invalid JSON", good.to_string()[..200].to_string()));
+    for (needle, text) in cases {
+        let path = dir.join("bad.json");
+        std::fs::write(&path, text).unwrap();
+        let out = dir.join("bad-out");
+        let o = bin()
+            .arg("reconstruct")
+            .arg(&path)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{needle}: {err}");
+        assert!(
+            err.contains(needle) && err.contains("bad.json"),
+            "{needle}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!out.exists(), "{needle}: output folder written");
+    }
+}
