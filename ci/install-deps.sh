@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # System packages the project needs on a fresh machine: the Mesa lavapipe Vulkan driver, so the
-# GPU kernels (coming with the GPU engine) run on the CPU in CI. Idempotent.
+# GPU kernels (coming with the GPU engine) run on the CPU in CI, and the DejaVu font the plots
+# label their axes with. Idempotent.
 set -euo pipefail
-if ! ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1; then
+if ! ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1 || [ ! -f /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf ]; then
   SUDO=""
   [ "$(id -u)" -eq 0 ] || SUDO="sudo"
   $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends mesa-vulkan-drivers >/dev/null
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends mesa-vulkan-drivers fonts-dejavu-core >/dev/null
 fi

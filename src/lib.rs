@@ -16,5 +16,6 @@ pub mod pipeline;
 pub mod report;
 pub mod simulate;
 pub mod solve;
+pub mod study;
 pub mod template;
 pub mod views;

@@ -4,10 +4,17 @@ use acetab::case::CaseFile;
 use acetab::correspond::Method;
 use acetab::demo::{run_demo, write_error_ply};
 use acetab::fsutil::write_atomic;
+use acetab::mesh::io::read_mesh;
 use acetab::mesh::io::write_ply;
 use acetab::pipeline::{reconstruct, ReconParams};
 use acetab::report::CupCatalogue;
-use clap::{Parser, Subcommand};
+use acetab::simulate::ground_truth_surface;
+use acetab::study::{
+    merge_dirs, run_study, summarize, tasks, write_examples, write_tables, StudyConfig,
+};
+use acetab::template::{phantom, PhantomParams};
+use clap::{Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -39,6 +46,37 @@ enum Command {
         method: Method,
         /// Output folder.
         #[arg(long, default_value = "acetab-out")]
+        out: PathBuf,
+    },
+    /// The simulation study: levels x runs x methods on a ground-truth surface.
+    Simulate {
+        /// Ground truth: a mesh file (STL/PLY/OBJ; a closed shell is reduced to its outer side)
+        /// or "phantom".
+        #[arg(long)]
+        gt: String,
+        #[arg(long, default_value = "1,2,3,4,5")]
+        levels: String,
+        #[arg(long, default_value_t = 10)]
+        runs: usize,
+        #[arg(long, default_value = "srvf,icp,icp-normvec")]
+        methods: String,
+        /// Study seed; each run's seed is derived from it, the level and the run number.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Worker threads (default: all cores). Results do not depend on it.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Run only shard I of N (0 <= I < N), for job arrays; join with `acetab merge`.
+        #[arg(long, default_value = "0/1")]
+        shard: String,
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Join the runs of several `acetab simulate --shard` folders.
+    Merge {
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        #[arg(long)]
         out: PathBuf,
     },
     /// Reconstruct a case file.
@@ -109,6 +147,78 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             Ok(())
         }
+        Command::Simulate {
+            gt,
+            levels,
+            runs,
+            methods,
+            seed,
+            threads,
+            shard,
+            out,
+        } => {
+            let cfg = StudyConfig {
+                levels: parse_list(&levels, "--levels", |x| {
+                    x.parse::<u32>().ok().filter(|l| (1..=5).contains(l))
+                })?,
+                runs,
+                methods: parse_list(&methods, "--methods", |x| Method::from_str(x, true).ok())?,
+                seed,
+                threads: threads
+                    .unwrap_or_else(|| {
+                        std::thread::available_parallelism()
+                            .map(|n| n.get())
+                            .unwrap_or(1)
+                    })
+                    .max(1),
+                shard: parse_shard(&shard)?,
+                ..Default::default()
+            };
+            if runs == 0 {
+                return Err("--runs: must be at least 1".into());
+            }
+            let truth = if gt == "phantom" {
+                phantom(&PhantomParams::default()).mesh
+            } else {
+                let mesh = read_mesh(Path::new(&gt)).map_err(|e| format!("--gt: {e}"))?;
+                ground_truth_surface(&mesh).map_err(|e| format!("--gt {gt}: {e}"))?
+            };
+            let total = tasks(&cfg).len();
+            let bar = ProgressBar::new(total as u64);
+            bar.set_style(
+                ProgressStyle::with_template(
+                    "{bar:40} {pos}/{len} runs, {elapsed} elapsed, ~{eta} left",
+                )
+                .map_err(|e| e.to_string())?,
+            );
+            let start = std::time::Instant::now();
+            let (rows, examples) = run_study(&truth, &cfg, &|| bar.inc(1));
+            bar.finish_and_clear();
+            let meta = serde_json::json!({
+                "gt": gt, "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
+                "shard": shard, "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),
+            });
+            create_dir(&out)?;
+            write_tables(&rows, &out, &meta).map_err(|e| e.to_string())?;
+            write_examples(&examples, &truth, &out).map_err(|e| e.to_string())?;
+            eprintln!(
+                "{} runs in {:.1} s (seed {seed}); results in {}",
+                rows.len(),
+                start.elapsed().as_secs_f64(),
+                out.display()
+            );
+            print_summary(&rows);
+            Ok(())
+        }
+        Command::Merge { dirs, out } => {
+            let rows = merge_dirs(&dirs).map_err(|e| e.to_string())?;
+            create_dir(&out)?;
+            let meta = serde_json::json!({ "merged": dirs });
+            write_tables(&rows, &out, &meta).map_err(|e| e.to_string())?;
+            eprintln!("{} runs merged into {}", rows.len(), out.display());
+            print_summary(&rows);
+            Ok(())
+        }
         Command::Reconstruct {
             case,
             out,
@@ -160,6 +270,48 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             Ok(())
         }
+    }
+}
+
+fn parse_list<T>(s: &str, flag: &str, f: impl Fn(&str) -> Option<T>) -> Result<Vec<T>, String> {
+    let v: Option<Vec<T>> = s.split(',').map(|x| f(x.trim())).collect();
+    match v {
+        Some(v) if !v.is_empty() => Ok(v),
+        _ => Err(format!("{flag}: cannot read {s:?}")),
+    }
+}
+
+fn parse_shard(s: &str) -> Result<(usize, usize), String> {
+    let bad = || format!("--shard: expected I/N with 0 <= I < N, got {s:?}");
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    let (i, n): (usize, usize) = (
+        i.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if n == 0 || i >= n {
+        return Err(bad());
+    }
+    Ok((i, n))
+}
+
+fn print_summary(rows: &[acetab::study::Row]) {
+    println!(
+        "{:<12} {:>5} {:>5} {:>9} {:>9} {:>11} {:>9} {:>9}",
+        "method", "level", "runs", "MAE mm", "SD", "cup err mm", "|cup|<=1", "median s"
+    );
+    for s in summarize(rows) {
+        println!(
+            "{:<12} {:>5} {:>5} {:>9.3} {:>9.3} {:>+11.2} {:>6}/{:<2} {:>9.2}",
+            s.method.name(),
+            s.level,
+            s.runs,
+            s.mae_mean,
+            s.mae_sd,
+            s.cup_error_mean,
+            s.cup_within_1mm,
+            s.runs,
+            s.median_seconds
+        );
     }
 }
 

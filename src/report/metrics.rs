@@ -58,9 +58,15 @@ impl SurfaceQuery {
 
     /// Distance from p to the closest point on the surface.
     pub fn distance(&self, p: &Point3<f64>) -> f64 {
-        let q = PVec::new(p.x, p.y, p.z);
-        let proj = self.shape.project_local_point(q, false);
-        (proj.point - q).length()
+        (self.closest_point(p) - p).norm()
+    }
+
+    /// The closest point on the surface's triangles.
+    pub fn closest_point(&self, p: &Point3<f64>) -> Point3<f64> {
+        let proj = self
+            .shape
+            .project_local_point(PVec::new(p.x, p.y, p.z), false);
+        Point3::new(proj.point.x, proj.point.y, proj.point.z)
     }
 }
 
@@ -103,6 +109,36 @@ pub fn surface_distance(points: &[Point3<f64>], to: &Mesh) -> Vec<f64> {
         Some(q) => points.iter().map(|p| q.distance(p)).collect(),
         None => vec![f64::INFINITY; points.len()],
     }
+}
+
+/// Distances from the vertices of `from` to the surface `to`, leaving out vertices whose closest
+/// point lies on the border of `to` (within 1e-6 mm of a boundary edge): where `to` simply ends
+/// (a horseshoe's notch and fossa) the distance says nothing about the fit.
+pub fn interior_distance(from: &Mesh, to: &Mesh) -> Vec<f64> {
+    let Some(q) = SurfaceQuery::new(to) else {
+        return Vec::new();
+    };
+    let border: Vec<(Point3<f64>, Point3<f64>)> = to
+        .boundary_edges()
+        .iter()
+        .map(|[a, b]| (to.vertices[*a as usize], to.vertices[*b as usize]))
+        .collect();
+    from.vertices
+        .iter()
+        .filter_map(|p| {
+            let c = q.closest_point(p);
+            let on_border = border.iter().any(|(a, b)| {
+                let ab = b - a;
+                let u = if ab.norm_squared() > 0.0 {
+                    ((c - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (a + ab * u - c).norm() < 1e-6
+            });
+            (!on_border).then(|| (c - p).norm())
+        })
+        .collect()
 }
 
 /// Per-vertex colours for an error map: blue (0 mm) through green to red (>= `max_mm`).

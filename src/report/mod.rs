@@ -3,8 +3,11 @@
 
 mod cup;
 mod metrics;
+pub mod plots;
 mod sphere;
 
 pub use cup::{CupCatalogue, CupSize};
-pub use metrics::{error_colors, surface_distance, surface_samples, DistanceStats, SurfaceQuery};
+pub use metrics::{
+    error_colors, interior_distance, surface_distance, surface_samples, DistanceStats, SurfaceQuery,
+};
 pub use sphere::{fit_sphere, fit_sphere_robust, Sphere, SphereFitError};

@@ -1,0 +1,299 @@
+//! Pictures: the study's error box plots and per-view contour overlays, drawn with plotters into
+//! an RGB buffer and saved as PNG with `image`. Text needs a TrueType font: DejaVu Sans
+//! (Debian's fonts-dejavu-core, which ci/install-deps.sh installs) or the file in ACETAB_FONT.
+
+use crate::fsutil::write_atomic;
+use nalgebra::Point2;
+use plotters::prelude::*;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// A picture could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    #[error("no TrueType font found (looked at ACETAB_FONT and {0}); install fonts-dejavu-core")]
+    NoFont(String),
+    #[error("drawing failed: {0}")]
+    Draw(String),
+    #[error("{path}: {reason}")]
+    File { path: PathBuf, reason: String },
+}
+
+const FONT_PATHS: [&str; 3] = [
+    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/TTF/DejaVuSans.ttf",
+    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
+];
+
+fn ensure_font() -> Result<(), PlotError> {
+    static DONE: OnceLock<Result<(), String>> = OnceLock::new();
+    DONE.get_or_init(|| {
+        let candidates: Vec<String> = std::env::var("ACETAB_FONT")
+            .ok()
+            .into_iter()
+            .chain(FONT_PATHS.iter().map(|s| s.to_string()))
+            .collect();
+        for p in &candidates {
+            if let Ok(bytes) = std::fs::read(p) {
+                // The font lives for the whole program: plotters keeps a 'static reference.
+                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+                if plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok() {
+                    return Ok(());
+                }
+            }
+        }
+        Err(candidates.join(", "))
+    })
+    .clone()
+    .map_err(PlotError::NoFont)
+}
+
+fn save_png(buf: Vec<u8>, w: u32, h: u32, path: &Path) -> Result<(), PlotError> {
+    let img = image::RgbImage::from_raw(w, h, buf)
+        .ok_or_else(|| PlotError::Draw("buffer size".into()))?;
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut bytes, image::ImageFormat::Png)
+        .map_err(|e| PlotError::Draw(e.to_string()))?;
+    write_atomic(path, bytes.get_ref()).map_err(|e| PlotError::File {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    })
+}
+
+fn draw_err<E: std::fmt::Debug>(e: E) -> PlotError {
+    PlotError::Draw(format!("{e:?}"))
+}
+
+/// Quartiles and whiskers (1.5 IQR) of a sample.
+fn box_stats(v: &[f64]) -> Option<[f64; 5]> {
+    let mut s: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    if s.is_empty() {
+        return None;
+    }
+    s.sort_by(f64::total_cmp);
+    let q = |f: f64| {
+        let x = f * (s.len() - 1) as f64;
+        let (i, u) = (x.floor() as usize, x - x.floor());
+        s[i] * (1.0 - u) + s[(i + 1).min(s.len() - 1)] * u
+    };
+    let (q1, q2, q3) = (q(0.25), q(0.5), q(0.75));
+    let iqr = q3 - q1;
+    let lo = s
+        .iter()
+        .copied()
+        .find(|x| *x >= q1 - 1.5 * iqr)
+        .unwrap_or(q1);
+    let hi = s
+        .iter()
+        .rev()
+        .copied()
+        .find(|x| *x <= q3 + 1.5 * iqr)
+        .unwrap_or(q3);
+    Some([lo, q1, q2, q3, hi])
+}
+
+/// One box-plot panel per metric: x = noise level, one box per group (method), log-free linear
+/// y axis. `series[g][l]` holds the values of group g at level `levels[l]`.
+pub fn box_plots(
+    panels: &[(&str, Vec<Vec<Vec<f64>>>)],
+    levels: &[u32],
+    groups: &[&str],
+    path: &Path,
+) -> Result<(), PlotError> {
+    ensure_font()?;
+    let (w, h) = (600 * panels.len().max(1) as u32, 480u32);
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let areas = root.split_evenly((1, panels.len().max(1)));
+        let colors = [
+            RGBColor(31, 119, 180),
+            RGBColor(214, 39, 40),
+            RGBColor(44, 160, 44),
+            RGBColor(148, 103, 189),
+        ];
+        for ((title, series), area) in panels.iter().zip(areas.iter()) {
+            // The axis spans the whiskers (not far outliers, which are drawn at the edge).
+            let whiskers: Vec<[f64; 5]> = series
+                .iter()
+                .flatten()
+                .filter_map(|v| box_stats(v))
+                .collect();
+            let hi = whiskers.iter().map(|b| b[4]).fold(0.0f64, f64::max);
+            let lo = whiskers.iter().map(|b| b[0]).fold(0.0f64, f64::min);
+            let pad = 0.08 * (hi - lo).max(1e-3);
+            let (ymin, ymax) = (lo - if lo < 0.0 { pad } else { 0.0 }, hi + pad);
+            let mut chart = ChartBuilder::on(area)
+                .caption(*title, ("sans-serif", 20))
+                .margin(12)
+                .x_label_area_size(36)
+                .y_label_area_size(56)
+                .build_cartesian_2d(0.0..levels.len() as f64, ymin..ymax)
+                .map_err(draw_err)?;
+            chart
+                .configure_mesh()
+                .disable_x_mesh()
+                .x_labels(2 * levels.len() + 1)
+                .x_label_formatter(&|x| {
+                    let i = x.floor() as usize;
+                    if (x - i as f64 - 0.5).abs() < 0.01 {
+                        levels
+                            .get(i)
+                            .map(|l| format!("level {l}"))
+                            .unwrap_or_default()
+                    } else {
+                        String::new()
+                    }
+                })
+                .label_style(("sans-serif", 14))
+                .draw()
+                .map_err(draw_err)?;
+            let ng = groups.len().max(1) as f64;
+            for (g, per_level) in series.iter().enumerate() {
+                let c = colors[g % colors.len()];
+                for (l, vals) in per_level.iter().enumerate() {
+                    let Some([lo, q1, q2, q3, hi]) = box_stats(vals) else {
+                        continue;
+                    };
+                    let x0 = l as f64 + 0.1 + 0.8 * g as f64 / ng;
+                    let x1 = x0 + 0.8 / ng * 0.8;
+                    let xm = 0.5 * (x0 + x1);
+                    chart
+                        .draw_series([Rectangle::new([(x0, q1), (x1, q3)], c.mix(0.35).filled())])
+                        .map_err(draw_err)?;
+                    chart
+                        .draw_series([Rectangle::new([(x0, q1), (x1, q3)], c.stroke_width(1))])
+                        .map_err(draw_err)?;
+                    chart
+                        .draw_series([PathElement::new(
+                            vec![(x0, q2), (x1, q2)],
+                            c.stroke_width(2),
+                        )])
+                        .map_err(draw_err)?;
+                    chart
+                        .draw_series([PathElement::new(
+                            vec![(xm, lo), (xm, q1)],
+                            c.stroke_width(1),
+                        )])
+                        .map_err(draw_err)?;
+                    chart
+                        .draw_series([PathElement::new(
+                            vec![(xm, q3), (xm, hi)],
+                            c.stroke_width(1),
+                        )])
+                        .map_err(draw_err)?;
+                    let outliers = vals
+                        .iter()
+                        .filter(|v| v.is_finite() && (**v < lo || **v > hi))
+                        .map(|v| Circle::new((xm, v.clamp(ymin, ymax)), 3, c.filled()));
+                    chart.draw_series(outliers).map_err(draw_err)?;
+                }
+                chart
+                    .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
+                    .map_err(draw_err)?
+                    .label(groups[g])
+                    .legend(move |(x, y)| {
+                        Rectangle::new([(x, y - 5), (x + 12, y + 5)], c.filled())
+                    });
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 14))
+                .draw()
+                .map_err(draw_err)?;
+        }
+        root.present().map_err(draw_err)?;
+    }
+    save_png(buf, w, h, path)
+}
+
+/// A view's contours over its X-ray (or a dark canvas), cropped around them: initial model
+/// contour green, result blue, observation red, as in the paper's Fig. 3.
+pub fn overlay(
+    size: (u32, u32),
+    background: Option<&Path>,
+    initial: &[Point2<f64>],
+    result: &[Point2<f64>],
+    observed: &[&[Point2<f64>]],
+    path: &Path,
+) -> Result<(), PlotError> {
+    let all: Vec<&Point2<f64>> = initial
+        .iter()
+        .chain(result)
+        .chain(observed.iter().flat_map(|c| c.iter()))
+        .collect();
+    if all.is_empty() {
+        return Err(PlotError::Draw("no contours to draw".into()));
+    }
+    let margin = 40.0;
+    let x0 = (all.iter().map(|p| p.x).fold(f64::INFINITY, f64::min) - margin)
+        .max(0.0)
+        .floor();
+    let y0 = (all.iter().map(|p| p.y).fold(f64::INFINITY, f64::min) - margin)
+        .max(0.0)
+        .floor();
+    let x1 = (all.iter().map(|p| p.x).fold(f64::NEG_INFINITY, f64::max) + margin)
+        .min(size.0 as f64)
+        .ceil();
+    let y1 = (all.iter().map(|p| p.y).fold(f64::NEG_INFINITY, f64::max) + margin)
+        .min(size.1 as f64)
+        .ceil();
+    let (w, h) = (((x1 - x0).max(16.0)) as u32, ((y1 - y0).max(16.0)) as u32);
+    let mut buf = match background {
+        Some(p) => {
+            let img = image::open(p)
+                .map_err(|e| PlotError::File {
+                    path: p.to_path_buf(),
+                    reason: e.to_string(),
+                })?
+                .to_rgb8();
+            let mut b = vec![0u8; (w * h * 3) as usize];
+            for y in 0..h {
+                for x in 0..w {
+                    let (sx, sy) = (x0 as u32 + x, y0 as u32 + y);
+                    if sx < img.width() && sy < img.height() {
+                        let px = img.get_pixel(sx, sy).0;
+                        b[((y * w + x) * 3) as usize..][..3].copy_from_slice(&px);
+                    }
+                }
+            }
+            b
+        }
+        None => vec![24u8; (w * h * 3) as usize],
+    };
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        let to_px = |c: &[Point2<f64>], close: bool| {
+            let mut v: Vec<(i32, i32)> = c
+                .iter()
+                .map(|p| ((p.x - x0).round() as i32, (p.y - y0).round() as i32))
+                .collect();
+            if close && !v.is_empty() {
+                v.push(v[0]);
+            }
+            v
+        };
+        root.draw(&PathElement::new(
+            to_px(initial, true),
+            RGBColor(40, 200, 60).stroke_width(2),
+        ))
+        .map_err(draw_err)?;
+        for c in observed {
+            root.draw(&PathElement::new(
+                to_px(c, false),
+                RGBColor(230, 40, 40).stroke_width(2),
+            ))
+            .map_err(draw_err)?;
+        }
+        root.draw(&PathElement::new(
+            to_px(result, true),
+            RGBColor(60, 120, 255).stroke_width(2),
+        ))
+        .map_err(draw_err)?;
+        root.present().map_err(draw_err)?;
+    }
+    save_png(buf, w, h, path)
+}

@@ -1,0 +1,12 @@
+//! The simulation study: for each method, noise level and run, simulate three X-rays of a ground
+//! truth, reconstruct, and measure. Every run has its own seed derived from the study seed, the
+//! level and the run number (not the method, so all methods see the same simulated case), so any
+//! run can be repeated alone, and results do not depend on thread count or sharding.
+
+mod outputs;
+mod runner;
+mod table;
+
+pub use outputs::{write_examples, write_tables};
+pub use runner::{run_one, run_seed, run_study, tasks, ExampleRun, StudyConfig, Task};
+pub use table::{merge_dirs, read_csv, summarize, write_csv, Row, StudyError, Summary};

@@ -1,0 +1,98 @@
+//! Writing a study's folder: runs.csv, summary.json, errors.png, and one example run per method
+//! (the reconstruction coloured by error and one overlay per view).
+
+use super::runner::ExampleRun;
+use super::table::{summarize, write_csv, Row, StudyError};
+use crate::correspond::Method;
+use crate::demo::write_error_ply;
+use crate::fsutil::write_atomic;
+use crate::mesh::Mesh;
+use crate::report::plots::{box_plots, overlay};
+use std::path::Path;
+
+/// Everything but the examples: the tables and the box plots.
+pub fn write_tables(rows: &[Row], dir: &Path, meta: &serde_json::Value) -> Result<(), StudyError> {
+    let werr = |p: &Path, e: String| StudyError::Write {
+        path: p.to_path_buf(),
+        source: std::io::Error::other(e),
+    };
+    write_csv(rows, &dir.join("runs.csv"))?;
+    let summary = summarize(rows);
+    let json = serde_json::json!({ "study": meta, "summary": summary });
+    let p = dir.join("summary.json");
+    let text = serde_json::to_string_pretty(&json).map_err(|e| werr(&p, e.to_string()))?;
+    write_atomic(&p, text.as_bytes()).map_err(|source| StudyError::Write {
+        path: p.clone(),
+        source,
+    })?;
+    let mut levels: Vec<u32> = rows.iter().map(|r| r.level).collect();
+    levels.sort();
+    levels.dedup();
+    let mut methods: Vec<Method> = rows.iter().map(|r| r.method).collect();
+    methods.sort();
+    methods.dedup();
+    let series = |f: &dyn Fn(&Row) -> f64| -> Vec<Vec<Vec<f64>>> {
+        methods
+            .iter()
+            .map(|m| {
+                levels
+                    .iter()
+                    .map(|l| {
+                        rows.iter()
+                            .filter(|r| r.method == *m && r.level == *l)
+                            .map(f)
+                            .collect()
+                    })
+                    .collect()
+            })
+            .collect()
+    };
+    let names: Vec<&str> = methods.iter().map(|m| m.name()).collect();
+    let p = dir.join("errors.png");
+    box_plots(
+        &[
+            ("MAE truth -> reconstruction (mm)", series(&|r| r.mae_mm)),
+            ("cup diameter error (mm)", series(&|r| r.cup_error_mm())),
+        ],
+        &levels,
+        &names,
+        &p,
+    )
+    .map_err(|e| werr(&p, e.to_string()))
+}
+
+/// The example runs: `example-<method>/reconstruction.ply` and `view<k>.png`.
+pub fn write_examples(examples: &[ExampleRun], truth: &Mesh, dir: &Path) -> Result<(), StudyError> {
+    for ex in examples {
+        let d = dir.join(format!("example-{}", ex.task.method.name()));
+        std::fs::create_dir_all(&d).map_err(|source| StudyError::Write {
+            path: d.clone(),
+            source,
+        })?;
+        let p = d.join("reconstruction.ply");
+        write_error_ply(&ex.recon.mesh, truth, &p).map_err(|e| StudyError::Write {
+            path: p.clone(),
+            source: std::io::Error::other(e.to_string()),
+        })?;
+        for (k, cam) in ex.sim.cameras.iter().enumerate() {
+            let obs: Vec<&[nalgebra::Point2<f64>]> = ex.sim.observed[k]
+                .iter()
+                .map(|c| c.points.as_slice())
+                .collect();
+            let p = d.join(format!("view{k}.png"));
+            overlay(
+                (cam.width, cam.height),
+                None,
+                &ex.recon.initial_contours[k].points,
+                &ex.recon.final_contours[k].points,
+                &obs,
+                &p,
+            )
+            .map_err(|e| StudyError::Write {
+                path: p.clone(),
+                source: std::io::Error::other(e.to_string()),
+            })?;
+        }
+    }
+    Ok(())
+}

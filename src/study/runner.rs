@@ -1,0 +1,218 @@
+//! Running the study's runs, in parallel, in a fixed order.
+
+use super::table::Row;
+use crate::correspond::Method;
+use crate::demo::accuracy;
+use crate::mesh::Mesh;
+use crate::pipeline::{reconstruct, ReconParams, Reconstruction};
+use crate::report::{interior_distance, DistanceStats};
+use crate::simulate::{simulate_case, NoiseLevel, SimCase};
+use crate::views::XrayGeometry;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+/// What to run.
+#[derive(Clone, Debug)]
+pub struct StudyConfig {
+    pub levels: Vec<u32>,
+    pub runs: usize,
+    pub methods: Vec<Method>,
+    pub seed: u64,
+    pub threads: usize,
+    /// (index, count): this process runs the tasks whose position modulo count is index.
+    pub shard: (usize, usize),
+    pub noise_px: f64,
+    pub geometry: XrayGeometry,
+    pub params: ReconParams,
+}
+
+impl Default for StudyConfig {
+    fn default() -> Self {
+        StudyConfig {
+            levels: vec![1, 2, 3, 4, 5],
+            runs: 10,
+            methods: vec![Method::Srvf, Method::Icp, Method::IcpNormvec],
+            seed: 1,
+            threads: 1,
+            shard: (0, 1),
+            noise_px: 2.0,
+            geometry: XrayGeometry::default(),
+            params: ReconParams::default(),
+        }
+    }
+}
+
+/// One run to do.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Task {
+    pub method: Method,
+    pub level: u32,
+    pub run: usize,
+    pub seed: u64,
+}
+
+/// The seed of run `run` at `level` of a study seeded with `master` (SplitMix64 of the three).
+pub fn run_seed(master: u64, level: u32, run: usize) -> u64 {
+    let mut z = master
+        .wrapping_add(0x9E37_79B9_7F4A_7C15u64.wrapping_mul(1 + level as u64))
+        .wrapping_add(0xD1B5_4A32_D192_ED03u64.wrapping_mul(1 + run as u64));
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Every task of the study in its canonical order (method, level, run), then this shard's share.
+pub fn tasks(cfg: &StudyConfig) -> Vec<Task> {
+    let mut all = Vec::new();
+    for &method in &cfg.methods {
+        for &level in &cfg.levels {
+            for run in 0..cfg.runs {
+                all.push(Task {
+                    method,
+                    level,
+                    run,
+                    seed: run_seed(cfg.seed, level, run),
+                });
+            }
+        }
+    }
+    let (i, n) = cfg.shard;
+    all.into_iter()
+        .enumerate()
+        .filter(|(k, _)| k % n.max(1) == i)
+        .map(|(_, t)| t)
+        .collect()
+}
+
+/// A run kept for its pictures and mesh.
+pub struct ExampleRun {
+    pub task: Task,
+    pub sim: SimCase,
+    pub recon: Reconstruction,
+}
+
+/// Run one task. A failed reconstruction is a row with `converged = false` and the error.
+pub fn run_one(truth: &Mesh, task: &Task, cfg: &StudyConfig) -> (Row, Option<ExampleRun>) {
+    let mut row = Row::failed(task, "");
+    let Some(level) = NoiseLevel::level(task.level) else {
+        row.error = format!("no noise level {}", task.level);
+        return (row, None);
+    };
+    let sim = match simulate_case(truth, &cfg.geometry, cfg.noise_px, &level, task.seed) {
+        Ok(s) => s,
+        Err(e) => {
+            row.error = e.to_string();
+            return (row, None);
+        }
+    };
+    row.gt_cup_diameter_mm = sim.truth_sphere.diameter();
+    let prm = ReconParams {
+        method: task.method,
+        ..cfg.params.clone()
+    };
+    let start = std::time::Instant::now();
+    let rec = match reconstruct(&sim.cameras, &sim.observed, &sim.init, &prm) {
+        Ok(r) => r,
+        Err(e) => {
+            row.seconds = start.elapsed().as_secs_f64();
+            row.error = e.to_string();
+            return (row, None);
+        }
+    };
+    row.seconds = start.elapsed().as_secs_f64();
+    let acc = accuracy(truth, &rec.mesh);
+    row.mae_mm = acc.mae_mm;
+    row.sd_mm = acc.sd_mm;
+    row.p95_mm = acc.p95_mm;
+    row.recon_mae_mm = DistanceStats::from(&interior_distance(&rec.mesh, truth)).mean;
+    row.cup_diameter_mm = rec.sphere.diameter();
+    row.converged = rec.log.converged;
+    row.iterations = rec.log.gn_iterations;
+    row.correspondence_updates = rec.log.correspondence_updates;
+    (
+        row,
+        Some(ExampleRun {
+            task: *task,
+            sim,
+            recon: rec,
+        }),
+    )
+}
+
+/// Run the tasks on `cfg.threads` threads. Rows come back in task order; `examples` receives the
+/// first run of each method (the lowest level's run 0 in this shard). `tick` is called after
+/// each run (progress).
+pub fn run_study(
+    truth: &Mesh,
+    cfg: &StudyConfig,
+    tick: &(dyn Fn() + Sync),
+) -> (Vec<Row>, Vec<ExampleRun>) {
+    let list = tasks(cfg);
+    let next = AtomicUsize::new(0);
+    let rows: Mutex<Vec<Option<Row>>> = Mutex::new(vec![None; list.len()]);
+    let examples: Mutex<Vec<ExampleRun>> = Mutex::new(Vec::new());
+    let first_of_method =
+        |k: usize| list.iter().position(|t| t.method == list[k].method) == Some(k);
+    std::thread::scope(|s| {
+        for _ in 0..cfg.threads.max(1) {
+            s.spawn(|| loop {
+                let k = next.fetch_add(1, Ordering::Relaxed);
+                if k >= list.len() {
+                    break;
+                }
+                let (row, ex) = run_one(truth, &list[k], cfg);
+                if let (Some(ex), true) = (ex, first_of_method(k)) {
+                    examples.lock().unwrap_or_else(|e| e.into_inner()).push(ex);
+                }
+                rows.lock().unwrap_or_else(|e| e.into_inner())[k] = Some(row);
+                tick();
+            });
+        }
+    });
+    let rows = rows
+        .into_inner()
+        .unwrap_or_else(|e| e.into_inner())
+        .into_iter()
+        .flatten()
+        .collect();
+    let mut ex = examples.into_inner().unwrap_or_else(|e| e.into_inner());
+    ex.sort_by_key(|e| e.task.method);
+    (rows, ex)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_partition_the_tasks_and_seeds_ignore_the_method() {
+        let cfg = StudyConfig {
+            runs: 3,
+            levels: vec![1, 4],
+            ..Default::default()
+        };
+        let all = tasks(&cfg);
+        assert_eq!(all.len(), 18);
+        let mut joined: Vec<Task> = (0..4)
+            .flat_map(|i| {
+                tasks(&StudyConfig {
+                    shard: (i, 4),
+                    ..cfg.clone()
+                })
+            })
+            .collect();
+        joined.sort_by_key(|t| (t.method, t.level, t.run));
+        assert_eq!(joined, all);
+        let srvf = all
+            .iter()
+            .find(|t| t.method == Method::Srvf && t.level == 4 && t.run == 2)
+            .unwrap();
+        let icp = all
+            .iter()
+            .find(|t| t.method == Method::Icp && t.level == 4 && t.run == 2)
+            .unwrap();
+        assert_eq!(srvf.seed, icp.seed);
+        assert_ne!(run_seed(1, 4, 2), run_seed(1, 4, 1));
+        assert_ne!(run_seed(1, 4, 2), run_seed(2, 4, 2));
+    }
+}

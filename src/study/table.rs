@@ -1,0 +1,347 @@
+//! The study's tables: one row per run (runs.csv), the per-method-and-level summary
+//! (summary.json), and merging shards.
+
+use super::runner::Task;
+use crate::correspond::Method;
+use crate::fsutil::write_atomic;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// One run's result. Metrics are NaN for a run that failed (`error` says why).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Row {
+    pub method: Method,
+    pub level: u32,
+    pub run: usize,
+    pub seed: u64,
+    pub mae_mm: f64,
+    pub sd_mm: f64,
+    pub p95_mm: f64,
+    pub recon_mae_mm: f64,
+    pub cup_diameter_mm: f64,
+    pub gt_cup_diameter_mm: f64,
+    pub converged: bool,
+    pub iterations: usize,
+    pub correspondence_updates: usize,
+    pub seconds: f64,
+    pub error: String,
+}
+
+impl Row {
+    pub fn failed(t: &Task, error: &str) -> Row {
+        Row {
+            method: t.method,
+            level: t.level,
+            run: t.run,
+            seed: t.seed,
+            mae_mm: f64::NAN,
+            sd_mm: f64::NAN,
+            p95_mm: f64::NAN,
+            recon_mae_mm: f64::NAN,
+            cup_diameter_mm: f64::NAN,
+            gt_cup_diameter_mm: f64::NAN,
+            converged: false,
+            iterations: 0,
+            correspondence_updates: 0,
+            seconds: 0.0,
+            error: error.to_string(),
+        }
+    }
+
+    pub fn cup_error_mm(&self) -> f64 {
+        self.cup_diameter_mm - self.gt_cup_diameter_mm
+    }
+
+    /// Canonical order: method, level, run.
+    pub fn key(&self) -> (Method, u32, usize) {
+        (self.method, self.level, self.run)
+    }
+}
+
+const HEADER: &str = "method,level,run,seed,mae_mm,sd_mm,p95_mm,recon_mae_mm,cup_diameter_mm,gt_cup_diameter_mm,converged,iterations,correspondence_updates,seconds,error";
+
+/// Problems with study files.
+#[derive(Debug, thiserror::Error)]
+pub enum StudyError {
+    #[error("{path}: cannot read: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: line {line}: {reason}")]
+    Parse {
+        path: PathBuf,
+        line: usize,
+        reason: String,
+    },
+    #[error("run {method} level {level} run {run} appears in more than one shard ({path})")]
+    Duplicate {
+        method: String,
+        level: u32,
+        run: usize,
+        path: PathBuf,
+    },
+}
+
+/// Write rows as CSV (errors have commas and newlines replaced).
+pub fn write_csv(rows: &[Row], path: &Path) -> Result<(), StudyError> {
+    let mut s = String::from(HEADER);
+    s.push('\n');
+    for r in rows {
+        s.push_str(&format!(
+            "{},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{},{},{},{:.4},{}\n",
+            r.method.name(),
+            r.level,
+            r.run,
+            r.seed,
+            r.mae_mm,
+            r.sd_mm,
+            r.p95_mm,
+            r.recon_mae_mm,
+            r.cup_diameter_mm,
+            r.gt_cup_diameter_mm,
+            r.converged,
+            r.iterations,
+            r.correspondence_updates,
+            r.seconds,
+            r.error.replace([',', '\n', '\r'], ";")
+        ));
+    }
+    write_atomic(path, s.as_bytes()).map_err(|source| StudyError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Read a runs.csv written by `write_csv`.
+pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
+    let text = std::fs::read_to_string(path).map_err(|source| StudyError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut lines = text.lines().enumerate();
+    let perr = |line: usize, reason: String| StudyError::Parse {
+        path: path.to_path_buf(),
+        line,
+        reason,
+    };
+    match lines.next() {
+        Some((_, h)) if h.trim() == HEADER => {}
+        _ => return Err(perr(1, format!("expected the header {HEADER:?}"))),
+    }
+    let mut rows = Vec::new();
+    for (i, line) in lines {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let f: Vec<&str> = line.splitn(15, ',').collect();
+        if f.len() != 15 {
+            return Err(perr(i + 1, format!("{} fields, expected 15", f.len())));
+        }
+        let num = |k: usize| {
+            f[k].parse::<f64>()
+                .map_err(|_| perr(i + 1, format!("column {k}: {:?} is not a number", f[k])))
+        };
+        let int = |k: usize| {
+            f[k].parse::<u64>().map_err(|_| {
+                perr(
+                    i + 1,
+                    format!("column {k}: {:?} is not a whole number", f[k]),
+                )
+            })
+        };
+        let method = match f[0] {
+            "srvf" => Method::Srvf,
+            "icp" => Method::Icp,
+            "icp-normvec" => Method::IcpNormvec,
+            m => return Err(perr(i + 1, format!("unknown method {m:?}"))),
+        };
+        rows.push(Row {
+            method,
+            level: int(1)? as u32,
+            run: int(2)? as usize,
+            seed: int(3)?,
+            mae_mm: num(4)?,
+            sd_mm: num(5)?,
+            p95_mm: num(6)?,
+            recon_mae_mm: num(7)?,
+            cup_diameter_mm: num(8)?,
+            gt_cup_diameter_mm: num(9)?,
+            converged: f[10] == "true",
+            iterations: int(11)? as usize,
+            correspondence_updates: int(12)? as usize,
+            seconds: num(13)?,
+            error: f[14].to_string(),
+        });
+    }
+    Ok(rows)
+}
+
+/// Per method and level.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Summary {
+    pub method: Method,
+    pub level: u32,
+    pub runs: usize,
+    pub converged: usize,
+    pub failed: usize,
+    pub mae_mean: f64,
+    pub mae_sd: f64,
+    pub cup_error_mean: f64,
+    pub cup_error_sd: f64,
+    /// Runs with |cup diameter - truth| <= 1 mm.
+    pub cup_within_1mm: usize,
+    pub median_seconds: f64,
+}
+
+fn mean_sd(v: &[f64]) -> (f64, f64) {
+    if v.is_empty() {
+        return (f64::NAN, f64::NAN);
+    }
+    let m = v.iter().sum::<f64>() / v.len() as f64;
+    (
+        m,
+        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt(),
+    )
+}
+
+/// Summaries in canonical order. Failed runs count in `runs` and `failed`, not in the means.
+pub fn summarize(rows: &[Row]) -> Vec<Summary> {
+    let mut keys: Vec<(Method, u32)> = rows.iter().map(|r| (r.method, r.level)).collect();
+    keys.sort();
+    keys.dedup();
+    keys.into_iter()
+        .map(|(method, level)| {
+            let g: Vec<&Row> = rows
+                .iter()
+                .filter(|r| r.method == method && r.level == level)
+                .collect();
+            let ok: Vec<&Row> = g
+                .iter()
+                .copied()
+                .filter(|r| r.error.is_empty() && r.mae_mm.is_finite())
+                .collect();
+            let (mae_mean, mae_sd) = mean_sd(&ok.iter().map(|r| r.mae_mm).collect::<Vec<_>>());
+            let ce: Vec<f64> = ok.iter().map(|r| r.cup_error_mm()).collect();
+            let (cup_error_mean, cup_error_sd) = mean_sd(&ce);
+            let mut secs: Vec<f64> = g.iter().map(|r| r.seconds).collect();
+            secs.sort_by(f64::total_cmp);
+            Summary {
+                method,
+                level,
+                runs: g.len(),
+                converged: g.iter().filter(|r| r.converged).count(),
+                failed: g.len() - ok.len(),
+                mae_mean,
+                mae_sd,
+                cup_error_mean,
+                cup_error_sd,
+                cup_within_1mm: ce.iter().filter(|e| e.abs() <= 1.0).count(),
+                median_seconds: secs.get(secs.len() / 2).copied().unwrap_or(f64::NAN),
+            }
+        })
+        .collect()
+}
+
+/// Join the runs.csv of several shard folders, in canonical order; a run present twice is an error.
+pub fn merge_dirs(dirs: &[PathBuf]) -> Result<Vec<Row>, StudyError> {
+    let mut rows: Vec<(Row, PathBuf)> = Vec::new();
+    for d in dirs {
+        let p = d.join("runs.csv");
+        for r in read_csv(&p)? {
+            rows.push((r, p.clone()));
+        }
+    }
+    rows.sort_by(|a, b| a.0.key().cmp(&b.0.key()));
+    for w in rows.windows(2) {
+        if w[0].0.key() == w[1].0.key() {
+            let r = &w[1].0;
+            return Err(StudyError::Duplicate {
+                method: r.method.name().into(),
+                level: r.level,
+                run: r.run,
+                path: w[1].1.clone(),
+            });
+        }
+    }
+    Ok(rows.into_iter().map(|(r, _)| r).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(method: Method, level: u32, run: usize, mae: f64) -> Row {
+        let t = Task {
+            method,
+            level,
+            run,
+            seed: 9,
+        };
+        Row {
+            mae_mm: mae,
+            cup_diameter_mm: 50.5,
+            gt_cup_diameter_mm: 50.0,
+            converged: true,
+            error: String::new(),
+            ..Row::failed(&t, "")
+        }
+    }
+
+    #[test]
+    fn csv_round_trips_and_merge_rejects_duplicates() {
+        let dir = std::env::temp_dir().join(format!("acetab-table-{}", std::process::id()));
+        let (a, b) = (dir.join("a"), dir.join("b"));
+        std::fs::create_dir_all(&a).unwrap();
+        std::fs::create_dir_all(&b).unwrap();
+        let mut r1 = vec![row(Method::Srvf, 1, 0, 0.5), row(Method::Icp, 1, 0, 2.0)];
+        r1[1].error = "solver: boom, twice".into();
+        r1[1].mae_mm = f64::NAN;
+        write_csv(&r1, &a.join("runs.csv")).unwrap();
+        write_csv(&[row(Method::Srvf, 1, 1, 0.7)], &b.join("runs.csv")).unwrap();
+        let back = read_csv(&a.join("runs.csv")).unwrap();
+        assert_eq!(back[0], r1[0]);
+        assert!(back[1].mae_mm.is_nan() && back[1].error == "solver: boom; twice");
+        let merged = merge_dirs(&[b.clone(), a.clone()]).unwrap();
+        assert_eq!(
+            merged.iter().map(|r| r.key()).collect::<Vec<_>>(),
+            vec![
+                (Method::Srvf, 1, 0),
+                (Method::Srvf, 1, 1),
+                (Method::Icp, 1, 0)
+            ]
+        );
+        assert!(matches!(
+            merge_dirs(&[a.clone(), a.clone()]),
+            Err(StudyError::Duplicate { .. })
+        ));
+        std::fs::write(b.join("runs.csv"), "nonsense\n").unwrap();
+        assert!(matches!(
+            merge_dirs(&[b.clone()]),
+            Err(StudyError::Parse { line: 1, .. })
+        ));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn summary_counts_and_means() {
+        let mut rows = vec![
+            row(Method::Srvf, 2, 0, 0.4),
+            row(Method::Srvf, 2, 1, 0.6),
+            row(Method::Srvf, 2, 2, 9.0),
+        ];
+        rows[2].error = "failed".into();
+        rows[2].converged = false;
+        rows[1].cup_diameter_mm = 52.0;
+        let s = summarize(&rows);
+        assert_eq!(s.len(), 1);
+        assert_eq!((s[0].runs, s[0].converged, s[0].failed), (3, 2, 1));
+        assert!((s[0].mae_mean - 0.5).abs() < 1e-12 && (s[0].mae_sd - 0.1).abs() < 1e-12);
+        assert_eq!(s[0].cup_within_1mm, 1);
+    }
+}

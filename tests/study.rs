@@ -1,0 +1,108 @@
+//! The study runner: results do not depend on the thread count, shards merge to the unsharded
+//! table, and the output folder holds what the README promises.
+
+use acetab::correspond::Method;
+use acetab::pipeline::ReconParams;
+use acetab::study::{
+    merge_dirs, run_study, write_csv, write_examples, write_tables, Row, StudyConfig,
+};
+use acetab::template::{phantom, PhantomParams};
+
+fn quick() -> StudyConfig {
+    let mut params = ReconParams {
+        template_vertices: 700,
+        similarity_rounds: 4,
+        correspondence_updates: 1,
+        ..Default::default()
+    };
+    params.correspond.srvf.samples = 64;
+    params.graph.nodes = 40;
+    StudyConfig {
+        levels: vec![1, 4],
+        runs: 2,
+        methods: vec![Method::Srvf, Method::Icp],
+        seed: 11,
+        threads: 1,
+        params,
+        ..Default::default()
+    }
+}
+
+/// Everything but the wall-clock time, as text (so NaN of failed runs compares equal).
+fn strip(rows: &[Row]) -> String {
+    format!(
+        "{:?}",
+        rows.iter()
+            .map(|r| Row {
+                seconds: 0.0,
+                ..r.clone()
+            })
+            .collect::<Vec<_>>()
+    )
+}
+
+#[test]
+fn threads_and_shards_give_the_same_table() {
+    let truth = phantom(&PhantomParams {
+        vertices: 1200,
+        ..Default::default()
+    })
+    .mesh;
+    let cfg = quick();
+    let (one, examples) = run_study(&truth, &cfg, &|| {});
+    assert_eq!(one.len(), 8);
+    let (two, _) = run_study(
+        &truth,
+        &StudyConfig {
+            threads: 2,
+            ..cfg.clone()
+        },
+        &|| {},
+    );
+    assert_eq!(strip(&one), strip(&two));
+    let base = std::env::temp_dir().join(format!("acetab-study-{}", std::process::id()));
+    let mut dirs = Vec::new();
+    for i in 0..3 {
+        let (rows, _) = run_study(
+            &truth,
+            &StudyConfig {
+                shard: (i, 3),
+                threads: 2,
+                ..cfg.clone()
+            },
+            &|| {},
+        );
+        let d = base.join(format!("shard{i}"));
+        std::fs::create_dir_all(&d).unwrap();
+        write_csv(&rows, &d.join("runs.csv")).unwrap();
+        dirs.push(d);
+    }
+    let merged = merge_dirs(&dirs).unwrap();
+    // The CSV keeps 6 decimals: compare the unsharded table through the same file.
+    let d = base.join("all");
+    std::fs::create_dir_all(&d).unwrap();
+    write_csv(&one, &d.join("runs.csv")).unwrap();
+    let one_csv = merge_dirs(&[d.clone()]).unwrap();
+    assert_eq!(strip(&merged), strip(&one_csv));
+    // A perturbed shard is told apart (the comparison can fail).
+    let mut wrong = merged.clone();
+    wrong[3].mae_mm += 1e-3;
+    assert_ne!(strip(&wrong), strip(&one_csv));
+
+    write_tables(&one, &d, &serde_json::json!({"seed": 11})).unwrap();
+    write_examples(&examples, &truth, &d).unwrap();
+    for f in [
+        "runs.csv",
+        "summary.json",
+        "errors.png",
+        "example-srvf/reconstruction.ply",
+        "example-srvf/view0.png",
+        "example-icp/view2.png",
+    ] {
+        assert!(d.join(f).is_file(), "{f}");
+    }
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["summary"].as_array().unwrap().len(), 4);
+    std::fs::remove_dir_all(&base).unwrap();
+}
