@@ -305,7 +305,7 @@ mod tests {
         write_csv(&r1, &a.join("runs.csv")).unwrap();
         write_csv(&[row(Method::Srvf, 1, 1, 0.7)], &b.join("runs.csv")).unwrap();
         let back = read_csv(&a.join("runs.csv")).unwrap();
-        assert_eq!(back[0], r1[0]);
+        assert_eq!(format!("{:?}", back[0]), format!("{:?}", r1[0]));
         assert!(back[1].mae_mm.is_nan() && back[1].error == "solver: boom; twice");
         let merged = merge_dirs(&[b.clone(), a.clone()]).unwrap();
         assert_eq!(

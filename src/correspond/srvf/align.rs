@@ -4,7 +4,7 @@
 //! falling.
 
 use super::curve::{best_rotation, dist2, rotate, srvf};
-use super::dp::{coprime_steps, dp_warp, Warp};
+use super::dp::{coprime_steps, dp_warp, dp_warp_fast, Warp};
 use crate::contours::{polyline_length, resample_closed, resample_open, ClosedPolyline};
 use nalgebra::{Point2, Vector2};
 
@@ -33,6 +33,8 @@ pub struct SrvfParams {
     /// than `rel_tol` (default 1e-4) of itself.
     pub max_alternations: usize,
     pub rel_tol: f64,
+    /// Coarse-to-fine DP band half-width in cells (default 6); 0 solves every DP on the full grid.
+    pub band: usize,
 }
 
 impl Default for SrvfParams {
@@ -43,6 +45,7 @@ impl Default for SrvfParams {
             seed_candidates: 6,
             max_alternations: 6,
             rel_tol: 1e-4,
+            band: 6,
         }
     }
 }
@@ -107,12 +110,19 @@ fn rotate_and_warp(
     steps: &[(usize, usize)],
 ) -> (f64, Warp) {
     let mut theta = theta;
-    let mut w = dp_warp(q1, &rotate(q2, theta), steps);
+    let dp = |q: &[Vector2<f64>]| {
+        if prm.band == 0 {
+            dp_warp(q1, q, steps)
+        } else {
+            dp_warp_fast(q1, q, steps, prm.band)
+        }
+    };
+    let mut w = dp(&rotate(q2, theta));
     let mut energy = w.energy;
     for _ in 1..prm.max_alternations.max(1) {
         let d = best_rotation(q1, &w.warped);
         let next_theta = theta + d;
-        let w2 = dp_warp(q1, &rotate(q2, next_theta), steps);
+        let w2 = dp(&rotate(q2, next_theta));
         if w2.energy < energy * (1.0 - prm.rel_tol) {
             theta = next_theta;
             energy = w2.energy;
@@ -189,6 +199,17 @@ pub fn align_closed(
         }
     };
     if exhaustive {
+        let exact = SrvfParams {
+            band: 0,
+            ..prm.clone()
+        };
+        let refine = |s: usize, best: &mut Option<(f64, usize, f64, Warp)>| {
+            let (theta, w) =
+                rotate_and_warp(&q1g, &closed_grid(&q2, s), energies[s].1, &exact, &steps);
+            if best.as_ref().map_or(true, |b| w.energy < b.0) {
+                *best = Some((w.energy, s, theta, w));
+            }
+        };
         for s in order {
             refine(s, &mut best);
         }

@@ -74,12 +74,25 @@ pub struct Warp {
 /// Optimal warp of q2 onto q1 (equal lengths, at least 2 samples) by DP over the coprime steps.
 pub fn dp_warp(q1: &[Vector2<f64>], q2: &[Vector2<f64>], steps: &[(usize, usize)]) -> Warp {
     let n = q1.len();
+    let band = vec![(1usize, n - 1); n];
+    dp_in_band(q1, q2, steps, &band)
+}
+
+/// DP restricted to the cells (i, j) with band[i].0 <= j <= band[i].1 (row 0 is the start).
+fn dp_in_band(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    steps: &[(usize, usize)],
+    band: &[(usize, usize)],
+) -> Warp {
+    let n = q1.len();
     debug_assert_eq!(n, q2.len());
     let mut cost = vec![f64::INFINITY; n * n];
     let mut back = vec![u32::MAX; n * n];
     cost[0] = 0.0;
     for i in 1..n {
-        for j in 1..n {
+        let (lo, hi) = band[i];
+        for j in lo.max(1)..=hi.min(n - 1) {
             let mut best = f64::INFINITY;
             let mut arg = u32::MAX;
             for (si, &(a, b)) in steps.iter().enumerate() {
@@ -103,6 +116,46 @@ pub fn dp_warp(q1: &[Vector2<f64>], q2: &[Vector2<f64>], steps: &[(usize, usize)
     }
     let path = traceback(&back, n, steps);
     warp_from_path(q1, q2, &path)
+}
+
+/// Grids up to this size are solved exactly by `dp_warp_fast`.
+pub const EXACT_DP_MAX: usize = 64;
+
+/// Coarse-to-fine DP: solve on every other sample (recursively), then the full grid only in a
+/// band of +-`halfwidth` cells around the coarse path. O(n * band) instead of O(n^2); the exact
+/// `dp_warp` is its test oracle.
+pub fn dp_warp_fast(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    steps: &[(usize, usize)],
+    halfwidth: usize,
+) -> Warp {
+    let n = q1.len();
+    if n <= EXACT_DP_MAX {
+        return dp_warp(q1, q2, steps);
+    }
+    let m = n.div_ceil(2) + usize::from(n % 2 == 0);
+    let fine = |c: usize| (2 * c).min(n - 1);
+    let c1: Vec<Vector2<f64>> = (0..m).map(|c| q1[fine(c)]).collect();
+    let c2: Vec<Vector2<f64>> = (0..m).map(|c| q2[fine(c)]).collect();
+    let coarse = dp_warp_fast(&c1, &c2, steps, halfwidth);
+    let mut band = vec![(usize::MAX, 0usize); n];
+    for w in coarse.path.windows(2) {
+        let ((i0, j0), (i1, j1)) = ((fine(w[0].0), fine(w[0].1)), (fine(w[1].0), fine(w[1].1)));
+        for i in i0..=i1 {
+            let t = if i1 > i0 {
+                (i - i0) as f64 / (i1 - i0) as f64
+            } else {
+                0.0
+            };
+            let j = j0 as f64 + t * (j1 as f64 - j0 as f64);
+            let lo = (j.floor() as usize).saturating_sub(halfwidth);
+            let hi = ((j.ceil() as usize) + halfwidth).min(n - 1);
+            band[i] = (band[i].0.min(lo), band[i].1.max(hi));
+        }
+    }
+    band[n - 1].1 = n - 1;
+    dp_in_band(q1, q2, steps, &band)
 }
 
 /// Follow back-pointers from (n-1, n-1) to (0, 0).
@@ -236,6 +289,34 @@ mod tests {
             (wrong - b).abs() > 1e-6,
             "the diagonal happened to be optimal; pick another seed"
         );
+    }
+
+    #[test]
+    fn coarse_to_fine_dp_stays_within_one_percent_of_the_exact_dp() {
+        let n = 201;
+        for (f1, f2) in [(1.0, 1.3), (2.0, 2.5), (3.0, 2.2), (1.5, 4.0)] {
+            let curve = |f: f64, ph: f64| -> Vec<Vector2<f64>> {
+                (0..n)
+                    .map(|i| {
+                        let t = i as f64 / (n - 1) as f64;
+                        Vector2::new((f * 6.0 * t + ph).cos(), (f * 4.0 * t).sin() + 0.3)
+                    })
+                    .collect()
+            };
+            let (q1, q2) = (curve(f1, 0.0), curve(f2, 0.4));
+            let steps = coprime_steps(5);
+            let exact = dp_warp(&q1, &q2, &steps);
+            let fast = dp_warp_fast(&q1, &q2, &steps, 6);
+            assert!(
+                fast.energy <= exact.energy * 1.01 + 1e-9,
+                "fast {} exact {}",
+                fast.energy,
+                exact.energy
+            );
+            assert!(fast.energy >= exact.energy - 1e-12);
+            assert_eq!(fast.path.first(), Some(&(0, 0)));
+            assert_eq!(fast.path.last(), Some(&(n - 1, n - 1)));
+        }
     }
 
     #[test]
