@@ -1,6 +1,8 @@
 //! The `acetab` command line: parses arguments and calls the library.
 
 use acetab::case::CaseFile;
+use acetab::contours::read_curve_csv;
+use acetab::correspond::srvf::{align, aligned_b, CurveKind, SrvfParams};
 use acetab::correspond::Method;
 use acetab::demo::{run_demo, write_error_ply};
 use acetab::fsutil::write_atomic;
@@ -78,6 +80,25 @@ enum Command {
         dirs: Vec<PathBuf>,
         #[arg(long)]
         out: PathBuf,
+    },
+    /// SRVF elastic alignment of two curves (CSV files of x,y; header optional).
+    Align {
+        a: PathBuf,
+        b: PathBuf,
+        /// Both curves closed (default).
+        #[arg(long, conflicts_with_all = ["open", "partial"])]
+        closed: bool,
+        /// Both open, ends corresponding.
+        #[arg(long, conflicts_with = "partial")]
+        open: bool,
+        /// A is an open arc matched against the best sub-arc of the closed curve B.
+        #[arg(long)]
+        partial: bool,
+        /// Arc-length samples per curve.
+        #[arg(long, default_value_t = 200)]
+        samples: usize,
+        #[arg(long)]
+        json: bool,
     },
     /// Reconstruct a case file.
     Reconstruct {
@@ -208,6 +229,56 @@ fn run(cli: Cli) -> Result<(), String> {
                 out.display()
             );
             print_summary(&rows);
+            Ok(())
+        }
+        Command::Align {
+            a,
+            b,
+            closed: _,
+            open,
+            partial,
+            samples,
+            json,
+        } => {
+            let kind = if open {
+                CurveKind::Open
+            } else if partial {
+                CurveKind::Partial
+            } else {
+                CurveKind::Closed
+            };
+            let ca = read_curve_csv(&a).map_err(|e| e.to_string())?;
+            let cb = read_curve_csv(&b).map_err(|e| e.to_string())?;
+            let prm = SrvfParams {
+                samples,
+                ..Default::default()
+            };
+            let t = std::time::Instant::now();
+            let al = align(&ca, &cb, kind, &prm)
+                .map_err(|e| format!("{} / {}: {e}", a.display(), b.display()))?;
+            let seconds = t.elapsed().as_secs_f64();
+            if json {
+                let v = serde_json::json!({
+                    "distance": al.distance,
+                    "rotation_deg": al.rotation.to_degrees(),
+                    "seed": al.seed,
+                    "reversed": al.reversed,
+                    "samples": samples,
+                    "gamma": al.gamma,
+                    "seconds": seconds,
+                    "aligned": aligned_b(&al).iter().map(|p| [p.x, p.y]).collect::<Vec<_>>(),
+                });
+                println!("{v}");
+            } else {
+                println!(
+                    "distance {:.6}  rotation {:.3} deg  seed {}{}  {:.2} ms",
+                    al.distance,
+                    al.rotation.to_degrees(),
+                    al.seed,
+                    if al.reversed { "  (A reversed)" } else { "" },
+                    seconds * 1e3
+                );
+            }
             Ok(())
         }
         Command::Merge { dirs, out } => {

@@ -11,7 +11,7 @@ use crate::solve::{
     apply_similarity, levenberg_marquardt, DeformationGraph, EdProblem, EdWeights, GraphParams,
     LmParams, Observation, SimilarityProblem, SolveError,
 };
-use crate::template::{hemisphere, Placement};
+use crate::template::{spherical_cap, Placement};
 use crate::views::Camera;
 use nalgebra::{Point3, Vector3};
 
@@ -21,6 +21,8 @@ pub struct ReconParams {
     pub method: Method,
     /// Template resolution (default 2,500 vertices).
     pub template_vertices: usize,
+    /// Polar extent of the template cap, degrees (default 90: the hemisphere).
+    pub template_polar_deg: f64,
     pub correspond: CorrespondParams,
     pub graph: GraphParams,
     pub weights: EdWeights,
@@ -49,6 +51,7 @@ impl Default for ReconParams {
         ReconParams {
             method: Method::Srvf,
             template_vertices: 2500,
+            template_polar_deg: 90.0,
             correspond: CorrespondParams::default(),
             graph: GraphParams::default(),
             weights: EdWeights::default(),
@@ -209,7 +212,11 @@ pub fn reconstruct(
             observed: observed.len(),
         });
     }
-    let initial = init.place(&hemisphere(1.0, prm.template_vertices));
+    let initial = init.place(&spherical_cap(
+        1.0,
+        prm.template_vertices,
+        prm.template_polar_deg.to_radians(),
+    ));
     let mut mesh = initial.clone();
     let mut log = SolveLog::default();
     let min_corr = 12;

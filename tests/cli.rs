@@ -135,3 +135,51 @@ fn a_bad_case_fails_cleanly_and_writes_nothing() {
         assert!(!out.exists(), "{needle}: output folder written");
     }
 }
+
+#[test]
+fn align_reports_a_rotation_and_rejects_a_bad_file() {
+    let dir = tmp("align");
+    let blob = |n: usize, rot: f64, shift: usize| -> String {
+        let mut s = String::from("x,y\n");
+        for i in 0..n {
+            let t = std::f64::consts::TAU * ((i + shift) % n) as f64 / n as f64;
+            let r = 1.0 + 0.3 * (2.0 * t).cos() + 0.15 * (3.0 * t + 0.4).sin();
+            let (x, y) = (r * t.cos(), 0.8 * r * t.sin());
+            s += &format!(
+                "{},{}\n",
+                rot.cos() * x - rot.sin() * y,
+                rot.sin() * x + rot.cos() * y
+            );
+        }
+        s
+    };
+    std::fs::write(dir.join("a.csv"), blob(300, 0.0, 0)).unwrap();
+    std::fs::write(dir.join("b.csv"), blob(250, 0.5, 70)).unwrap();
+    let o = bin()
+        .arg("align")
+        .arg(dir.join("a.csv"))
+        .arg(dir.join("b.csv"))
+        .args(["--json", "--samples", "120"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["distance"].as_f64().unwrap() < 0.02);
+    assert!(
+        (v["rotation_deg"].as_f64().unwrap() + 0.5f64.to_degrees()).abs() < 2.0,
+        "{}",
+        v["rotation_deg"]
+    );
+    assert_eq!(v["gamma"].as_array().unwrap().len(), 120);
+    assert_eq!(v["aligned"].as_array().unwrap().len(), 120);
+    std::fs::write(dir.join("bad.csv"), "x,y\n1,2\n3,four\n5,6\n").unwrap();
+    let o = bin()
+        .arg("align")
+        .arg(dir.join("a.csv"))
+        .arg(dir.join("bad.csv"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(err.contains("bad.csv") && err.contains("line 3"), "{err}");
+}

@@ -2,11 +2,13 @@
 //! template vertices; observed contours are pixel polylines annotated on the X-ray.
 
 mod alpha_shape;
+mod curve_file;
 mod polyline;
 
 pub use alpha_shape::{
     alpha_shape_contour, default_alpha, model_contour, ContourError, ModelContour,
 };
+pub use curve_file::{read_curve_csv, CurveFileError};
 pub use polyline::{
     polyline_length, resample_closed, resample_open, signed_area, ClosedPolyline, Curve,
 };

@@ -1,12 +1,14 @@
 //! SRVF elastic registration: q = b' / sqrt(|b'|); rotation, seed and warp by dynamic programming.
 
 mod align;
+mod batch;
 mod curve;
 mod dp;
 
 pub use align::{
     align, align_closed, align_open, align_partial, Alignment, CurveKind, SrvfError, SrvfParams,
 };
+pub use batch::{align_batch, aligned_b, AlignProblem};
 pub use curve::{best_rotation, dist2, inner, rotate, srvf};
 pub use dp::{coprime_steps, dp_warp, edge_cost, traceback, warp_from_path, Warp};
 

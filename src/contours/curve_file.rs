@@ -1,0 +1,99 @@
+//! Curves as CSV files: one "x,y" pair a line, an optional header line.
+
+use nalgebra::Point2;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, thiserror::Error)]
+pub enum CurveFileError {
+    #[error("{path}: cannot read: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: line {line}: {reason}: {text:?}")]
+    Line {
+        path: PathBuf,
+        line: usize,
+        reason: String,
+        text: String,
+    },
+    #[error("{path}: {count} points; a curve needs at least 3")]
+    TooFew { path: PathBuf, count: usize },
+}
+
+/// Read x,y points. The first line may be a header (any line whose fields are not numbers).
+pub fn read_curve_csv(path: &Path) -> Result<Vec<Point2<f64>>, CurveFileError> {
+    let text = std::fs::read_to_string(path).map_err(|source| CurveFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut pts = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let t = line.trim();
+        if t.is_empty() {
+            continue;
+        }
+        let f: Vec<&str> = t
+            .split([',', ';', '\t', ' '])
+            .filter(|s| !s.is_empty())
+            .collect();
+        let err = |reason: &str| CurveFileError::Line {
+            path: path.to_path_buf(),
+            line: i + 1,
+            reason: reason.into(),
+            text: t.into(),
+        };
+        let nums: Result<Vec<f64>, _> = f.iter().map(|x| x.parse::<f64>()).collect();
+        match nums {
+            Err(_) if i == 0 || pts.is_empty() && f.iter().all(|x| x.parse::<f64>().is_err()) => {
+                continue
+            } // header
+            Err(_) => return Err(err("not a number")),
+            Ok(v) if v.len() != 2 => return Err(err("expected two values x,y")),
+            Ok(v) if !v.iter().all(|x| x.is_finite()) => return Err(err("non-finite value")),
+            Ok(v) => pts.push(Point2::new(v[0], v[1])),
+        }
+    }
+    if pts.len() < 3 {
+        return Err(CurveFileError::TooFew {
+            path: path.to_path_buf(),
+            count: pts.len(),
+        });
+    }
+    Ok(pts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn header_is_optional_and_bad_lines_are_named() {
+        let d = std::env::temp_dir().join(format!("acetab-csv-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let p = d.join("a.csv");
+        std::fs::write(&p, "x,y\n0,0\n1,0\n1,1\n").unwrap();
+        assert_eq!(read_curve_csv(&p).unwrap().len(), 3);
+        std::fs::write(&p, "0 0\n1 0\n1 1\n0 1\n").unwrap();
+        assert_eq!(read_curve_csv(&p).unwrap().len(), 4);
+        std::fs::write(&p, "0,0\n1,zero\n1,1\n").unwrap();
+        let e = read_curve_csv(&p).unwrap_err().to_string();
+        assert!(e.contains("line 2") && e.contains("a.csv"), "{e}");
+        std::fs::write(&p, "0,0,0\n").unwrap();
+        assert!(read_curve_csv(&p)
+            .unwrap_err()
+            .to_string()
+            .contains("two values"));
+        std::fs::write(&p, "0,0\n1,NaN\n2,2\n").unwrap();
+        assert!(read_curve_csv(&p)
+            .unwrap_err()
+            .to_string()
+            .contains("non-finite"));
+        std::fs::write(&p, "x,y\n0,0\n").unwrap();
+        assert!(matches!(
+            read_curve_csv(&p),
+            Err(CurveFileError::TooFew { count: 1, .. })
+        ));
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+}
