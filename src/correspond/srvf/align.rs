@@ -29,7 +29,7 @@ pub struct SrvfParams {
     /// Closed curves: how many of the best seeds (ranked by the rotation-only energy, which is
     /// exact for all seeds at once) are refined with full DP (default 6).
     pub seed_candidates: usize,
-    /// Rotation/DP alternations at most (default 6); stops earlier when the energy falls by less
+    /// Rotation/DP alternations at most (default 3); stops earlier when the energy falls by less
     /// than `rel_tol` (default 1e-4) of itself.
     pub max_alternations: usize,
     pub rel_tol: f64,
@@ -43,7 +43,7 @@ impl Default for SrvfParams {
             samples: 200,
             neighbourhood: 5,
             seed_candidates: 6,
-            max_alternations: 6,
+            max_alternations: 3,
             rel_tol: 1e-4,
             band: 6,
         }
@@ -235,6 +235,17 @@ pub fn align_closed(
         ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
         for &(_, s) in ranked.iter().take(2) {
             refine(s, &mut best);
+        }
+        // The candidates are kept apart, so walk the seed one sample at a time while it helps.
+        for dir in [1usize, t - 1] {
+            loop {
+                let current = best.as_ref().map(|b| (b.0, b.1)).expect("refined above");
+                let s = (current.1 + dir) % t;
+                refine(s, &mut best);
+                if best.as_ref().map(|b| b.1) != Some(s) {
+                    break;
+                }
+            }
         }
     }
     let (energy, seed, theta, w) = best.expect("at least one seed is tried");

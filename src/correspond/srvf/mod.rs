@@ -134,6 +134,73 @@ mod tests {
     }
 
     #[test]
+    fn fast_search_is_within_one_percent_of_exhaustive_on_varied_curves() {
+        let shape = |n: usize, k2: f64, k3: f64, ph: f64, sx: f64| -> Vec<Point2<f64>> {
+            (0..n)
+                .map(|i| {
+                    let t = std::f64::consts::TAU * i as f64 / n as f64;
+                    let r = 1.0
+                        + k2 * (2.0 * t).cos()
+                        + k3 * (3.0 * t + ph).sin()
+                        + 0.05 * (5.0 * t).cos();
+                    Point2::new(sx * r * t.cos(), r * t.sin())
+                })
+                .collect()
+        };
+        let cases = [
+            (
+                shape(200, 0.3, 0.15, 0.4, 1.0),
+                shape(180, 0.25, 0.2, 0.9, 1.1),
+                0.8,
+                40,
+            ),
+            (
+                shape(200, 0.1, 0.3, 0.0, 0.8),
+                shape(220, 0.2, 0.25, 0.0, 0.9),
+                -1.9,
+                150,
+            ),
+            (
+                shape(150, 0.4, 0.05, 1.0, 1.3),
+                shape(160, 0.35, 0.1, 1.3, 1.0),
+                2.5,
+                7,
+            ),
+            (
+                shape(240, 0.05, 0.05, 0.0, 0.6),
+                shape(240, 0.08, 0.02, 0.5, 0.7),
+                0.2,
+                100,
+            ),
+            (
+                shape(200, 0.3, 0.3, 2.0, 1.0),
+                shape(200, 0.2, 0.1, 2.2, 1.2),
+                -0.7,
+                0,
+            ),
+            (
+                shape(180, 0.2, 0.0, 0.0, 1.5),
+                shape(190, 0.25, 0.05, 0.3, 1.4),
+                1.1,
+                60,
+            ),
+        ];
+        let p = prm(64);
+        for (i, (a, b, rot, start)) in cases.iter().enumerate() {
+            let b = similarity(b, *rot, 1.7, 3.0, -2.0);
+            let b: Vec<Point2<f64>> = b[*start..].iter().chain(&b[..*start]).cloned().collect();
+            let fast = align_closed(a, &b, &p, false).unwrap();
+            let exact = align_closed(a, &b, &p, true).unwrap();
+            assert!(
+                fast.distance <= exact.distance * 1.01 + 1e-9,
+                "case {i}: fast {} exhaustive {}",
+                fast.distance,
+                exact.distance
+            );
+        }
+    }
+
+    #[test]
     fn open_curves_align_up_to_similarity() {
         let a: Vec<Point2<f64>> = (0..90)
             .map(|i| {
