@@ -1,6 +1,6 @@
 //! SRVF alignment speed: closed and open curves at T = 100, 200, 400.
 
-use acetab::correspond::srvf::{align_closed, align_open, SrvfParams};
+use acetab::correspond::srvf::{align_closed, align_open, align_partial, SrvfParams};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use nalgebra::Point2;
 
@@ -35,6 +35,11 @@ fn bench(c: &mut Criterion) {
         let (ao, bo) = (&a[..250], &b[..220]);
         g.bench_with_input(BenchmarkId::new("open", t), &prm, |bch, prm| {
             bch.iter(|| align_open(ao, bo, prm).unwrap())
+        });
+        // Partial: an open arc (a third of A, from a differently shaped copy) against closed A.
+        let arc = &b[40..160];
+        g.bench_with_input(BenchmarkId::new("partial", t), &prm, |bch, prm| {
+            bch.iter(|| align_partial(arc, &a, prm).unwrap())
         });
     }
     g.finish();

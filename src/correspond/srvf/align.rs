@@ -4,7 +4,7 @@
 //! falling.
 
 use super::curve::{best_rotation, dist2, rotate, srvf};
-use super::dp::{coprime_steps, dp_warp, dp_warp_fast, Warp};
+use super::dp::{coprime_steps, dp_warp, dp_warp_fast, dp_warp_near, Warp};
 use crate::contours::{polyline_length, resample_closed, resample_open, ClosedPolyline};
 use nalgebra::{Point2, Vector2};
 
@@ -101,28 +101,33 @@ fn check(curve: &'static str, p: &[Point2<f64>]) -> Result<(), SrvfError> {
     Ok(())
 }
 
-/// Optimal rotation + warp with alternation, starting from rotation `theta`.
+/// Optimal rotation + warp with alternation, starting from rotation `theta`. The first DP runs
+/// coarse to fine (or in a band around `hint`, the path of a neighbouring problem); each later
+/// one in a band around the previous path, since a small rotation change moves the path little.
 fn rotate_and_warp(
     q1: &[Vector2<f64>],
     q2: &[Vector2<f64>],
     theta: f64,
     prm: &SrvfParams,
     steps: &[(usize, usize)],
+    hint: Option<&[(usize, usize)]>,
 ) -> (f64, Warp) {
     let mut theta = theta;
-    let dp = |q: &[Vector2<f64>]| {
+    let dp = |q: &[Vector2<f64>], near: Option<&[(usize, usize)]>| {
         if prm.band == 0 {
             dp_warp(q1, q, steps)
+        } else if let Some(path) = near {
+            dp_warp_near(q1, q, steps, path, prm.band)
         } else {
             dp_warp_fast(q1, q, steps, prm.band)
         }
     };
-    let mut w = dp(&rotate(q2, theta));
+    let mut w = dp(&rotate(q2, theta), hint);
     let mut energy = w.energy;
     for _ in 1..prm.max_alternations.max(1) {
         let d = best_rotation(q1, &w.warped);
         let next_theta = theta + d;
-        let w2 = dp(&rotate(q2, next_theta));
+        let w2 = dp(&rotate(q2, next_theta), Some(&w.path));
         if w2.energy < energy * (1.0 - prm.rel_tol) {
             theta = next_theta;
             energy = w2.energy;
@@ -192,8 +197,21 @@ pub fn align_closed(
     }
     let q1g = closed_grid(&q1, 0);
     let mut best: Option<(f64, usize, f64, Warp)> = None;
-    let refine = |s: usize, best: &mut Option<(f64, usize, f64, Warp)>| {
-        let (theta, w) = rotate_and_warp(&q1g, &closed_grid(&q2, s), energies[s].1, prm, &steps);
+    let refine = |s: usize, best: &mut Option<(f64, usize, f64, Warp)>, near: bool| {
+        // A neighbouring seed shifts the optimal path by one cell: search near the best one.
+        let hint = if near {
+            best.as_ref().map(|b| b.3.path.clone())
+        } else {
+            None
+        };
+        let (theta, w) = rotate_and_warp(
+            &q1g,
+            &closed_grid(&q2, s),
+            energies[s].1,
+            prm,
+            &steps,
+            hint.as_deref(),
+        );
         if best.as_ref().map_or(true, |b| w.energy < b.0) {
             *best = Some((w.energy, s, theta, w));
         }
@@ -204,8 +222,14 @@ pub fn align_closed(
             ..prm.clone()
         };
         let refine = |s: usize, best: &mut Option<(f64, usize, f64, Warp)>| {
-            let (theta, w) =
-                rotate_and_warp(&q1g, &closed_grid(&q2, s), energies[s].1, &exact, &steps);
+            let (theta, w) = rotate_and_warp(
+                &q1g,
+                &closed_grid(&q2, s),
+                energies[s].1,
+                &exact,
+                &steps,
+                None,
+            );
             if best.as_ref().map_or(true, |b| w.energy < b.0) {
                 *best = Some((w.energy, s, theta, w));
             }
@@ -228,20 +252,20 @@ pub fn align_closed(
             .map(|&s| {
                 let (cb, _) = resample_closed(&rotate_list(&rb, s), tc);
                 let cq2 = closed_grid(&srvf(&cb, true), 0);
-                let (_, w) = rotate_and_warp(&cq1, &cq2, energies[s].1, &coarse_prm, &steps);
+                let (_, w) = rotate_and_warp(&cq1, &cq2, energies[s].1, &coarse_prm, &steps, None);
                 (w.energy, s)
             })
             .collect();
         ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
         for &(_, s) in ranked.iter().take(2) {
-            refine(s, &mut best);
+            refine(s, &mut best, false);
         }
         // The candidates are kept apart, so walk the seed one sample at a time while it helps.
         for dir in [1usize, t - 1] {
             loop {
                 let current = best.as_ref().map(|b| (b.0, b.1)).expect("refined above");
                 let s = (current.1 + dir) % t;
-                refine(s, &mut best);
+                refine(s, &mut best, true);
                 if best.as_ref().map(|b| b.1) != Some(s) {
                     break;
                 }
@@ -312,7 +336,7 @@ pub fn align_open(
     let q1 = srvf(&ra, false);
     let q2 = srvf(&rb, false);
     let steps = coprime_steps(prm.neighbourhood);
-    let (theta, w) = rotate_and_warp(&q1, &q2, best_rotation(&q1, &q2), prm, &steps);
+    let (theta, w) = rotate_and_warp(&q1, &q2, best_rotation(&q1, &q2), prm, &steps, None);
     let total = polyline_length(b, false);
     let mut out = Alignment {
         distance: w.energy.max(0.0).sqrt(),
@@ -348,9 +372,45 @@ fn sub_arc(poly: &ClosedPolyline, start: f64, len: f64, t: usize) -> Vec<Point2<
         .collect()
 }
 
+/// Unit tangents of the closed curve at `n` arc-length samples (the arc-length SRVF of any of its
+/// sub-arcs, once normalised, is its unit tangent).
+fn unit_tangents(b: &[Point2<f64>], n: usize) -> Vec<Vector2<f64>> {
+    let (r, _) = resample_closed(b, n);
+    (0..n)
+        .map(|i| {
+            let d = r[(i + 1) % n] - r[(i + n - 1) % n];
+            let s = d.norm();
+            if s > 1e-15 {
+                d / s
+            } else {
+                Vector2::zeros()
+            }
+        })
+        .collect()
+}
+
+/// Rotation-only energy 2 - 2 max_O <q1, O q2> of A's SRVF against the sub-arc of B from
+/// fraction `start` over fraction `len`, read from B's tangent field.
+fn subarc_rotation_energy(q1: &[Vector2<f64>], tang: &[Vector2<f64>], start: f64, len: f64) -> f64 {
+    let (n, t) = (tang.len(), q1.len());
+    let (mut c, mut s) = (0.0, 0.0);
+    for (i, a) in q1.iter().enumerate() {
+        let x = (start + len * i as f64 / (t - 1) as f64) * n as f64;
+        let k = x.floor();
+        let u = x - k;
+        let k = (k as i64).rem_euclid(n as i64) as usize;
+        let v = tang[k] * (1.0 - u) + tang[(k + 1) % n] * u;
+        c += a.dot(&v);
+        s += v.x * a.y - v.y * a.x;
+    }
+    2.0 - 2.0 * (c * c + s * s).sqrt() / t as f64
+}
+
 /// Match the open arc A against the best sub-arc of the closed curve B, trying both directions of
-/// A. A coarse search over start and length (at most 64 samples) picks candidates that are then
-/// refined at the full sample count.
+/// A. Every start x length x direction is ranked by its rotation-only energy (read from B's
+/// tangent field, no resampling); the six best distinct ones get a coarse DP alignment (at most
+/// 48 samples), the best is polished by a coordinate search in start and length at that
+/// resolution, and the winner is aligned once at the full sample count.
 pub fn align_partial(
     a: &[Point2<f64>],
     b: &[Point2<f64>],
@@ -364,73 +424,117 @@ pub fn align_partial(
     let poly = ClosedPolyline::new(b);
     let ratio = (polyline_length(a, false) / poly.total).clamp(0.05, 1.0);
     let coarse = SrvfParams {
-        samples: prm.samples.min(64),
+        samples: prm.samples.min(48),
         max_alternations: 2,
         ..prm.clone()
     };
-    let steps_c = coprime_steps(coarse.neighbourhood.min(4));
-    let starts = 48usize;
-    let fracs: Vec<f64> = [0.7, 0.85, 1.0, 1.15, 1.35]
-        .iter()
-        .map(|f| (ratio * f).min(0.98))
-        .collect();
-    // (energy, reversed, start, len)
-    let mut cands: Vec<(f64, bool, f64, f64)> = Vec::new();
-    for reversed in [false, true] {
-        let mut aa = a.to_vec();
-        if reversed {
-            aa.reverse();
-        }
-        let (ra, _) = resample_open(&aa, coarse.samples);
-        let q1 = srvf(&ra, false);
-        for k in 0..starts {
-            let start = poly.total * k as f64 / starts as f64;
-            for &f in &fracs {
-                let len = f * poly.total;
-                let q2 = srvf(&sub_arc(&poly, start, len, coarse.samples), false);
-                let (_, w) = rotate_and_warp(&q1, &q2, best_rotation(&q1, &q2), &coarse, &steps_c);
-                cands.push((w.energy, reversed, start, len));
-            }
-        }
-    }
-    cands.sort_by(|x, y| x.0.total_cmp(&y.0));
-    // Refine the three best with a local search in start and length at full resolution.
-    let t = prm.samples;
     let steps = coprime_steps(prm.neighbourhood);
-    let mut best: Option<(f64, bool, f64, f64, f64, Warp, Vec<Point2<f64>>)> = None;
-    for &(_, reversed, start0, len0) in cands.iter().take(3) {
+    let tang = unit_tangents(b, 1024);
+    let starts = 96usize;
+    // Sub-arc lengths (fractions of B): A's length ratio says little when the scales differ,
+    // so a geometric ladder from 5 % to 95 % is ranked too, with the ratio's neighbours.
+    let mut fracs: Vec<f64> = (0..32)
+        .map(|k| 0.05 * (0.95f64 / 0.05).powf(k as f64 / 31.0))
+        .collect();
+    fracs.extend([0.85, 1.0, 1.15].iter().map(|f| (ratio * f).min(0.95)));
+    let arc_q = |reversed: bool, t: usize| {
         let mut aa = a.to_vec();
         if reversed {
             aa.reverse();
         }
         let (ra, _) = resample_open(&aa, t);
-        let q1 = srvf(&ra, false);
-        let (mut start, mut len) = (start0, len0);
-        let mut step_s = 0.5 * poly.total / starts as f64;
-        let mut step_l = 0.07 * len0;
-        let eval = |start: f64, len: f64| {
-            let q2 = srvf(&sub_arc(&poly, start, len, t), false);
-            rotate_and_warp(&q1, &q2, best_rotation(&q1, &q2), prm, &steps)
-        };
-        let (mut theta, mut w) = eval(start, len);
-        for _ in 0..3 {
-            for (ds, dl) in [(-step_s, 0.0), (step_s, 0.0), (0.0, -step_l), (0.0, step_l)] {
-                let l2 = (len + dl).clamp(0.02 * poly.total, 0.99 * poly.total);
-                let (th, w2) = eval(start + ds, l2);
-                if w2.energy < w.energy {
-                    (theta, w, start, len) = (th, w2, start + ds, l2);
-                }
+        let q = srvf(&ra, false);
+        (ra, q)
+    };
+    // (energy, reversed, start fraction, length fraction)
+    let mut cands: Vec<(f64, bool, f64, f64)> = Vec::new();
+    let rank_t = prm.samples.min(32);
+    let coarse_q1 = [
+        arc_q(false, coarse.samples).1,
+        arc_q(true, coarse.samples).1,
+    ];
+    let rank_q1 = [arc_q(false, rank_t).1, arc_q(true, rank_t).1];
+    for (d, q1) in rank_q1.iter().enumerate() {
+        for k in 0..starts {
+            let start = k as f64 / starts as f64;
+            for &f in &fracs {
+                cands.push((
+                    subarc_rotation_energy(q1, &tang, start, f),
+                    d == 1,
+                    start,
+                    f,
+                ));
             }
+        }
+    }
+    cands.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let mut picked: Vec<(bool, f64, f64)> = Vec::new();
+    for &(_, rev, start, len) in &cands {
+        let close = picked.iter().any(|&(r2, s2, _)| {
+            let d = (start - s2).rem_euclid(1.0);
+            r2 == rev && d.min(1.0 - d) < 1.5 / starts as f64
+        });
+        if !close {
+            picked.push((rev, start, len));
+            if picked.len() == 8 {
+                break;
+            }
+        }
+    }
+    let eval = |q1: &[Vector2<f64>],
+                p: &SrvfParams,
+                start: f64,
+                len: f64,
+                hint: Option<&[(usize, usize)]>| {
+        let q2 = srvf(
+            &sub_arc(&poly, start * poly.total, len * poly.total, q1.len()),
+            false,
+        );
+        rotate_and_warp(q1, &q2, best_rotation(q1, &q2), p, &steps, hint)
+    };
+    // The candidates are told apart by a DP at the ranking resolution; the winner is polished at
+    // the (finer) coarse resolution.
+    let rank_prm = SrvfParams {
+        samples: rank_t,
+        ..coarse.clone()
+    };
+    let mut best: Option<(f64, bool, f64, f64)> = None;
+    for &(rev, start, len) in &picked {
+        let (_, w) = eval(&rank_q1[usize::from(rev)], &rank_prm, start, len, None);
+        if best.as_ref().map_or(true, |b| w.energy < b.0) {
+            best = Some((w.energy, rev, start, len));
+        }
+    }
+    let (_, reversed, mut start, mut len) = best.expect("candidates are never empty");
+    let q1c = &coarse_q1[usize::from(reversed)];
+    let (_, w) = eval(q1c, &coarse, start, len, None);
+    let (mut energy, mut path) = (w.energy, w.path);
+    // Pattern search: move while a move helps, else halve the steps (at most 24 evaluations).
+    let (mut step_s, mut step_l) = (0.5 / starts as f64, 0.05 * len);
+    let mut evals = 0;
+    while evals < 24 && step_s > 0.02 / starts as f64 {
+        let mut moved = false;
+        for (ds, dl) in [(-step_s, 0.0), (step_s, 0.0), (0.0, -step_l), (0.0, step_l)] {
+            let l2 = (len + dl).clamp(0.02, 0.99);
+            // A small move of the sub-arc moves the warp path little: search near it.
+            let (_, w) = eval(q1c, &coarse, start + ds, l2, Some(&path));
+            evals += 1;
+            if w.energy < energy {
+                (energy, start, len, path) = (w.energy, start + ds, l2, w.path);
+                moved = true;
+            }
+        }
+        if !moved {
             step_s *= 0.5;
             step_l *= 0.5;
         }
-        if best.as_ref().map_or(true, |b| w.energy < b.0) {
-            best = Some((w.energy, reversed, start, len, theta, w, ra));
-        }
     }
-    let (energy, reversed, start, len, theta, w, ra) = best.expect("candidates are never empty");
+    let t = prm.samples;
+    let (ra, q1) = arc_q(reversed, t);
+    let (theta, w) = eval(&q1, prm, start, len, None);
+    let (start, len) = (start * poly.total, len * poly.total);
     let mut out = Alignment {
-        distance: energy.max(0.0).sqrt(),
+        distance: w.energy.max(0.0).sqrt(),
         rotation: theta,
         seed: ((start.rem_euclid(poly.total) / poly.total) * t as f64).round() as usize % t,
         gamma: w.gamma.clone(),

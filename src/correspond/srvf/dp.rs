@@ -78,7 +78,37 @@ pub fn dp_warp(q1: &[Vector2<f64>], q2: &[Vector2<f64>], steps: &[(usize, usize)
     dp_in_band(q1, q2, steps, &band)
 }
 
+/// One coprime step (a, b) prepared for the inner loop: sqrt of its slope and, for each of the
+/// `a` samples it covers, the integer offset into q2 and the interpolation fraction.
+struct PreparedStep {
+    a: usize,
+    b: usize,
+    sqrt_slope: f64,
+    taps: Vec<(usize, f64)>,
+}
+
+fn prepare(steps: &[(usize, usize)]) -> Vec<PreparedStep> {
+    steps
+        .iter()
+        .map(|&(a, b)| PreparedStep {
+            a,
+            b,
+            sqrt_slope: (b as f64 / a as f64).sqrt(),
+            taps: (0..a)
+                .map(|r| {
+                    let y = (r * b) as f64 / a as f64;
+                    let off = (r * b) / a;
+                    (off, y - off as f64)
+                })
+                .collect(),
+        })
+        .collect()
+}
+
 /// DP restricted to the cells (i, j) with band[i].0 <= j <= band[i].1 (row 0 is the start).
+/// Costs are kept only inside the band (row-major, one offset per row), so memory and time are
+/// O(cells in the band); the per-step interpolation taps are precomputed, and the sum matches
+/// `edge_cost` times n.
 fn dp_in_band(
     q1: &[Vector2<f64>],
     q2: &[Vector2<f64>],
@@ -87,39 +117,126 @@ fn dp_in_band(
 ) -> Warp {
     let n = q1.len();
     debug_assert_eq!(n, q2.len());
-    let mut cost = vec![f64::INFINITY; n * n];
-    let mut back = vec![u32::MAX; n * n];
-    cost[0] = 0.0;
+    let prepared = prepare(steps);
+    // Row bounds (clamped; row 0 holds only the start cell).
+    let mut lo = vec![0usize; n];
+    let mut hi = vec![0usize; n];
+    let mut offset = vec![0usize; n + 1];
     for i in 1..n {
-        let (lo, hi) = band[i];
-        for j in lo.max(1)..=hi.min(n - 1) {
+        lo[i] = band[i].0.max(1);
+        hi[i] = band[i].1.min(n - 1);
+        if hi[i] < lo[i] {
+            // An empty row: keep it one cell wide so every row can be reached.
+            hi[i] = lo[i].min(n - 1);
+            lo[i] = hi[i];
+        }
+    }
+    for i in 0..n {
+        offset[i + 1] = offset[i] + (hi[i] + 1 - lo[i]);
+    }
+    let cells = offset[n];
+    let mut cost = vec![f64::INFINITY; cells];
+    let mut back = vec![u32::MAX; cells];
+    cost[0] = 0.0;
+    let (x1, y1): (Vec<f64>, Vec<f64>) = q1.iter().map(|v| (v.x, v.y)).unzip();
+    let (x2, y2): (Vec<f64>, Vec<f64>) = q2.iter().map(|v| (v.x, v.y)).unzip();
+    for i in 1..n {
+        for j in lo[i]..=hi[i] {
             let mut best = f64::INFINITY;
             let mut arg = u32::MAX;
-            for (si, &(a, b)) in steps.iter().enumerate() {
-                if a > i || b > j {
+            for (si, st) in prepared.iter().enumerate() {
+                if st.a > i || st.b > j {
                     continue;
                 }
-                let (k, l) = (i - a, j - b);
-                let prev = cost[k * n + l];
-                if !prev.is_finite() {
+                let (k, l) = (i - st.a, j - st.b);
+                if l < lo[k] || l > hi[k] {
                     continue;
                 }
-                let c = prev + edge_cost(q1, q2, k, l, i, j);
+                let prev = cost[offset[k] + l - lo[k]];
+                if prev >= best {
+                    continue; // edge costs are non-negative
+                }
+                let mut c = 0.0;
+                for (r, &(off, u)) in st.taps.iter().enumerate() {
+                    let p = l + off;
+                    let (qx, qy) = if u == 0.0 {
+                        (x2[p], y2[p])
+                    } else {
+                        (
+                            x2[p] + (x2[p + 1] - x2[p]) * u,
+                            y2[p] + (y2[p + 1] - y2[p]) * u,
+                        )
+                    };
+                    let dx = x1[k + r] - qx * st.sqrt_slope;
+                    let dy = y1[k + r] - qy * st.sqrt_slope;
+                    c += dx * dx + dy * dy;
+                }
+                let c = prev + c;
                 if c < best {
                     best = c;
                     arg = si as u32;
                 }
             }
-            cost[i * n + j] = best;
-            back[i * n + j] = arg;
+            let at = offset[i] + j - lo[i];
+            cost[at] = best;
+            back[at] = arg;
         }
     }
-    let path = traceback(&back, n, steps);
+    // Traceback through the banded storage.
+    let mut path = vec![(n - 1, n - 1)];
+    let (mut i, mut j) = (n - 1, n - 1);
+    while i > 0 && j > 0 {
+        if j < lo[i] || j > hi[i] {
+            break;
+        }
+        let s = back[offset[i] + j - lo[i]];
+        if s == u32::MAX {
+            break;
+        }
+        let (a, b) = steps[s as usize];
+        i -= a;
+        j -= b;
+        path.push((i, j));
+    }
+    if path.last() != Some(&(0, 0)) {
+        // The band cut every path (cannot happen with bands built from a path); fall back to
+        // the full grid rather than return a broken warp.
+        return dp_warp(q1, q2, steps);
+    }
+    path.reverse();
     warp_from_path(q1, q2, &path)
 }
 
 /// Grids up to this size are solved exactly by `dp_warp_fast`.
 pub const EXACT_DP_MAX: usize = 64;
+
+/// The band of +-`halfwidth` cells around a node path given on a grid `factor` times coarser
+/// (factor 1: the same grid), for a fine grid of n samples.
+fn band_around(
+    path: &[(usize, usize)],
+    factor: usize,
+    n: usize,
+    halfwidth: usize,
+) -> Vec<(usize, usize)> {
+    let fine = |c: usize| (factor * c).min(n - 1);
+    let mut band = vec![(usize::MAX, 0usize); n];
+    for w in path.windows(2) {
+        let ((i0, j0), (i1, j1)) = ((fine(w[0].0), fine(w[0].1)), (fine(w[1].0), fine(w[1].1)));
+        for i in i0..=i1 {
+            let t = if i1 > i0 {
+                (i - i0) as f64 / (i1 - i0) as f64
+            } else {
+                0.0
+            };
+            let j = j0 as f64 + t * (j1 as f64 - j0 as f64);
+            let lo = (j.floor() as usize).saturating_sub(halfwidth);
+            let hi = ((j.ceil() as usize) + halfwidth).min(n - 1);
+            band[i] = (band[i].0.min(lo), band[i].1.max(hi));
+        }
+    }
+    band[n - 1].1 = n - 1;
+    band
+}
 
 /// Coarse-to-fine DP: solve on every other sample (recursively), then the full grid only in a
 /// band of +-`halfwidth` cells around the coarse path. O(n * band) instead of O(n^2); the exact
@@ -139,23 +256,23 @@ pub fn dp_warp_fast(
     let c1: Vec<Vector2<f64>> = (0..m).map(|c| q1[fine(c)]).collect();
     let c2: Vec<Vector2<f64>> = (0..m).map(|c| q2[fine(c)]).collect();
     let coarse = dp_warp_fast(&c1, &c2, steps, halfwidth);
-    let mut band = vec![(usize::MAX, 0usize); n];
-    for w in coarse.path.windows(2) {
-        let ((i0, j0), (i1, j1)) = ((fine(w[0].0), fine(w[0].1)), (fine(w[1].0), fine(w[1].1)));
-        for i in i0..=i1 {
-            let t = if i1 > i0 {
-                (i - i0) as f64 / (i1 - i0) as f64
-            } else {
-                0.0
-            };
-            let j = j0 as f64 + t * (j1 as f64 - j0 as f64);
-            let lo = (j.floor() as usize).saturating_sub(halfwidth);
-            let hi = ((j.ceil() as usize) + halfwidth).min(n - 1);
-            band[i] = (band[i].0.min(lo), band[i].1.max(hi));
-        }
+    dp_in_band(q1, q2, steps, &band_around(&coarse.path, 2, n, halfwidth))
+}
+
+/// DP in a band of +-`halfwidth` cells around `hint`, a path on the same grid (the previous
+/// solution of a nearby problem: the next rotation of an alternation, a neighbouring seed).
+pub fn dp_warp_near(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    steps: &[(usize, usize)],
+    hint: &[(usize, usize)],
+    halfwidth: usize,
+) -> Warp {
+    let n = q1.len();
+    if n <= 24 || hint.len() < 2 {
+        return dp_warp(q1, q2, steps);
     }
-    band[n - 1].1 = n - 1;
-    dp_in_band(q1, q2, steps, &band)
+    dp_in_band(q1, q2, steps, &band_around(hint, 1, n, halfwidth))
 }
 
 /// Follow back-pointers from (n-1, n-1) to (0, 0).

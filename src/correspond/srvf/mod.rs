@@ -200,6 +200,100 @@ mod tests {
         }
     }
 
+    /// Open wiggly arcs of varied shape for the quality checks.
+    fn wiggle(n: usize, f: f64, amp: f64, bend: f64) -> Vec<Point2<f64>> {
+        (0..n)
+            .map(|i| {
+                let t = i as f64 / (n - 1) as f64 * 3.0;
+                Point2::new(t + 0.1 * (f * t).cos(), amp * (f * t).sin() + bend * t * t)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn fast_open_alignment_is_within_one_percent_of_the_exhaustive_answer() {
+        // Exhaustive: full-grid DP at every step and rotation/DP alternation to convergence.
+        let exact = SrvfParams {
+            band: 0,
+            max_alternations: 30,
+            rel_tol: 0.0,
+            ..prm(200)
+        };
+        let cases = [
+            (wiggle(120, 2.0, 1.0, 0.2), wiggle(150, 2.6, 0.8, 0.3), 0.9),
+            (wiggle(200, 4.0, 0.5, 0.0), wiggle(90, 3.0, 0.7, 0.1), -2.0),
+            (wiggle(80, 1.0, 1.5, 0.4), wiggle(80, 1.5, 1.2, -0.2), 2.8),
+            (
+                wiggle(150, 5.0, 0.3, 0.3),
+                wiggle(170, 5.5, 0.35, 0.25),
+                0.1,
+            ),
+        ];
+        for (i, (a, b, rot)) in cases.iter().enumerate() {
+            let b = similarity(b, *rot, 0.6, 1.0, 2.0);
+            let fast = align_open(a, &b, &prm(200)).unwrap();
+            let best = align_open(a, &b, &exact).unwrap();
+            assert!(
+                fast.distance <= best.distance * 1.01 + 1e-9,
+                "case {i}: fast {} exhaustive {}",
+                fast.distance,
+                best.distance
+            );
+        }
+    }
+
+    #[test]
+    fn fast_partial_alignment_is_within_one_percent_of_a_dense_search() {
+        // The oracle: every start (T of them) x 15 lengths x both directions, each aligned with
+        // the full-grid DP; the fast search must do at least as well within 1 %.
+        let t = 40;
+        let p = SrvfParams { band: 0, ..prm(t) };
+        let b = blob(300, 0.0);
+        let poly = crate::contours::ClosedPolyline::new(&b);
+        let cases = [
+            (40usize, 130usize, 0.5, false),
+            (200, 330, -1.0, true),
+            (10, 70, 2.0, false),
+        ];
+        for (i, &(s0, s1, rot, rev)) in cases.iter().enumerate() {
+            let idx: Vec<usize> = (s0..=s1).collect();
+            let arc: Vec<Point2<f64>> = idx.iter().map(|&k| b[k % 300]).collect();
+            // A different shape: stretch the arc before moving it.
+            let arc: Vec<Point2<f64>> = arc.iter().map(|q| Point2::new(q.x * 1.2, q.y)).collect();
+            let mut a = similarity(&arc, rot, 2.0, -1.0, 4.0);
+            if rev {
+                a.reverse();
+            }
+            let fast = align_partial(&a, &b, &p).unwrap();
+            let ratio = crate::contours::polyline_length(&a, false)
+                / 2.0
+                / crate::contours::polyline_length(&b, true);
+            let mut best = f64::INFINITY;
+            for dir in [false, true] {
+                let mut aa = a.clone();
+                if dir {
+                    aa.reverse();
+                }
+                for k in 0..t {
+                    for f in 0..15 {
+                        let len = ratio * (0.6 + 0.06 * f as f64) * poly.total;
+                        let start = poly.total * k as f64 / t as f64;
+                        let sub: Vec<Point2<f64>> = (0..t)
+                            .map(|r| poly.at(start + len * r as f64 / (t - 1) as f64).0)
+                            .collect();
+                        let al = align_open(&aa, &sub, &p).unwrap();
+                        best = best.min(al.distance);
+                    }
+                }
+            }
+            assert!(
+                fast.distance <= best * 1.01 + 1e-9,
+                "case {i}: fast {} dense search {best}",
+                fast.distance
+            );
+        }
+    }
+
     #[test]
     fn open_curves_align_up_to_similarity() {
         let a: Vec<Point2<f64>> = (0..90)
