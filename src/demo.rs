@@ -1,9 +1,10 @@
 //! The built-in demonstration and the evaluation shared by the CLI: simulate the phantom, run the
 //! reconstruction, measure it against the truth, write the outputs.
 
+use crate::backend::Kernels;
 use crate::mesh::io::{write_ply, MeshIoError};
 use crate::mesh::Mesh;
-use crate::pipeline::{reconstruct, ReconError, ReconParams, Reconstruction};
+use crate::pipeline::{reconstruct_with, ReconError, ReconParams, Reconstruction};
 use crate::report::{error_colors, surface_distance, surface_samples, DistanceStats};
 use crate::simulate::{simulate_case, NoiseLevel, SimError};
 use crate::template::{phantom, PhantomParams};
@@ -50,6 +51,8 @@ pub struct DemoReport {
     pub cup_error_mm: f64,
     pub initial_mae_mm: f64,
     pub seconds: f64,
+    /// Where the kernels ran: "cpu" or "gpu".
+    pub backend: String,
     pub log: crate::pipeline::SolveLog,
 }
 
@@ -76,11 +79,21 @@ pub fn run_demo(
     level: u32,
     prm: &ReconParams,
 ) -> Result<(DemoReport, Mesh, Reconstruction), DemoError> {
+    run_demo_with(seed, level, prm, Kernels::Cpu)
+}
+
+/// As `run_demo`, with the model contours and deformation on the given kernels.
+pub fn run_demo_with(
+    seed: u64,
+    level: u32,
+    prm: &ReconParams,
+    kernels: Kernels,
+) -> Result<(DemoReport, Mesh, Reconstruction), DemoError> {
     let noise = NoiseLevel::level(level).ok_or(DemoError::Level(level))?;
     let truth = phantom(&PhantomParams::default()).mesh;
     let sim = simulate_case(&truth, &XrayGeometry::default(), 2.0, &noise, seed)?;
     let start = std::time::Instant::now();
-    let rec = reconstruct(&sim.cameras, &sim.observed, &sim.init, prm)?;
+    let rec = reconstruct_with(&sim.cameras, &sim.observed, &sim.init, prm, kernels)?;
     let seconds = start.elapsed().as_secs_f64();
     let acc = accuracy(&truth, &rec.mesh);
     let init_acc = accuracy(&truth, &rec.initial);
@@ -98,6 +111,7 @@ pub fn run_demo(
         cup_error_mm: rec.sphere.diameter() - sim.truth_sphere.diameter(),
         initial_mae_mm: init_acc.mae_mm,
         seconds,
+        backend: kernels.name().to_string(),
         log: rec.log.clone(),
     };
     Ok((report, truth, rec))

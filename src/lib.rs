@@ -6,11 +6,14 @@
 //! faer) -> report (metrics, sphere fit, cup size). `pipeline` runs them in order; `case` reads
 //! case files; `simulate` makes synthetic cases from a ground-truth surface.
 
+pub mod backend;
 pub mod case;
 pub mod contours;
 pub mod correspond;
+pub mod cpu;
 pub mod demo;
 pub mod fsutil;
+pub mod gpu;
 pub mod mesh;
 pub mod pipeline;
 pub mod report;

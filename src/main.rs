@@ -1,18 +1,20 @@
 //! The `acetab` command line: parses arguments and calls the library.
 
+use acetab::backend::{BackendChoice, ContourSource, Kernels};
 use acetab::case::CaseFile;
 use acetab::contours::read_curve_csv;
 use acetab::correspond::srvf::{align, aligned_b, CurveKind, SrvfParams};
 use acetab::correspond::Method;
-use acetab::demo::{run_demo, write_error_ply};
+use acetab::demo::{run_demo_with, write_error_ply};
 use acetab::fsutil::write_atomic;
+use acetab::gpu::GpuDevice;
 use acetab::mesh::io::read_mesh;
 use acetab::mesh::io::write_ply;
-use acetab::pipeline::{reconstruct, ReconParams};
+use acetab::pipeline::{reconstruct_with, ReconParams};
 use acetab::report::CupCatalogue;
 use acetab::simulate::ground_truth_surface;
 use acetab::study::{
-    merge_dirs, run_study, summarize, tasks, write_examples, write_tables, StudyConfig,
+    merge_dirs, run_study_with, summarize, tasks, write_examples, write_tables, StudyConfig,
 };
 use acetab::template::{phantom, PhantomParams};
 use clap::{Parser, Subcommand, ValueEnum};
@@ -46,6 +48,12 @@ enum Command {
         level: u32,
         #[arg(long, value_enum, default_value_t = Method::Srvf)]
         method: Method,
+        /// Where the kernels run: cpu, gpu, or auto (the GPU when an adapter exists).
+        #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
+        backend: BackendChoice,
+        /// Model contours from alpha shapes or rasterised silhouettes.
+        #[arg(long, value_enum, default_value_t = ContourSource::AlphaShape)]
+        contours: ContourSource,
         /// Output folder.
         #[arg(long, default_value = "acetab-out")]
         out: PathBuf,
@@ -71,6 +79,12 @@ enum Command {
         /// Run only shard I of N (0 <= I < N), for job arrays; join with `acetab merge`.
         #[arg(long, default_value = "0/1")]
         shard: String,
+        /// Where the kernels run: cpu, gpu, or auto (the GPU when an adapter exists).
+        #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
+        backend: BackendChoice,
+        /// Model contours from alpha shapes or rasterised silhouettes.
+        #[arg(long, value_enum, default_value_t = ContourSource::AlphaShape)]
+        contours: ContourSource,
         #[arg(long)]
         out: PathBuf,
     },
@@ -110,9 +124,33 @@ enum Command {
         /// Cup catalogue: "min:max:step" or a list "44,46,48".
         #[arg(long, default_value = "40:70:2")]
         catalogue: String,
+        /// Where the kernels run: cpu, gpu, or auto (the GPU when an adapter exists).
+        #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
+        backend: BackendChoice,
+        /// Model contours from alpha shapes or rasterised silhouettes.
+        #[arg(long, value_enum, default_value_t = ContourSource::AlphaShape)]
+        contours: ContourSource,
         #[arg(long)]
         json: bool,
     },
+}
+
+/// The device for `--backend`: none for cpu; for auto, none (with one line saying so) when no
+/// adapter can be had.
+fn open_device(choice: BackendChoice) -> Result<Option<GpuDevice>, String> {
+    match choice {
+        BackendChoice::Cpu => Ok(None),
+        BackendChoice::Gpu => GpuDevice::from_env()
+            .map(Some)
+            .map_err(|e| format!("--backend gpu: {e}")),
+        BackendChoice::Auto => match GpuDevice::from_env() {
+            Ok(d) => Ok(Some(d)),
+            Err(e) => {
+                eprintln!("--backend auto: {e}; running on the CPU");
+                Ok(None)
+            }
+        },
+    }
 }
 
 fn create_dir(out: &Path) -> Result<(), String> {
@@ -127,13 +165,24 @@ fn run(cli: Cli) -> Result<(), String> {
             seed,
             level,
             method,
+            backend,
+            contours,
             out,
         } => {
             let prm = ReconParams {
                 method,
+                contour_source: contours,
                 ..Default::default()
             };
-            let (report, truth, rec) = run_demo(seed, level, &prm).map_err(|e| e.to_string())?;
+            let dev = open_device(backend)?;
+            let engine = dev
+                .as_ref()
+                .map(|d| d.engine())
+                .transpose()
+                .map_err(|e| e.to_string())?;
+            let kernels = engine.as_ref().map_or(Kernels::Cpu, Kernels::Gpu);
+            let (report, truth, rec) =
+                run_demo_with(seed, level, &prm, kernels).map_err(|e| e.to_string())?;
             let report_json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
             create_dir(&out)?;
             write_error_ply(&rec.mesh, &truth, &out.join("reconstruction.ply"))
@@ -176,6 +225,8 @@ fn run(cli: Cli) -> Result<(), String> {
             seed,
             threads,
             shard,
+            backend,
+            contours,
             out,
         } => {
             let cfg = StudyConfig {
@@ -193,6 +244,10 @@ fn run(cli: Cli) -> Result<(), String> {
                     })
                     .max(1),
                 shard: parse_shard(&shard)?,
+                params: ReconParams {
+                    contour_source: contours,
+                    ..Default::default()
+                },
                 ..Default::default()
             };
             if runs == 0 {
@@ -213,7 +268,14 @@ fn run(cli: Cli) -> Result<(), String> {
                 .map_err(|e| e.to_string())?,
             );
             let start = std::time::Instant::now();
-            let (rows, examples) = run_study(&truth, &cfg, &|| bar.inc(1));
+            let dev = open_device(backend)?;
+            let engine = dev
+                .as_ref()
+                .map(|d| d.engine())
+                .transpose()
+                .map_err(|e| e.to_string())?;
+            let kernels = engine.as_ref().map_or(Kernels::Cpu, Kernels::Gpu);
+            let (rows, examples) = run_study_with(&truth, &cfg, &|| bar.inc(1), kernels);
             bar.finish_and_clear();
             let meta = serde_json::json!({
                 "gt": gt, "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
@@ -295,6 +357,8 @@ fn run(cli: Cli) -> Result<(), String> {
             out,
             method,
             catalogue,
+            backend,
+            contours,
             json,
         } => {
             let catalogue =
@@ -303,10 +367,18 @@ fn run(cli: Cli) -> Result<(), String> {
             let prm = ReconParams {
                 method,
                 catalogue,
+                contour_source: contours,
                 ..Default::default()
             };
+            let dev = open_device(backend)?;
+            let engine = dev
+                .as_ref()
+                .map(|d| d.engine())
+                .transpose()
+                .map_err(|e| e.to_string())?;
+            let kernels = engine.as_ref().map_or(Kernels::Cpu, Kernels::Gpu);
             let t = std::time::Instant::now();
-            let rec = reconstruct(&c.cameras, &c.observed, &c.init, &prm)
+            let rec = reconstruct_with(&c.cameras, &c.observed, &c.init, &prm, kernels)
                 .map_err(|e| format!("{}: {e}", case.display()))?;
             let seconds = t.elapsed().as_secs_f64();
             let report = serde_json::json!({

@@ -2,7 +2,8 @@
 //! correspondences -> solve, first for a similarity, then for the deformation graph, and fit the
 //! cup sphere to the result.
 
-use crate::contours::{model_contour, ContourError, Curve, ModelContour};
+use crate::backend::{ContourSource, KernelError, Kernels};
+use crate::contours::{Curve, ModelContour};
 use crate::correspond::srvf::SrvfError;
 use crate::correspond::{correspond, CorrespondParams, Method};
 use crate::mesh::Mesh;
@@ -44,6 +45,8 @@ pub struct ReconParams {
     /// 0.1). A real acetabulum is shallower than a hemisphere and notched, so its rim outline is
     /// not the hemisphere's; the dome's silhouette (a sphere's limb) fixes centre and size.
     pub similarity_rim_weight: f64,
+    /// Model contours from alpha shapes (default) or rasterised silhouettes.
+    pub contour_source: ContourSource,
 }
 
 impl Default for ReconParams {
@@ -63,6 +66,7 @@ impl Default for ReconParams {
             catalogue: CupCatalogue::default(),
             robust: true,
             similarity_rim_weight: 0.1,
+            contour_source: ContourSource::AlphaShape,
         }
     }
 }
@@ -70,8 +74,8 @@ impl Default for ReconParams {
 /// Why a reconstruction failed.
 #[derive(Debug, thiserror::Error)]
 pub enum ReconError {
-    #[error("view {view}: model contour: {source}")]
-    Contour { view: usize, source: ContourError },
+    #[error("model contour or deformation kernel: {0}")]
+    Kernel(#[from] KernelError),
     #[error("view {view}, contour {contour}: correspondence: {source}")]
     Correspond {
         view: usize,
@@ -120,13 +124,13 @@ pub struct Reconstruction {
     pub observations: Vec<Observation>,
 }
 
-fn contours(mesh: &Mesh, cams: &[Camera]) -> Result<Vec<ModelContour>, ReconError> {
-    cams.iter()
-        .enumerate()
-        .map(|(view, c)| {
-            model_contour(mesh, c, None).map_err(|source| ReconError::Contour { view, source })
-        })
-        .collect()
+fn contours(
+    mesh: &Mesh,
+    cams: &[Camera],
+    prm: &ReconParams,
+    kernels: Kernels,
+) -> Result<Vec<ModelContour>, ReconError> {
+    Ok(kernels.contours(mesh, cams, prm.contour_source)?)
 }
 
 fn all_correspondences(
@@ -134,8 +138,9 @@ fn all_correspondences(
     cams: &[Camera],
     observed: &[Vec<Curve>],
     prm: &ReconParams,
+    kernels: Kernels,
 ) -> Result<Vec<Observation>, ReconError> {
-    let model = contours(mesh, cams)?;
+    let model = contours(mesh, cams, prm, kernels)?;
     let mut out = Vec::new();
     for (view, curves) in observed.iter().enumerate() {
         for (ci, curve) in curves.iter().enumerate() {
@@ -199,12 +204,24 @@ fn check_finite(mesh: &Mesh) -> Result<(), ReconError> {
     Ok(())
 }
 
-/// Reconstruct from cameras and observed contours (per view, one or more), starting from `init`.
+/// Reconstruct from cameras and observed contours (per view, one or more), starting from `init`,
+/// with every kernel on the CPU.
 pub fn reconstruct(
     cams: &[Camera],
     observed: &[Vec<Curve>],
     init: &Placement,
     prm: &ReconParams,
+) -> Result<Reconstruction, ReconError> {
+    reconstruct_with(cams, observed, init, prm, Kernels::Cpu)
+}
+
+/// As `reconstruct`, with the model contours and the deformation on the given kernels.
+pub fn reconstruct_with(
+    cams: &[Camera],
+    observed: &[Vec<Curve>],
+    init: &Placement,
+    prm: &ReconParams,
+    kernels: Kernels,
 ) -> Result<Reconstruction, ReconError> {
     if cams.len() != observed.len() {
         return Err(ReconError::Mismatch {
@@ -232,7 +249,7 @@ pub fn reconstruct(
         on_rim[b as usize] = true;
     }
     for _ in 0..prm.similarity_rounds {
-        let mut obs = all_correspondences(&mesh, cams, observed, prm)?;
+        let mut obs = all_correspondences(&mesh, cams, observed, prm, kernels)?;
         if prm.robust {
             robust_weights(&mesh, cams, &mut obs);
         }
@@ -284,7 +301,7 @@ pub fn reconstruct(
     let mut obs = Vec::new();
     let mut converged = true;
     for _ in 0..rounds {
-        obs = all_correspondences(&mesh, cams, observed, prm)?;
+        obs = all_correspondences(&mesh, cams, observed, prm, kernels)?;
         if prm.robust {
             robust_weights(&mesh, cams, &mut obs);
         }
@@ -302,7 +319,7 @@ pub fn reconstruct(
                 source,
             }
         })?;
-        mesh = mesh.with_vertices(graph.deform(&x));
+        mesh = mesh.with_vertices(kernels.deform(&graph, &x)?);
         check_finite(&mesh)?;
         log.correspondence_updates += 1;
         log.gn_iterations += info.iterations;
@@ -314,8 +331,8 @@ pub fn reconstruct(
     let sphere = fit_sphere_robust(&mesh.vertices)?;
     let cup = prm.catalogue.nearest(sphere.diameter());
     Ok(Reconstruction {
-        initial_contours: contours(&initial, cams)?,
-        final_contours: contours(&mesh, cams)?,
+        initial_contours: contours(&initial, cams, prm, kernels)?,
+        final_contours: contours(&mesh, cams, prm, kernels)?,
         mesh,
         initial,
         sphere,

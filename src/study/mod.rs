@@ -8,5 +8,8 @@ mod runner;
 mod table;
 
 pub use outputs::{write_examples, write_tables};
-pub use runner::{run_one, run_seed, run_study, tasks, ExampleRun, StudyConfig, Task};
+pub use runner::{
+    run_one, run_one_with, run_seed, run_study, run_study_with, tasks, ExampleRun, StudyConfig,
+    Task,
+};
 pub use table::{merge_dirs, read_csv, summarize, write_csv, Row, StudyError, Summary};

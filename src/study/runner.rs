@@ -1,10 +1,11 @@
 //! Running the study's runs, in parallel, in a fixed order.
 
 use super::table::Row;
+use crate::backend::Kernels;
 use crate::correspond::Method;
 use crate::demo::accuracy;
 use crate::mesh::Mesh;
-use crate::pipeline::{reconstruct, ReconParams, Reconstruction};
+use crate::pipeline::{reconstruct_with, ReconParams, Reconstruction};
 use crate::report::{interior_distance, DistanceStats};
 use crate::simulate::{simulate_case, NoiseLevel, SimCase};
 use crate::views::XrayGeometry;
@@ -93,6 +94,16 @@ pub struct ExampleRun {
 
 /// Run one task. A failed reconstruction is a row with `converged = false` and the error.
 pub fn run_one(truth: &Mesh, task: &Task, cfg: &StudyConfig) -> (Row, Option<ExampleRun>) {
+    run_one_with(truth, task, cfg, Kernels::Cpu)
+}
+
+/// One run with the model contours and deformation on the given kernels.
+pub fn run_one_with(
+    truth: &Mesh,
+    task: &Task,
+    cfg: &StudyConfig,
+    kernels: Kernels,
+) -> (Row, Option<ExampleRun>) {
     let mut row = Row::failed(task, "");
     let Some(level) = NoiseLevel::level(task.level) else {
         row.error = format!("no noise level {}", task.level);
@@ -111,7 +122,7 @@ pub fn run_one(truth: &Mesh, task: &Task, cfg: &StudyConfig) -> (Row, Option<Exa
         ..cfg.params.clone()
     };
     let start = std::time::Instant::now();
-    let rec = match reconstruct(&sim.cameras, &sim.observed, &sim.init, &prm) {
+    let rec = match reconstruct_with(&sim.cameras, &sim.observed, &sim.init, &prm, kernels) {
         Ok(r) => r,
         Err(e) => {
             row.seconds = start.elapsed().as_secs_f64();
@@ -147,6 +158,17 @@ pub fn run_study(
     cfg: &StudyConfig,
     tick: &(dyn Fn() + Sync),
 ) -> (Vec<Row>, Vec<ExampleRun>) {
+    run_study_with(truth, cfg, tick, Kernels::Cpu)
+}
+
+/// The study with every run's kernels on `kernels` (the GPU engine is shared by the threads;
+/// wgpu serialises their submissions).
+pub fn run_study_with(
+    truth: &Mesh,
+    cfg: &StudyConfig,
+    tick: &(dyn Fn() + Sync),
+    kernels: Kernels,
+) -> (Vec<Row>, Vec<ExampleRun>) {
     let list = tasks(cfg);
     let next = AtomicUsize::new(0);
     let rows: Mutex<Vec<Option<Row>>> = Mutex::new(vec![None; list.len()]);
@@ -160,7 +182,7 @@ pub fn run_study(
                 if k >= list.len() {
                     break;
                 }
-                let (row, ex) = run_one(truth, &list[k], cfg);
+                let (row, ex) = run_one_with(truth, &list[k], cfg, kernels);
                 if let (Some(ex), true) = (ex, first_of_method(k)) {
                     examples.lock().unwrap_or_else(|e| e.into_inner()).push(ex);
                 }

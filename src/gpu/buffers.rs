@@ -1,0 +1,178 @@
+//! A small pool of storage buffers keyed by usage, reused across dispatches (sizes rounded up to
+//! powers of two so that a sweep of similar batches allocates once).
+
+use std::sync::Mutex;
+use wgpu::util::DeviceExt;
+
+#[derive(Default)]
+pub(crate) struct BufferPool {
+    free: Mutex<Vec<(wgpu::BufferUsages, u64, wgpu::Buffer)>>,
+}
+
+impl BufferPool {
+    /// A buffer of at least `bytes` with `usage` (taken from the pool when one fits).
+    pub(crate) fn take(
+        &self,
+        device: &wgpu::Device,
+        label: &str,
+        bytes: u64,
+        usage: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        let size = bytes.max(16).next_power_of_two();
+        let mut free = self.free.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(k) = free.iter().position(|(u, s, _)| *u == usage && *s == size) {
+            return free.swap_remove(k).2;
+        }
+        drop(free);
+        device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// Give buffers back for reuse (at most 64 kept).
+    pub(crate) fn give(&self, bufs: impl IntoIterator<Item = wgpu::Buffer>) {
+        let mut free = self.free.lock().unwrap_or_else(|e| e.into_inner());
+        for b in bufs {
+            if free.len() < 64 {
+                free.push((b.usage(), b.size(), b));
+            }
+        }
+    }
+
+    /// A pooled storage buffer filled with `data`.
+    pub(crate) fn upload(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        label: &str,
+        data: &[u8],
+        extra: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | extra;
+        let buf = self.take(device, label, data.len() as u64, usage);
+        if !data.is_empty() {
+            queue.write_buffer(&buf, 0, data);
+        }
+        buf
+    }
+}
+
+/// A uniform buffer (small, not pooled).
+pub(crate) fn uniform(device: &wgpu::Device, label: &str, data: &[u8]) -> wgpu::Buffer {
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: data,
+        usage: wgpu::BufferUsages::UNIFORM,
+    })
+}
+
+/// Bytes of `n` values of `T`, padded to 4 bytes.
+pub(crate) fn bytes_of<T: bytemuck::Pod>(v: &[T]) -> &[u8] {
+    bytemuck::cast_slice(v)
+}
+
+/// Bind-group layout entry: a storage buffer (read-only ones also visible to vertex shaders).
+pub(crate) fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    // Writable storage is compute-only (vertex stages may not write without a feature).
+    let visibility = if read_only {
+        wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::VERTEX
+    } else {
+        wgpu::ShaderStages::COMPUTE
+    };
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// Bind-group layout entry: a uniform buffer.
+pub(crate) fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::VERTEX,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A compute pipeline for `entry` of the named shader with one bind group of `entries`.
+pub(crate) fn compute_pipeline(
+    device: &wgpu::Device,
+    name: &'static str,
+    entry: &str,
+    entries: &[wgpu::BindGroupLayoutEntry],
+) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
+    let source = super::SHADERS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, s)| *s)
+        .expect("every kernel name is in SHADERS");
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(name),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(name),
+        entries,
+    });
+    let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(name),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(name),
+        layout: Some(&pl),
+        module: &module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    (pipeline, layout)
+}
+
+/// Bind buffers 0..n in order.
+pub(crate) fn bind(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    label: &str,
+    bufs: &[&wgpu::Buffer],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = bufs
+        .iter()
+        .enumerate()
+        .map(|(i, b)| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource: b.as_entire_binding(),
+        })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
+}
+
+/// Sentinel byte patterns written into output buffers before a dispatch, so that cells a
+/// kernel fails to write stand out: NaN for floats, 0xA5A5A5A5 for integers.
+pub(crate) const SENTINEL_F32: u32 = 0x7fc0_0000;
+pub(crate) const SENTINEL_U32: u32 = 0xa5a5_a5a5;
+
+pub(crate) fn fill(queue: &wgpu::Queue, buf: &wgpu::Buffer, words: usize, pattern: u32) {
+    if words > 0 {
+        queue.write_buffer(buf, 0, bytemuck::cast_slice(&vec![pattern; words]));
+    }
+}

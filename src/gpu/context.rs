@@ -1,0 +1,242 @@
+//! Devices, errors and the engine handle.
+
+use super::buffers::BufferPool;
+use super::{
+    deform::DeformKernel, project::ProjectKernel, silhouette::SilhouetteKernel,
+    srvf_dp::SrvfDpKernel,
+};
+use std::sync::Mutex;
+
+/// Everything that can go wrong on the GPU side.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GpuError {
+    /// No adapter matched (none installed, or WGPU_ADAPTER_NAME / WGPU_BACKEND exclude all).
+    #[error("no GPU adapter found ({0}); install a Vulkan driver (e.g. mesa-vulkan-drivers for lavapipe) or check WGPU_BACKEND / WGPU_ADAPTER_NAME")]
+    NoAdapter(String),
+    #[error("the adapter refused a device: {0}")]
+    RequestDevice(String),
+    /// A wgpu validation or out-of-memory error raised while running `kernel`.
+    #[error("{kernel}: wgpu error: {message}")]
+    Wgpu {
+        kernel: &'static str,
+        message: String,
+    },
+    #[error("{kernel}: reading results back failed: {message}")]
+    Readback {
+        kernel: &'static str,
+        message: String,
+    },
+    /// A batch larger than the device allows.
+    #[error("{kernel}: {what} is {value}, the device allows at most {limit}")]
+    TooLarge {
+        kernel: &'static str,
+        what: &'static str,
+        value: u64,
+        limit: u64,
+    },
+    /// An input the kernel cannot take (empty batch, mismatched sizes).
+    #[error("{kernel}: {message}")]
+    Input {
+        kernel: &'static str,
+        message: String,
+    },
+}
+
+/// A device made by acetab itself, from the environment: `WGPU_BACKEND` (e.g. `vulkan`),
+/// `WGPU_ADAPTER_NAME` (a substring of the adapter's name, e.g. `llvmpipe`), and
+/// `WGPU_POWER_PREF`. Without them, the first adapter wgpu offers.
+pub struct GpuDevice {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub adapter: wgpu::AdapterInfo,
+}
+
+impl GpuDevice {
+    pub fn from_env() -> Result<Self, GpuError> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle().with_env());
+        let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
+            &instance, None,
+        ))
+        .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        let info = adapter.get_info();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("acetab"),
+            required_features: wgpu::Features::empty(),
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::RequestDevice(e.to_string()))?;
+        Ok(GpuDevice {
+            device,
+            queue,
+            adapter: info,
+        })
+    }
+
+    /// One line naming the adapter, for logs.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({:?}, {:?})",
+            self.adapter.name, self.adapter.device_type, self.adapter.backend
+        )
+    }
+
+    /// The engine on this device.
+    pub fn engine(&self) -> Result<Gpu<'_>, GpuError> {
+        Gpu::new(&self.device, &self.queue)
+    }
+}
+
+/// The engine: borrowed device and queue, every kernel's pipeline compiled once, a buffer pool
+/// and one staging buffer for read-back. `Sync`: study threads may share it (submissions are
+/// serialised by wgpu's queue).
+pub struct Gpu<'a> {
+    pub(crate) device: &'a wgpu::Device,
+    pub(crate) queue: &'a wgpu::Queue,
+    pub(crate) deform: DeformKernel,
+    pub(crate) project: ProjectKernel,
+    pub(crate) silhouette: SilhouetteKernel,
+    pub(crate) srvf_dp: SrvfDpKernel,
+    pub(crate) pool: BufferPool,
+    pub(crate) staging: Mutex<Option<wgpu::Buffer>>,
+}
+
+impl<'a> Gpu<'a> {
+    /// Compile every kernel on the caller's device. Validation errors come back as `Err`.
+    pub fn new(device: &'a wgpu::Device, queue: &'a wgpu::Queue) -> Result<Self, GpuError> {
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let deform = DeformKernel::new(device);
+        let project = ProjectKernel::new(device);
+        let silhouette = SilhouetteKernel::new(device);
+        let srvf_dp = SrvfDpKernel::new(device);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(GpuError::Wgpu {
+                kernel: "pipelines",
+                message: e.to_string(),
+            });
+        }
+        Ok(Gpu {
+            device,
+            queue,
+            deform,
+            project,
+            silhouette,
+            srvf_dp,
+            pool: BufferPool::default(),
+            staging: Mutex::new(None),
+        })
+    }
+
+    pub fn device(&self) -> &wgpu::Device {
+        self.device
+    }
+
+    pub fn queue(&self) -> &wgpu::Queue {
+        self.queue
+    }
+
+    /// Check a buffer size against the device's binding limit.
+    pub(crate) fn check_size(
+        &self,
+        kernel: &'static str,
+        what: &'static str,
+        bytes: u64,
+    ) -> Result<(), GpuError> {
+        let lim = self.device.limits();
+        let limit = (lim.max_storage_buffer_binding_size as u64).min(lim.max_buffer_size);
+        if bytes > limit {
+            return Err(GpuError::TooLarge {
+                kernel,
+                what,
+                value: bytes,
+                limit,
+            });
+        }
+        Ok(())
+    }
+
+    /// Run `record` under a validation + out-of-memory error scope, submit, and read back
+    /// `(buffer, bytes)` through the shared staging buffer.
+    pub(crate) fn submit_and_read(
+        &self,
+        kernel: &'static str,
+        record: impl FnOnce(&mut wgpu::CommandEncoder),
+        read: &[(&wgpu::Buffer, u64)],
+    ) -> Result<Vec<Vec<u8>>, GpuError> {
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let total: u64 = read
+            .iter()
+            .map(|(_, n)| n.next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT))
+            .sum();
+        let mut staging = self.staging.lock().unwrap_or_else(|e| e.into_inner());
+        if staging.as_ref().is_none_or(|s| s.size() < total.max(4)) {
+            *staging = Some(self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("acetab staging"),
+                size: total.max(4).next_power_of_two(),
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }));
+        }
+        let stage = staging.as_ref().expect("created above");
+        let mut enc = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some(kernel),
+            });
+        record(&mut enc);
+        let mut offset = 0;
+        for (buf, n) in read {
+            let n = n.next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+            enc.copy_buffer_to_buffer(buf, 0, stage, offset, n);
+            offset += n;
+        }
+        self.queue.submit([enc.finish()]);
+        let errors = [
+            pollster::block_on(oom.pop()),
+            pollster::block_on(validation.pop()),
+        ];
+        if let Some(e) = errors.into_iter().flatten().next() {
+            return Err(GpuError::Wgpu {
+                kernel,
+                message: e.to_string(),
+            });
+        }
+        let slice = stage.slice(..total.max(4));
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Readback {
+                kernel,
+                message: e.to_string(),
+            })?;
+        rx.recv()
+            .map_err(|e| GpuError::Readback {
+                kernel,
+                message: e.to_string(),
+            })?
+            .map_err(|e| GpuError::Readback {
+                kernel,
+                message: e.to_string(),
+            })?;
+        let out = {
+            let view = slice.get_mapped_range().map_err(|e| GpuError::Readback {
+                kernel,
+                message: e.to_string(),
+            })?;
+            let mut out = Vec::with_capacity(read.len());
+            let mut offset = 0usize;
+            for (_, n) in read {
+                out.push(view[offset..offset + *n as usize].to_vec());
+                offset += n.next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT) as usize;
+            }
+            out
+        };
+        stage.unmap();
+        Ok(out)
+    }
+}

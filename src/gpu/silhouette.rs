@@ -1,0 +1,356 @@
+//! GPU module of `shaders/silhouette.wgsl` (CPU twin: `crate::cpu::silhouette`): a render pass
+//! draws the projected mesh into an R32Uint id texture, then the `edges` compute pass marks the
+//! silhouette texels with their vertex ids; the host traces them into an ordered loop.
+
+use super::buffers::{bytes_of, fill, storage, uniform, uniform_entry, SENTINEL_U32};
+use super::{Gpu, GpuError};
+use crate::cpu::project::ViewRows;
+use crate::cpu::silhouette::{trace, Window};
+
+/// Keep in sync with `Window` in shaders/silhouette.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SilhouetteWindow {
+    pub x0: f32,
+    pub y0: f32,
+    pub scale: f32,
+    pub size: u32,
+}
+
+impl From<&Window> for SilhouetteWindow {
+    fn from(w: &Window) -> Self {
+        SilhouetteWindow {
+            x0: w.x0,
+            y0: w.y0,
+            scale: w.scale,
+            size: w.size,
+        }
+    }
+}
+
+pub(crate) struct SilhouetteKernel {
+    raster: wgpu::RenderPipeline,
+    raster_layout: wgpu::BindGroupLayout,
+    edges: wgpu::ComputePipeline,
+    edges_layout: wgpu::BindGroupLayout,
+}
+
+const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
+
+impl SilhouetteKernel {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        let source = super::SHADERS[2].1;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("silhouette"),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        let raster_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("silhouette raster"),
+            entries: &[uniform_entry(0), storage(1, true), storage(2, true)],
+        });
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("silhouette raster"),
+            bind_group_layouts: &[Some(&raster_layout)],
+            immediate_size: 0,
+        });
+        let raster = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("silhouette raster"),
+            layout: Some(&pl),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: None,
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: FORMAT,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let edges_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("silhouette edges"),
+            entries: &[
+                uniform_entry(0),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Uint,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                storage(2, false),
+            ],
+        });
+        let epl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("silhouette edges"),
+            bind_group_layouts: &[Some(&edges_layout)],
+            immediate_size: 0,
+        });
+        let edges = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("silhouette edges"),
+            layout: Some(&epl),
+            module: &module,
+            entry_point: Some("edges"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        SilhouetteKernel {
+            raster,
+            raster_layout,
+            edges,
+            edges_layout,
+        }
+    }
+}
+
+/// What one silhouette run returns: the id image (render pass), the mask (edge kernel) and the
+/// traced loop of vertex ids.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Silhouette {
+    pub window: Window,
+    pub ids: Vec<u32>,
+    pub mask: Vec<u32>,
+    pub contour: Vec<u32>,
+}
+
+impl Gpu<'_> {
+    /// Rasterise already projected vertices (u, v, depth, valid) of one mesh with its triangles.
+    pub fn silhouette_of_projected(
+        &self,
+        projected: &[[f32; 4]],
+        triangles: &[u32],
+        window: &Window,
+    ) -> Result<Silhouette, GpuError> {
+        const K: &str = "silhouette";
+        let pbuf = self.pool.upload(
+            self.device,
+            self.queue,
+            K,
+            bytes_of(projected),
+            wgpu::BufferUsages::empty(),
+        );
+        let r = self.silhouette_from_buffer(&pbuf, projected.len(), triangles, window);
+        self.pool.give([pbuf]);
+        r
+    }
+
+    /// Project one mesh into one view on the GPU and rasterise its silhouette there, with a
+    /// `size` x `size` texture around the projection.
+    pub fn silhouette(
+        &self,
+        vertices: &[[f32; 4]],
+        triangles: &[u32],
+        view: &ViewRows,
+        size: u32,
+    ) -> Result<Silhouette, GpuError> {
+        let projected = self.project(vertices, vertices.len(), std::slice::from_ref(view))?;
+        let window = Window::around(&projected, size).ok_or(GpuError::Input {
+            kernel: "silhouette",
+            message: "no vertex lies in front of the source".into(),
+        })?;
+        self.silhouette_of_projected(&projected, triangles, &window)
+    }
+
+    fn silhouette_from_buffer(
+        &self,
+        projected: &wgpu::Buffer,
+        vertex_count: usize,
+        triangles: &[u32],
+        window: &Window,
+    ) -> Result<Silhouette, GpuError> {
+        const K: &str = "silhouette";
+        let lim = self.device.limits();
+        if window.size == 0 || window.size > lim.max_texture_dimension_2d {
+            return Err(GpuError::TooLarge {
+                kernel: K,
+                what: "texture size",
+                value: window.size as u64,
+                limit: lim.max_texture_dimension_2d as u64,
+            });
+        }
+        if let Some(&bad) = triangles.iter().find(|&&i| i as usize >= vertex_count) {
+            return Err(GpuError::Input {
+                kernel: K,
+                message: format!("triangle corner {bad} is not one of the {vertex_count} vertices"),
+            });
+        }
+        if triangles.len() % 3 != 0 || triangles.is_empty() {
+            return Err(GpuError::Input {
+                kernel: K,
+                message: format!(
+                    "{} triangle corners is not a positive multiple of 3",
+                    triangles.len()
+                ),
+            });
+        }
+        let n = window.size;
+        let texels = (n as usize) * (n as usize);
+        // Rows of the texture copy must be 256-byte aligned.
+        let row_bytes = (n * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let (d, q, pool) = (self.device, self.queue, &self.pool);
+        let w = SilhouetteWindow::from(window);
+        let u = uniform(d, K, bytemuck::bytes_of(&w));
+        let tb = pool.upload(d, q, K, bytes_of(triangles), wgpu::BufferUsages::empty());
+        let texture = d.create_texture(&wgpu::TextureDescriptor {
+            label: Some("silhouette ids"),
+            size: wgpu::Extent3d {
+                width: n,
+                height: n,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&Default::default());
+        let mask = pool.take(
+            d,
+            K,
+            (texels * 4) as u64,
+            wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+        );
+        fill(q, &mask, texels, SENTINEL_U32);
+        let ids_buf = pool.take(
+            d,
+            K,
+            (row_bytes * n) as u64,
+            wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        );
+        let raster_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("silhouette raster"),
+            layout: &self.silhouette.raster_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: u.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: projected.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: tb.as_entire_binding(),
+                },
+            ],
+        });
+        let edges_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("silhouette edges"),
+            layout: &self.silhouette.edges_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: u.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: mask.as_entire_binding(),
+                },
+            ],
+        });
+        let read = self.submit_and_read(
+            K,
+            |enc| {
+                {
+                    let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                        label: Some("silhouette raster"),
+                        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                            view: &view,
+                            depth_slice: None,
+                            resolve_target: None,
+                            ops: wgpu::Operations {
+                                load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                                store: wgpu::StoreOp::Store,
+                            },
+                        })],
+                        depth_stencil_attachment: None,
+                        timestamp_writes: None,
+                        occlusion_query_set: None,
+                        multiview_mask: None,
+                    });
+                    pass.set_pipeline(&self.silhouette.raster);
+                    pass.set_bind_group(0, &raster_group, &[]);
+                    pass.draw(0..triangles.len() as u32, 0..1);
+                }
+                {
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("silhouette edges"),
+                        timestamp_writes: None,
+                    });
+                    pass.set_pipeline(&self.silhouette.edges);
+                    pass.set_bind_group(0, &edges_group, &[]);
+                    pass.dispatch_workgroups(n.div_ceil(8), n.div_ceil(8), 1);
+                }
+                enc.copy_texture_to_buffer(
+                    wgpu::TexelCopyTextureInfo {
+                        texture: &texture,
+                        mip_level: 0,
+                        origin: wgpu::Origin3d::ZERO,
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    wgpu::TexelCopyBufferInfo {
+                        buffer: &ids_buf,
+                        layout: wgpu::TexelCopyBufferLayout {
+                            offset: 0,
+                            bytes_per_row: Some(row_bytes),
+                            rows_per_image: Some(n),
+                        },
+                    },
+                    wgpu::Extent3d {
+                        width: n,
+                        height: n,
+                        depth_or_array_layers: 1,
+                    },
+                );
+            },
+            &[
+                (&mask, (texels * 4) as u64),
+                (&ids_buf, (row_bytes * n) as u64),
+            ],
+        );
+        pool.give([tb, mask, ids_buf]);
+        let read = read?;
+        let mask: Vec<u32> = bytemuck::pod_collect_to_vec(&read[0]);
+        let padded: Vec<u32> = bytemuck::pod_collect_to_vec(&read[1]);
+        let stride = (row_bytes / 4) as usize;
+        let ids: Vec<u32> = (0..n as usize)
+            .flat_map(|y| padded[y * stride..y * stride + n as usize].iter().copied())
+            .collect();
+        let contour = trace(&mask, n);
+        Ok(Silhouette {
+            window: *window,
+            ids,
+            mask,
+            contour,
+        })
+    }
+}

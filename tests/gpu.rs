@@ -1,0 +1,288 @@
+//! Every GPU kernel against its CPU twin on the same inputs (outputs pre-filled with sentinels by
+//! the engine), each comparison with a companion that feeds a perturbed result and must be
+//! rejected; and a whole reconstruction on the GPU against the CPU.
+//!
+//! These run on whatever adapter wgpu finds (lavapipe in CI). Without one they fail with a clear
+//! message; they skip only when ACETAB_SKIP_GPU=1 is set on purpose.
+
+use acetab::cpu::{deform as cdeform, project as cproject, silhouette as csil, srvf_dp as cdp};
+use acetab::gpu::{Gpu, GpuDevice};
+use acetab::solve::{DeformationGraph, GraphParams};
+use acetab::template::hemisphere;
+use acetab::views::{simulated_views, XrayGeometry};
+use nalgebra::{Point3, Vector2};
+use std::sync::OnceLock;
+
+fn device() -> Option<&'static GpuDevice> {
+    static DEV: OnceLock<Option<GpuDevice>> = OnceLock::new();
+    DEV.get_or_init(|| {
+        if std::env::var("ACETAB_SKIP_GPU").as_deref() == Ok("1") {
+            eprintln!("ACETAB_SKIP_GPU=1: GPU tests skipped on purpose");
+            return None;
+        }
+        match GpuDevice::from_env() {
+            Ok(d) => {
+                eprintln!("GPU tests on {}", d.describe());
+                Some(d)
+            }
+            Err(e) => panic!(
+                "no GPU adapter for the GPU tests: {e}. Install mesa-vulkan-drivers (lavapipe) or set ACETAB_SKIP_GPU=1 to skip them on purpose"
+            ),
+        }
+    })
+    .as_ref()
+}
+
+/// Run `f` with the engine, or return (skipping) when ACETAB_SKIP_GPU=1.
+fn with_gpu(f: impl FnOnce(&Gpu)) {
+    let Some(d) = device() else { return };
+    let gpu = d.engine().expect("pipelines compile");
+    f(&gpu);
+}
+
+/// Largest absolute difference over all components; NaN (an unwritten sentinel) counts as
+/// infinite.
+fn max_abs_diff(a: &[[f32; 4]], b: &[[f32; 4]]) -> f32 {
+    if a.len() != b.len() {
+        return f32::INFINITY;
+    }
+    a.iter()
+        .zip(b)
+        .flat_map(|(x, y)| (0..4).map(move |c| (x[c] - y[c]).abs()))
+        .map(|d| if d.is_nan() { f32::INFINITY } else { d })
+        .fold(0.0, f32::max)
+}
+
+fn graphs() -> Vec<(DeformationGraph, Vec<f64>)> {
+    (0..3)
+        .map(|k| {
+            let mesh = hemisphere(20.0 + 3.0 * k as f64, 1200);
+            let mesh = mesh.transformed(
+                1.0,
+                &nalgebra::Rotation3::identity(),
+                &nalgebra::Vector3::new(30.0 * k as f64, -20.0, 10.0),
+            );
+            let g = DeformationGraph::new(&mesh, &GraphParams::default());
+            let mut x = g.identity();
+            for (i, v) in x.iter_mut().enumerate() {
+                *v += 0.02 * (((i * 7 + k * 13) % 11) as f64 - 5.0);
+            }
+            (g, x)
+        })
+        .collect()
+}
+
+/// Deform: |GPU - CPU twin| <= 1e-3 mm on coordinates of ~100 mm (f32, a few ulp per term).
+const DEFORM_BOUND: f32 = 1e-3;
+
+#[test]
+fn deform_matches_its_cpu_twin() {
+    with_gpu(|gpu| {
+        let gs = graphs();
+        let items: Vec<(&DeformationGraph, &[f64])> = gs.iter().map(|(g, x)| (g, &x[..])).collect();
+        let batch = cdeform::DeformBatch::from_graphs(&items).unwrap();
+        let cpu = cdeform::deform(&batch);
+        let gpu_out = gpu.deform(&batch).unwrap();
+        let d = max_abs_diff(&cpu, &gpu_out);
+        assert!(d <= DEFORM_BOUND, "deform differs by {d} mm");
+        // Companion: one coordinate off by 0.01 mm must be rejected.
+        let mut wrong = gpu_out.clone();
+        wrong[1234][1] += 0.01;
+        assert!(max_abs_diff(&cpu, &wrong) > DEFORM_BOUND);
+    });
+}
+
+/// Project: pixels within 0.01 px and depth within 1e-3 mm (f32 at ~10^3 px, ~10^3 mm; GPU
+/// division may be 2.5 ulp).
+fn project_ok(a: &[[f32; 4]], b: &[[f32; 4]]) -> Result<(), String> {
+    if a.len() != b.len() {
+        return Err(format!("lengths {} and {}", a.len(), b.len()));
+    }
+    for (i, (x, y)) in a.iter().zip(b).enumerate() {
+        let px = (x[0] - y[0]).abs().max((x[1] - y[1]).abs());
+        if !(px <= 0.01 && (x[2] - y[2]).abs() <= 1e-3 && x[3] == y[3]) {
+            return Err(format!("output {i}: {x:?} vs {y:?}"));
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn project_matches_its_cpu_twin() {
+    with_gpu(|gpu| {
+        let gs = graphs();
+        let verts: Vec<[f32; 4]> = gs
+            .iter()
+            .flat_map(|(g, _)| {
+                g.rest
+                    .iter()
+                    .map(|p| [p.x as f32, p.y as f32, p.z as f32, 0.0])
+            })
+            .collect();
+        let n = gs[0].0.rest.len();
+        let mut cams = simulated_views(&XrayGeometry::default(), &Point3::new(30.0, -20.0, 10.0));
+        // A fourth view whose source sits inside the batch: some vertices lie behind it.
+        let mut behind = cams[0].clone();
+        behind.t.z = -behind
+            .r
+            .transform_vector(&nalgebra::Vector3::new(30.0, -20.0, 10.0))
+            .z;
+        cams.push(behind);
+        let rows: Vec<cproject::ViewRows> =
+            cams.iter().map(cproject::ViewRows::from_camera).collect();
+        let cpu = cproject::project(&verts, n, &rows);
+        let g = gpu.project(&verts, n, &rows).unwrap();
+        assert!(cpu.iter().any(|p| p[3] == 0.0) && cpu.iter().any(|p| p[3] == 1.0));
+        project_ok(&cpu, &g).unwrap();
+        let mut wrong = g.clone();
+        wrong[77][0] += 0.05;
+        assert!(project_ok(&cpu, &wrong).is_err());
+    });
+}
+
+#[test]
+fn silhouette_edges_match_the_twin_exactly_and_the_raster_within_a_stated_bound() {
+    with_gpu(|gpu| {
+        let mesh = hemisphere(26.0, 2500);
+        let centre = Point3::new(0.0, 0.0, 0.0);
+        for cam in simulated_views(&XrayGeometry::default(), &centre) {
+            let verts: Vec<[f32; 4]> = mesh
+                .vertices
+                .iter()
+                .map(|p| [p.x as f32, p.y as f32, p.z as f32, 0.0])
+                .collect();
+            let tris: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+            let view = cproject::ViewRows::from_camera(&cam);
+            let s = gpu.silhouette(&verts, &tris, &view, 256).unwrap();
+            // The edge kernel: exactly its twin run on the GPU's id image.
+            let twin_mask = csil::edges(&s.ids, s.window.size);
+            assert_eq!(s.mask, twin_mask, "edge kernel differs from its twin");
+            let mut wrong = s.mask.clone();
+            let k = wrong.iter().position(|&m| m == 0).unwrap();
+            wrong[k] = 1;
+            assert_ne!(
+                wrong, twin_mask,
+                "the comparison must reject a changed texel"
+            );
+            // The render pass against the CPU rasteriser: coverage may differ only where a
+            // triangle edge passes through a texel centre's rounding; bound: 0.5 % of the
+            // covered texels, and the same texel set on the silhouette within one texel.
+            let proj = cproject::project(&verts, verts.len(), &[view]);
+            let cpu_ids = csil::rasterise(&proj, &tris, &s.window);
+            let covered = cpu_ids.iter().filter(|&&v| v != 0).count();
+            let differ = cpu_ids
+                .iter()
+                .zip(&s.ids)
+                .filter(|(a, b)| (**a != 0) != (**b != 0))
+                .count();
+            assert!(covered > 1000);
+            assert!(
+                differ * 200 <= covered,
+                "coverage differs on {differ} of {covered} texels"
+            );
+            // The traced contour: a closed loop of rim-side vertex ids, most of the outline.
+            assert!(s.contour.len() > 40, "contour of {} ids", s.contour.len());
+            let cpu_loop = csil::trace(&csil::edges(&cpu_ids, s.window.size), s.window.size);
+            let common = s.contour.iter().filter(|i| cpu_loop.contains(i)).count();
+            assert!(
+                common * 10 >= s.contour.len() * 9,
+                "GPU and CPU loops share {common} of {}",
+                s.contour.len()
+            );
+        }
+    });
+}
+
+fn wave(n: usize, f: f64, ph: f64) -> Vec<Vector2<f64>> {
+    (0..n)
+        .map(|i| {
+            let t = i as f64 / (n - 1) as f64;
+            Vector2::new((f * 5.0 * t + ph).cos(), (f * 3.0 * t).sin() + 0.2)
+        })
+        .collect()
+}
+
+#[test]
+fn srvf_dp_back_pointers_equal_the_twin_exactly() {
+    with_gpu(|gpu| {
+        let steps = acetab::correspond::srvf::coprime_steps(5);
+        let curves: Vec<(Vec<Vector2<f64>>, Vec<Vector2<f64>>)> = (0..17)
+            .map(|k| {
+                (
+                    wave(64, 1.0 + 0.1 * k as f64, 0.0),
+                    wave(64, 1.3 + 0.05 * k as f64, 0.2 * k as f64),
+                )
+            })
+            .collect();
+        let pairs: Vec<(&[Vector2<f64>], &[Vector2<f64>])> =
+            curves.iter().map(|(a, b)| (&a[..], &b[..])).collect();
+        let batch = cdp::DpBatch::new(&pairs, &steps).unwrap();
+        let (cpu_cost, cpu_back) = cdp::dp_tables(&batch);
+        let (gpu_cost, gpu_back) = gpu.srvf_dp_tables(&batch).unwrap();
+        assert_eq!(gpu_back.len(), cpu_back.len());
+        let differ = cpu_back
+            .iter()
+            .zip(&gpu_back)
+            .filter(|(a, b)| a != b)
+            .count();
+        assert_eq!(differ, 0, "{differ} back-pointers differ");
+        // Costs: same operations in the same order; bound 1e-6 relative for the driver's
+        // freedom to fuse multiply-adds.
+        for (i, (a, b)) in cpu_cost.iter().zip(&gpu_cost).enumerate() {
+            assert!(
+                (a - b).abs() <= 1e-6 * a.abs().max(1.0),
+                "cost {i}: {a} vs {b}"
+            );
+        }
+        let mut wrong = gpu_back.clone();
+        wrong[64 * 30 + 31] ^= 1;
+        assert_ne!(
+            wrong, cpu_back,
+            "the comparison must reject one changed back-pointer"
+        );
+        // And the warps built from the GPU tables cost what the CPU's do.
+        let wg = acetab::cpu::srvf_dp::warps_from_tables(&pairs, &batch, &gpu_back);
+        let wc = acetab::cpu::srvf_dp::warps_from_tables(&pairs, &batch, &cpu_back);
+        for (a, b) in wg.iter().zip(&wc) {
+            assert_eq!(a.path, b.path);
+        }
+    });
+}
+
+#[test]
+fn whole_reconstruction_on_the_gpu_matches_the_cpu() {
+    with_gpu(|gpu| {
+        use acetab::backend::Kernels;
+        use acetab::demo::accuracy;
+        use acetab::pipeline::{reconstruct_with, ReconParams};
+        use acetab::simulate::{simulate_case, NoiseLevel};
+        use acetab::template::{phantom, PhantomParams};
+        let truth = phantom(&PhantomParams::default()).mesh;
+        let sim = simulate_case(
+            &truth,
+            &XrayGeometry::default(),
+            2.0,
+            &NoiseLevel::level(3).unwrap(),
+            1,
+        )
+        .unwrap();
+        let prm = ReconParams::default();
+        let cpu =
+            reconstruct_with(&sim.cameras, &sim.observed, &sim.init, &prm, Kernels::Cpu).unwrap();
+        let gpu_r = reconstruct_with(
+            &sim.cameras,
+            &sim.observed,
+            &sim.init,
+            &prm,
+            Kernels::Gpu(gpu),
+        )
+        .unwrap();
+        let (a, b) = (
+            accuracy(&truth, &cpu.mesh).mae_mm,
+            accuracy(&truth, &gpu_r.mesh).mae_mm,
+        );
+        eprintln!("MAE cpu {a:.4} gpu {b:.4} mm");
+        assert!((a - b).abs() < 0.05, "MAE cpu {a} gpu {b}");
+        assert!((cpu.sphere.diameter() - gpu_r.sphere.diameter()).abs() < 0.1);
+    });
+}
