@@ -7,6 +7,7 @@
 //! case files; `simulate` makes synthetic cases from a ground-truth surface.
 
 pub mod backend;
+pub mod bench;
 pub mod case;
 pub mod contours;
 pub mod correspond;

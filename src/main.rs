@@ -114,6 +114,18 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Each GPU kernel against its CPU twin at several sizes, and the study's throughput on both
+    /// backends (needs a GPU adapter; lavapipe counts).
+    Bench {
+        #[arg(long)]
+        json: bool,
+        /// Study runs per backend (0 skips the study).
+        #[arg(long, default_value_t = 6)]
+        study_runs: usize,
+        /// Repetitions per timing (the median is reported).
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+    },
     /// Reconstruct a case file.
     Reconstruct {
         case: PathBuf,
@@ -350,6 +362,50 @@ fn run(cli: Cli) -> Result<(), String> {
             write_tables(&rows, &out, &meta).map_err(|e| e.to_string())?;
             eprintln!("{} runs merged into {}", rows.len(), out.display());
             print_summary(&rows);
+            Ok(())
+        }
+        Command::Bench {
+            json,
+            study_runs,
+            repeats,
+        } => {
+            let dev = GpuDevice::from_env().map_err(|e| format!("acetab bench: {e}"))?;
+            let gpu = dev.engine().map_err(|e| e.to_string())?;
+            let prm = acetab::bench::BenchParams {
+                study_runs,
+                repeats,
+                ..Default::default()
+            };
+            let report = acetab::bench::run_bench(&gpu, &dev.describe(), &prm, &|s| {
+                if !json {
+                    eprintln!("  measured {s}")
+                }
+            })
+            .map_err(|e| e.to_string())?;
+            if json {
+                println!(
+                    "{}",
+                    serde_json::to_string(&report).map_err(|e| e.to_string())?
+                );
+            } else {
+                println!("adapter: {}", report.adapter);
+                println!(
+                    "{:<11} {:<30} {:>10} {:>10} {:>8}",
+                    "kernel", "size", "cpu ms", "gpu ms", "cpu/gpu"
+                );
+                for r in &report.kernels {
+                    println!(
+                        "{:<11} {:<30} {:>10.3} {:>10.3} {:>8.2}",
+                        r.kernel, r.size, r.cpu_ms, r.gpu_ms, r.ratio
+                    );
+                }
+                for s in &report.study {
+                    println!(
+                        "study ({} runs, phantom, srvf, level 3) on {}: {:.2} runs/s ({:.1} s)",
+                        s.runs, s.backend, s.runs_per_second, s.seconds
+                    );
+                }
+            }
             Ok(())
         }
         Command::Reconstruct {

@@ -1,0 +1,224 @@
+//! `acetab bench`: each kernel on its CPU twin and on the GPU at several sizes, and the study's
+//! throughput on both backends. Times are medians of repeated calls, including upload and
+//! read-back on the GPU side (what a caller pays). On lavapipe the "GPU" is the CPU, so the
+//! ratios show dispatch overhead and batching, not GPU speed.
+
+use crate::backend::Kernels;
+use crate::correspond::srvf::{coprime_steps, srvf};
+use crate::correspond::Method;
+use crate::cpu::{deform as cdeform, project as cproject, silhouette as csil, srvf_dp as cdp};
+use crate::gpu::{Gpu, GpuError};
+use crate::solve::{DeformationGraph, GraphParams};
+use crate::study::{run_study_with, StudyConfig};
+use crate::template::{hemisphere, phantom, PhantomParams};
+use crate::views::{simulated_views, XrayGeometry};
+use nalgebra::{Point2, Point3};
+use std::time::Instant;
+
+/// One line of the table.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BenchRow {
+    pub kernel: String,
+    pub size: String,
+    pub cpu_ms: f64,
+    pub gpu_ms: f64,
+    /// cpu_ms / gpu_ms (above 1: the GPU path is faster).
+    pub ratio: f64,
+}
+
+/// Study throughput on one backend.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Throughput {
+    pub backend: String,
+    pub runs: usize,
+    pub seconds: f64,
+    pub runs_per_second: f64,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BenchReport {
+    pub adapter: String,
+    pub kernels: Vec<BenchRow>,
+    pub study: Vec<Throughput>,
+}
+
+/// What to measure.
+#[derive(Clone, Debug)]
+pub struct BenchParams {
+    /// Template sizes (vertices) for deform, project and silhouette.
+    pub mesh_sizes: Vec<usize>,
+    /// DP batch sizes (problems of `dp_samples` samples).
+    pub dp_batches: Vec<usize>,
+    pub dp_samples: usize,
+    /// Study runs per backend (phantom, srvf, level 3); 0 skips the study.
+    pub study_runs: usize,
+    pub threads: usize,
+    /// Repetitions per timing (the median is reported).
+    pub repeats: usize,
+}
+
+impl Default for BenchParams {
+    fn default() -> Self {
+        BenchParams {
+            mesh_sizes: vec![1_000, 10_000, 100_000],
+            dp_batches: vec![1, 16, 256, 1024],
+            dp_samples: 64,
+            study_runs: 6,
+            threads: 2,
+            repeats: 5,
+        }
+    }
+}
+
+fn median_ms(repeats: usize, mut f: impl FnMut() -> Result<(), GpuError>) -> Result<f64, GpuError> {
+    f()?; // warm-up: pipelines, pools, caches
+    let mut t: Vec<f64> = (0..repeats.max(1))
+        .map(|_| {
+            let s = Instant::now();
+            f().map(|_| s.elapsed().as_secs_f64() * 1e3)
+        })
+        .collect::<Result<_, _>>()?;
+    t.sort_by(f64::total_cmp);
+    Ok(t[t.len() / 2])
+}
+
+fn row(kernel: &str, size: String, cpu_ms: f64, gpu_ms: f64) -> BenchRow {
+    BenchRow {
+        kernel: kernel.into(),
+        size,
+        cpu_ms,
+        gpu_ms,
+        ratio: cpu_ms / gpu_ms.max(1e-9),
+    }
+}
+
+/// Run every measurement; `progress` gets one line per finished row.
+pub fn run_bench(
+    gpu: &Gpu,
+    adapter: &str,
+    p: &BenchParams,
+    progress: &dyn Fn(&str),
+) -> Result<BenchReport, GpuError> {
+    let mut rows = Vec::new();
+    let geometry = XrayGeometry::default();
+    for &nv in &p.mesh_sizes {
+        let mesh = hemisphere(26.0, nv);
+        let graph = DeformationGraph::new(&mesh, &GraphParams::default());
+        let mut x = graph.identity();
+        for (k, v) in x.iter_mut().enumerate() {
+            *v += 0.01 * ((k % 7) as f64 - 3.0);
+        }
+        let batch =
+            cdeform::DeformBatch::from_graphs(&[(&graph, &x)]).map_err(|e| GpuError::Input {
+                kernel: "deform",
+                message: e.to_string(),
+            })?;
+        let size = format!("{} vertices", mesh.vertex_count());
+        let c = median_ms(p.repeats, || {
+            std::hint::black_box(cdeform::deform(&batch));
+            Ok(())
+        })?;
+        let g = median_ms(p.repeats, || gpu.deform(&batch).map(|_| ()))?;
+        rows.push(row("deform", size.clone(), c, g));
+        progress(&format!("deform {size}"));
+
+        let verts: Vec<[f32; 4]> = mesh
+            .vertices
+            .iter()
+            .map(|q| [q.x as f32, q.y as f32, q.z as f32, 0.0])
+            .collect();
+        let cams = simulated_views(&geometry, &Point3::origin());
+        let views: Vec<cproject::ViewRows> =
+            cams.iter().map(cproject::ViewRows::from_camera).collect();
+        let c = median_ms(p.repeats, || {
+            std::hint::black_box(cproject::project(&verts, verts.len(), &views));
+            Ok(())
+        })?;
+        let g = median_ms(p.repeats, || {
+            gpu.project(&verts, verts.len(), &views).map(|_| ())
+        })?;
+        rows.push(row("project", format!("{size} x 3 views"), c, g));
+        progress(&format!("project {size}"));
+
+        let tris: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+        let proj = cproject::project(&verts, verts.len(), &views[..1]);
+        let window = csil::Window::around(&proj, 512).ok_or(GpuError::Input {
+            kernel: "silhouette",
+            message: "nothing in front of the source".into(),
+        })?;
+        let c = median_ms(p.repeats, || {
+            let ids = csil::rasterise(&proj, &tris, &window);
+            std::hint::black_box(csil::trace(&csil::edges(&ids, window.size), window.size));
+            Ok(())
+        })?;
+        let g = median_ms(p.repeats, || {
+            gpu.silhouette_of_projected(&proj, &tris, &window)
+                .map(|_| ())
+        })?;
+        rows.push(row("silhouette", format!("{size}, 512^2 texels"), c, g));
+        progress(&format!("silhouette {size}"));
+    }
+    let steps = coprime_steps(5);
+    let n = p.dp_samples.max(8);
+    let curves: Vec<(Vec<_>, Vec<_>)> = (0..p.dp_batches.iter().copied().max().unwrap_or(0))
+        .map(|k| {
+            let c = |f: f64, ph: f64| -> Vec<Point2<f64>> {
+                (0..n)
+                    .map(|i| {
+                        let t = i as f64 / (n - 1) as f64 * 3.0;
+                        Point2::new(t, (f * t + ph).sin())
+                    })
+                    .collect()
+            };
+            (
+                srvf(&c(2.0, 0.0), false),
+                srvf(&c(2.0 + 0.01 * k as f64, 0.3), false),
+            )
+        })
+        .collect();
+    for &bsz in &p.dp_batches {
+        let pairs: Vec<_> = curves[..bsz]
+            .iter()
+            .map(|(a, b)| (&a[..], &b[..]))
+            .collect();
+        let batch = cdp::DpBatch::new(&pairs, &steps).map_err(|e| GpuError::Input {
+            kernel: "srvf_dp",
+            message: e.to_string(),
+        })?;
+        let c = median_ms(p.repeats, || {
+            std::hint::black_box(cdp::dp_tables(&batch));
+            Ok(())
+        })?;
+        let g = median_ms(p.repeats, || gpu.srvf_dp_tables(&batch).map(|_| ()))?;
+        rows.push(row("srvf_dp", format!("{bsz} problems, T = {n}"), c, g));
+        progress(&format!("srvf_dp {bsz}"));
+    }
+    let mut study = Vec::new();
+    if p.study_runs > 0 {
+        let truth = phantom(&PhantomParams::default()).mesh;
+        let cfg = StudyConfig {
+            levels: vec![3],
+            runs: p.study_runs,
+            methods: vec![Method::Srvf],
+            threads: p.threads.max(1),
+            ..Default::default()
+        };
+        for kernels in [Kernels::Cpu, Kernels::Gpu(gpu)] {
+            let s = Instant::now();
+            let (rows, _) = run_study_with(&truth, &cfg, &|| {}, kernels);
+            let seconds = s.elapsed().as_secs_f64();
+            study.push(Throughput {
+                backend: kernels.name().into(),
+                runs: rows.len(),
+                seconds,
+                runs_per_second: rows.len() as f64 / seconds,
+            });
+            progress(&format!("study on {}", kernels.name()));
+        }
+    }
+    Ok(BenchReport {
+        adapter: adapter.into(),
+        kernels: rows,
+        study,
+    })
+}
