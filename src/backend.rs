@@ -1,13 +1,11 @@
 //! Where the per-iteration kernels run: the CPU (f64, the reference) or the GPU (the WGSL
 //! kernels in f32 through `crate::gpu`). The solver itself always runs on the CPU.
 
-use crate::contours::{
-    alpha_shape_contour, default_alpha, signed_area, ContourError, ModelContour,
-};
+use crate::contours::{signed_area, ContourError, ModelContour};
 use crate::cpu::deform::DeformBatch;
 use crate::cpu::project::ViewRows;
 use crate::cpu::silhouette::{edges, rasterise, trace, Window};
-use crate::gpu::{Gpu, GpuError};
+use crate::gpu::{Gpu, GpuBatcher, GpuError};
 use crate::mesh::Mesh;
 use crate::solve::DeformationGraph;
 use crate::views::{Camera, ProjectionError};
@@ -39,6 +37,8 @@ pub enum ContourSource {
 pub enum Kernels<'g> {
     Cpu,
     Gpu(&'g Gpu<'g>),
+    /// The GPU, with requests merged across concurrent runs (the study's GPU path).
+    Batched(&'g GpuBatcher<'g>),
 }
 
 /// Why a kernel call failed.
@@ -57,7 +57,7 @@ impl Kernels<'_> {
     pub fn name(&self) -> &'static str {
         match self {
             Kernels::Cpu => "cpu",
-            Kernels::Gpu(_) => "gpu",
+            Kernels::Gpu(_) | Kernels::Batched(_) => "gpu",
         }
     }
 
@@ -76,6 +76,13 @@ impl Kernels<'_> {
                 })?;
                 Ok(crate::cpu::deform::positions(&graph.rest, &g.deform(&b)?))
             }
+            Kernels::Batched(g) => {
+                let b = DeformBatch::from_graphs(&[(graph, x)]).map_err(|e| GpuError::Input {
+                    kernel: "deform",
+                    message: e.to_string(),
+                })?;
+                Ok(crate::cpu::deform::positions(&graph.rest, &g.deform(b)?))
+            }
         }
     }
 
@@ -90,6 +97,7 @@ impl Kernels<'_> {
         let all = match self {
             Kernels::Cpu => crate::cpu::project::project(&v, v.len(), &rows),
             Kernels::Gpu(g) => g.project(&v, v.len(), &rows)?,
+            Kernels::Batched(g) => g.project(v.clone(), v.len(), rows)?,
         };
         Ok(all.chunks(v.len().max(1)).map(|c| c.to_vec()).collect())
     }
@@ -102,7 +110,12 @@ impl Kernels<'_> {
         source: ContourSource,
     ) -> Result<Vec<ModelContour>, KernelError> {
         match (self, source) {
-            (Kernels::Cpu, ContourSource::AlphaShape) => cams
+            // Alpha shapes are a CPU algorithm (spade's Delaunay) on f64 projections for every
+            // backend: on a projected near-regular grid many point quadruples are nearly
+            // cocircular, and the last bits of an f32 projection flip Delaunay and alpha
+            // decisions, so GPU projections would make the backends disagree. The GPU projects
+            // for the silhouette path, where its raster needs the projections on the device.
+            (_, ContourSource::AlphaShape) => cams
                 .iter()
                 .enumerate()
                 .map(|(view, c)| {
@@ -110,21 +123,6 @@ impl Kernels<'_> {
                         .map_err(|source| KernelError::Contour { view, source })
                 })
                 .collect(),
-            (_, ContourSource::AlphaShape) => {
-                let per_view = self.project_f32(mesh, cams)?;
-                per_view
-                    .iter()
-                    .enumerate()
-                    .map(|(view, proj)| {
-                        let pts = valid_points(proj)
-                            .map_err(|source| KernelError::Contour { view, source })?;
-                        let c = alpha_shape_contour(&pts, default_alpha(mesh, &pts))
-                            .map_err(|source| KernelError::Contour { view, source })?;
-                        exact_points(c, mesh, &cams[view])
-                            .map_err(|source| KernelError::Contour { view, source })
-                    })
-                    .collect()
-            }
             (_, ContourSource::Silhouette) => {
                 let per_view = self.project_f32(mesh, cams)?;
                 let tris: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
@@ -147,6 +145,11 @@ impl Kernels<'_> {
                             ),
                             Kernels::Gpu(g) => {
                                 g.silhouette_of_projected(proj, &tris, &window)?.contour
+                            }
+                            Kernels::Batched(g) => {
+                                g.gpu()
+                                    .silhouette_of_projected(proj, &tris, &window)?
+                                    .contour
                             }
                         };
                         let c = silhouette_contour(&ids, &pts)

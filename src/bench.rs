@@ -203,12 +203,17 @@ pub fn run_bench(
             threads: p.threads.max(1),
             ..Default::default()
         };
-        for kernels in [Kernels::Cpu, Kernels::Gpu(gpu)] {
+        let batcher =
+            crate::gpu::GpuBatcher::new(gpu, cfg.threads, std::time::Duration::from_millis(2));
+        for kernels in [Kernels::Cpu, Kernels::Gpu(gpu), Kernels::Batched(&batcher)] {
             let s = Instant::now();
             let (rows, _) = run_study_with(&truth, &cfg, &|| {}, kernels);
             let seconds = s.elapsed().as_secs_f64();
             study.push(Throughput {
-                backend: kernels.name().into(),
+                backend: match kernels {
+                    Kernels::Batched(_) => "gpu, runs batched".into(),
+                    k => k.name().into(),
+                },
                 runs: rows.len(),
                 seconds,
                 runs_per_second: rows.len() as f64 / seconds,

@@ -7,7 +7,7 @@ use acetab::correspond::srvf::{align, aligned_b, CurveKind, SrvfParams};
 use acetab::correspond::Method;
 use acetab::demo::{run_demo_with, write_error_ply};
 use acetab::fsutil::write_atomic;
-use acetab::gpu::GpuDevice;
+use acetab::gpu::{GpuBatcher, GpuDevice};
 use acetab::mesh::io::read_mesh;
 use acetab::mesh::io::write_ply;
 use acetab::pipeline::{reconstruct_with, ReconParams};
@@ -286,8 +286,19 @@ fn run(cli: Cli) -> Result<(), String> {
                 .map(|d| d.engine())
                 .transpose()
                 .map_err(|e| e.to_string())?;
-            let kernels = engine.as_ref().map_or(Kernels::Cpu, Kernels::Gpu);
+            // On the GPU, runs in flight together share dispatches (one submit per kernel).
+            let batcher = engine
+                .as_ref()
+                .map(|g| GpuBatcher::new(g, cfg.threads, std::time::Duration::from_millis(2)));
+            let kernels = batcher.as_ref().map_or(Kernels::Cpu, Kernels::Batched);
             let (rows, examples) = run_study_with(&truth, &cfg, &|| bar.inc(1), kernels);
+            if let Some(b) = &batcher {
+                let (req, disp) = b.counts();
+                eprintln!(
+                    "GPU: {req} kernel requests in {disp} dispatches ({:.2} runs per submit)",
+                    req as f64 / disp.max(1) as f64
+                );
+            }
             bar.finish_and_clear();
             let meta = serde_json::json!({
                 "gt": gt, "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,

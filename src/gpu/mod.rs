@@ -3,6 +3,7 @@
 //! `wgpu::Device` and `wgpu::Queue` (`Gpu::new`), so a planning tool that already renders with
 //! wgpu can embed it; `GpuDevice::from_env` builds a device for the command-line tool.
 
+pub mod batcher;
 mod buffers;
 mod context;
 pub mod deform;
@@ -10,6 +11,7 @@ pub mod project;
 pub mod silhouette;
 pub mod srvf_dp;
 
+pub use batcher::GpuBatcher;
 pub use context::{Gpu, GpuDevice, GpuError};
 
 /// The WGSL sources, by kernel name (validated by the naga test and compiled by `Gpu::new`).

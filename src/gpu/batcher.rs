@@ -1,0 +1,204 @@
+//! Cross-run batching: the runs of a study that are in flight at the same time hand their
+//! deform and project requests to one `GpuBatcher`, which merges compatible requests (same mesh
+//! size, graph size and views) into one dispatch per kernel and one submit, and hands each run
+//! its slice back. A request waits at most `wait` for companions, so a lone run is not held up.
+
+use super::{Gpu, GpuError};
+use crate::cpu::deform::DeformBatch;
+use crate::cpu::project::ViewRows;
+use std::collections::HashMap;
+use std::sync::{Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+type Out = Result<Vec<[f32; 4]>, GpuError>;
+
+struct LaneState<T> {
+    pending: Vec<(u64, T)>,
+    done: HashMap<u64, Out>,
+    next: u64,
+    busy: bool,
+}
+
+struct Lane<T> {
+    state: Mutex<LaneState<T>>,
+    cv: Condvar,
+}
+
+impl<T> Lane<T> {
+    fn new() -> Self {
+        Lane {
+            state: Mutex::new(LaneState {
+                pending: Vec::new(),
+                done: HashMap::new(),
+                next: 0,
+                busy: false,
+            }),
+            cv: Condvar::new(),
+        }
+    }
+
+    /// Queue `input`; whoever finds the lane idle with enough requests (or after `wait`) runs
+    /// all pending ones through `run` and posts every result.
+    fn submit(
+        &self,
+        input: T,
+        lanes: usize,
+        wait: Duration,
+        run: impl Fn(Vec<(u64, T)>) -> Vec<(u64, Out)>,
+    ) -> Out {
+        let start = Instant::now();
+        let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        let id = s.next;
+        s.next += 1;
+        s.pending.push((id, input));
+        self.cv.notify_all();
+        loop {
+            if let Some(r) = s.done.remove(&id) {
+                return r;
+            }
+            let waited = start.elapsed();
+            if !s.busy && !s.pending.is_empty() && (s.pending.len() >= lanes || waited >= wait) {
+                s.busy = true;
+                let jobs = std::mem::take(&mut s.pending);
+                drop(s);
+                let results = run(jobs);
+                s = self.state.lock().unwrap_or_else(|e| e.into_inner());
+                s.done.extend(results);
+                s.busy = false;
+                self.cv.notify_all();
+                continue;
+            }
+            let left = wait.saturating_sub(waited).max(Duration::from_micros(50));
+            s = self
+                .cv
+                .wait_timeout(s, left)
+                .unwrap_or_else(|e| e.into_inner())
+                .0;
+        }
+    }
+}
+
+/// Merges concurrent kernel requests from up to `lanes` runs.
+pub struct GpuBatcher<'g> {
+    gpu: &'g Gpu<'g>,
+    lanes: usize,
+    wait: Duration,
+    deform: Lane<DeformBatch>,
+    project: Lane<(Vec<[f32; 4]>, usize, Vec<ViewRows>)>,
+    dispatches: Mutex<(usize, usize)>,
+}
+
+impl<'g> GpuBatcher<'g> {
+    /// `lanes`: how many runs go at once (the study's threads); `wait`: the longest a request
+    /// waits for companions (2 ms is plenty when runs are in step).
+    pub fn new(gpu: &'g Gpu<'g>, lanes: usize, wait: Duration) -> Self {
+        GpuBatcher {
+            gpu,
+            lanes: lanes.max(1),
+            wait,
+            deform: Lane::new(),
+            project: Lane::new(),
+            dispatches: Mutex::new((0, 0)),
+        }
+    }
+
+    pub fn gpu(&self) -> &'g Gpu<'g> {
+        self.gpu
+    }
+
+    /// (requests, dispatches) so far: their ratio is the mean batch size.
+    pub fn counts(&self) -> (usize, usize) {
+        *self.dispatches.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn count(&self, requests: usize) {
+        let mut d = self.dispatches.lock().unwrap_or_else(|e| e.into_inner());
+        d.0 += requests;
+        d.1 += 1;
+    }
+
+    /// As `Gpu::deform`, merged with other runs' requests of the same shape.
+    pub fn deform(&self, b: DeformBatch) -> Out {
+        self.deform.submit(b, self.lanes, self.wait, |jobs| {
+            let mut out = Vec::new();
+            let mut groups: Vec<Vec<(u64, DeformBatch)>> = Vec::new();
+            for j in jobs {
+                let key = |b: &DeformBatch| (b.vertex_count, b.node_count, b.neighbours);
+                match groups.iter_mut().find(|g| key(&g[0].1) == key(&j.1)) {
+                    Some(g) => g.push(j),
+                    None => groups.push(vec![j]),
+                }
+            }
+            for g in groups {
+                self.count(g.len());
+                let mut merged = g[0].1.clone();
+                for (_, b) in &g[1..] {
+                    merged.mesh_count += b.mesh_count;
+                    merged.rest.extend_from_slice(&b.rest);
+                    merged.nodes.extend_from_slice(&b.nodes);
+                    merged.affine.extend_from_slice(&b.affine);
+                    merged.node_index.extend_from_slice(&b.node_index);
+                    merged.weight.extend_from_slice(&b.weight);
+                }
+                match self.gpu.deform(&merged) {
+                    Ok(all) => {
+                        let mut at = 0;
+                        for (id, b) in &g {
+                            let n = b.rest.len();
+                            out.push((*id, Ok(all[at..at + n].to_vec())));
+                            at += n;
+                        }
+                    }
+                    Err(e) => out.extend(g.iter().map(|(id, _)| (*id, Err(e.clone())))),
+                }
+            }
+            out
+        })
+    }
+
+    /// As `Gpu::project`, merged with other runs' requests with the same views and mesh size.
+    pub fn project(
+        &self,
+        vertices: Vec<[f32; 4]>,
+        vertex_count: usize,
+        views: Vec<ViewRows>,
+    ) -> Out {
+        self.project.submit(
+            (vertices, vertex_count, views),
+            self.lanes,
+            self.wait,
+            |jobs| {
+                let mut out = Vec::new();
+                let mut groups: Vec<Vec<(u64, (Vec<[f32; 4]>, usize, Vec<ViewRows>))>> = Vec::new();
+                for j in jobs {
+                    match groups
+                        .iter_mut()
+                        .find(|g| g[0].1 .1 == j.1 .1 && g[0].1 .2 == j.1 .2)
+                    {
+                        Some(g) => g.push(j),
+                        None => groups.push(vec![j]),
+                    }
+                }
+                for g in groups {
+                    self.count(g.len());
+                    let (vc, views) = (g[0].1 .1, g[0].1 .2.clone());
+                    let verts: Vec<[f32; 4]> =
+                        g.iter().flat_map(|(_, j)| j.0.iter().copied()).collect();
+                    match self.gpu.project(&verts, vc, &views) {
+                        Ok(all) => {
+                            let mut at = 0;
+                            for (id, j) in &g {
+                                // Mesh b's outputs are contiguous: (b * C + view) * V + vertex.
+                                let n = j.0.len() * views.len();
+                                out.push((*id, Ok(all[at..at + n].to_vec())));
+                                at += n;
+                            }
+                        }
+                        Err(e) => out.extend(g.iter().map(|(id, _)| (*id, Err(e.clone())))),
+                    }
+                }
+                out
+            },
+        )
+    }
+}
