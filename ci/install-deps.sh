@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # System packages the project needs on a fresh machine: the Mesa lavapipe Vulkan driver, so the
-# GPU kernels (coming with the GPU engine) run on the CPU in CI, and the DejaVu font the plots
+# GPU kernels and their tests (tests/gpu.rs) run on the CPU in CI, and the DejaVu font the plots
 # label their axes with. Idempotent.
 set -euo pipefail
 if ! ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1 || [ ! -f /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf ]; then
