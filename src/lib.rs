@@ -9,6 +9,7 @@
 pub mod backend;
 pub mod bench;
 pub mod case;
+pub mod case_run;
 pub mod contours;
 pub mod correspond;
 pub mod cpu;
@@ -22,4 +23,5 @@ pub mod simulate;
 pub mod solve;
 pub mod study;
 pub mod template;
+pub mod uncertainty;
 pub mod views;

@@ -1,7 +1,7 @@
 //! The `acetab` command line: parses arguments and calls the library.
 
 use acetab::backend::{BackendChoice, ContourSource, Kernels};
-use acetab::case::CaseFile;
+use acetab::case_run::run_case;
 use acetab::contours::read_curve_csv;
 use acetab::correspond::srvf::{align, aligned_b, CurveKind, SrvfParams};
 use acetab::correspond::Method;
@@ -10,13 +10,14 @@ use acetab::fsutil::write_atomic;
 use acetab::gpu::{GpuBatcher, GpuDevice};
 use acetab::mesh::io::read_mesh;
 use acetab::mesh::io::write_ply;
-use acetab::pipeline::{reconstruct_with, ReconParams};
+use acetab::pipeline::ReconParams;
 use acetab::report::CupCatalogue;
 use acetab::simulate::ground_truth_surface;
 use acetab::study::{
     merge_dirs, run_study_with, summarize, tasks, write_examples, write_tables, StudyConfig,
 };
 use acetab::template::{phantom, PhantomParams};
+use acetab::uncertainty::UncertaintyParams;
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -136,6 +137,12 @@ enum Command {
         /// Cup catalogue: "min:max:step" or a list "44,46,48".
         #[arg(long, default_value = "40:70:2")]
         catalogue: String,
+        /// Resamples for the cup size's uncertainty (contour noise + bootstrap weights).
+        #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(1..=1000))]
+        uncertainty_samples: u64,
+        /// Seed of the resampling draws.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
         /// Where the kernels run: cpu, gpu, or auto (the GPU when an adapter exists).
         #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
         backend: BackendChoice,
@@ -426,11 +433,12 @@ fn run(cli: Cli) -> Result<(), String> {
             catalogue,
             backend,
             contours,
+            uncertainty_samples,
+            seed,
             json,
         } => {
             let catalogue =
                 CupCatalogue::parse(&catalogue).map_err(|e| format!("--catalogue: {e}"))?;
-            let c = CaseFile::load(&case).map_err(|e| e.to_string())?;
             let prm = ReconParams {
                 method,
                 catalogue,
@@ -444,25 +452,12 @@ fn run(cli: Cli) -> Result<(), String> {
                 .transpose()
                 .map_err(|e| e.to_string())?;
             let kernels = engine.as_ref().map_or(Kernels::Cpu, Kernels::Gpu);
-            let t = std::time::Instant::now();
-            let rec = reconstruct_with(&c.cameras, &c.observed, &c.init, &prm, kernels)
-                .map_err(|e| format!("{}: {e}", case.display()))?;
-            let seconds = t.elapsed().as_secs_f64();
-            let report = serde_json::json!({
-                "case": case.display().to_string(),
-                "method": method.name(),
-                "cup_diameter_mm": rec.sphere.diameter(),
-                "cup_catalogue_mm": rec.cup.catalogue_mm,
-                "sphere": rec.sphere,
-                "log": rec.log,
-                "seconds": seconds,
-            });
-            let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
-            create_dir(&out)?;
-            write_ply(&rec.mesh, None, &out.join("reconstruction.ply"))
-                .map_err(|e| e.to_string())?;
-            write_atomic(&out.join("report.json"), text.as_bytes())
-                .map_err(|e| format!("{}: {e}", out.display()))?;
+            let up = UncertaintyParams {
+                samples: uncertainty_samples as usize,
+                seed,
+                noise_px: None,
+            };
+            let report = run_case(&case, &out, &prm, kernels, &up).map_err(|e| e.to_string())?;
             if json {
                 println!(
                     "{}",
@@ -470,12 +465,14 @@ fn run(cli: Cli) -> Result<(), String> {
                 );
             } else {
                 println!(
-                    "cup {:.2} mm -> catalogue {:.0} mm ({:.2} s, {} correspondences, reprojection RMS {:.2} px)",
-                    rec.sphere.diameter(),
-                    rec.cup.catalogue_mm,
-                    seconds,
-                    rec.log.correspondences,
-                    rec.log.reprojection_rms_px
+                    "{} ({:.1} s, {} correspondences, reprojection RMS {:.2} px, {} resamples, seed {}); outputs in {}",
+                    report.cup.line(),
+                    report.seconds,
+                    report.log.correspondences,
+                    report.log.reprojection_rms_px,
+                    report.cup.samples,
+                    report.cup.seed,
+                    out.display()
                 );
             }
             Ok(())

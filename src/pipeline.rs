@@ -346,3 +346,41 @@ pub fn reconstruct_with(
 pub fn centroid(p: &[Point3<f64>]) -> Point3<f64> {
     Point3::from(p.iter().map(|v| v.coords).sum::<Vector3<f64>>() / p.len().max(1) as f64)
 }
+
+/// One more ED round from an already reconstructed mesh: correspondences recomputed once against
+/// `observed`, each observation's weight multiplied by `reweight` (the bootstrap's draws), the
+/// graph rebuilt on `mesh` and solved. Used to measure how the result moves when the inputs are
+/// resampled; returns the new vertices.
+pub fn resolve_from(
+    mesh: &Mesh,
+    cams: &[Camera],
+    observed: &[Vec<Curve>],
+    prm: &ReconParams,
+    kernels: Kernels,
+    reweight: &mut dyn FnMut(usize) -> f64,
+) -> Result<Mesh, ReconError> {
+    let mut obs = all_correspondences(mesh, cams, observed, prm, kernels)?;
+    if prm.robust {
+        robust_weights(mesh, cams, &mut obs);
+    }
+    for (k, o) in obs.iter_mut().enumerate() {
+        o.weight *= reweight(k);
+    }
+    if obs.len() < 12 {
+        return Err(ReconError::TooFewCorrespondences {
+            stage: "resampling",
+            count: obs.len(),
+        });
+    }
+    let graph = DeformationGraph::new(mesh, &prm.graph);
+    let problem = EdProblem::new(&graph, cams, &obs, prm.weights.clone());
+    let (x, _) = levenberg_marquardt(&problem, graph.identity(), &prm.lm).map_err(|source| {
+        ReconError::Solve {
+            stage: "resampling",
+            source,
+        }
+    })?;
+    let out = mesh.with_vertices(kernels.deform(&graph, &x)?);
+    check_finite(&out)?;
+    Ok(out)
+}

@@ -1,0 +1,151 @@
+//! Writes the example case in examples/case/: three simulated X-ray-like images of the built-in
+//! phantom (grey levels from how many surface layers each ray crosses, blurred), the annotated
+//! rim contours (two closed, one open where the blurred wall is left out), the cameras and a
+//! perturbed template placement. Seeded (seed 1), so the files are reproducible.
+//!
+//! Run: cargo run --release --example make_case [-- OUT_DIR]
+
+use acetab::case::CaseFile;
+use acetab::contours::Curve;
+use acetab::cpu::project::{project, ViewRows};
+use acetab::simulate::{simulate_case, NoiseLevel};
+use acetab::template::{phantom, PhantomParams};
+use acetab::views::XrayGeometry;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// How many triangles of the mesh cover each pixel (a crude line integral through the surface).
+fn layers(proj: &[[f32; 4]], tris: &[[u32; 3]], w: usize, h: usize) -> Vec<f32> {
+    let mut acc = vec![0f32; w * h];
+    for t in tris {
+        let c: Vec<[f32; 2]> = t
+            .iter()
+            .map(|&i| [proj[i as usize][0], proj[i as usize][1]])
+            .collect();
+        let e = |a: [f32; 2], b: [f32; 2], p: [f32; 2]| {
+            (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
+        };
+        let area = e(c[0], c[1], c[2]);
+        if area.abs() < 1e-9 {
+            continue;
+        }
+        let x0 = c
+            .iter()
+            .map(|p| p[0])
+            .fold(f32::MAX, f32::min)
+            .floor()
+            .max(0.0) as usize;
+        let y0 = c
+            .iter()
+            .map(|p| p[1])
+            .fold(f32::MAX, f32::min)
+            .floor()
+            .max(0.0) as usize;
+        let x1 = (c.iter().map(|p| p[0]).fold(f32::MIN, f32::max).ceil() as usize).min(w);
+        let y1 = (c.iter().map(|p| p[1]).fold(f32::MIN, f32::max).ceil() as usize).min(h);
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let p = [x as f32 + 0.5, y as f32 + 0.5];
+                let b = [
+                    e(c[1], c[2], p) / area,
+                    e(c[2], c[0], p) / area,
+                    e(c[0], c[1], p) / area,
+                ];
+                if b.iter().all(|&v| v >= 0.0) {
+                    acc[y * w + x] += 1.0;
+                }
+            }
+        }
+    }
+    acc
+}
+
+/// Separable box blur of radius r.
+fn blur(v: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
+    let pass = |src: &[f32], horizontal: bool| -> Vec<f32> {
+        let mut out = vec![0f32; src.len()];
+        for a in 0..(if horizontal { h } else { w }) {
+            for b in 0..(if horizontal { w } else { h }) {
+                let (mut s, mut n) = (0f32, 0f32);
+                for d in b.saturating_sub(r)..(b + r + 1).min(if horizontal { w } else { h }) {
+                    s += if horizontal {
+                        src[a * w + d]
+                    } else {
+                        src[d * w + a]
+                    };
+                    n += 1.0;
+                }
+                let at = if horizontal { a * w + b } else { b * w + a };
+                out[at] = s / n;
+            }
+        }
+        out
+    };
+    pass(&pass(v, true), false)
+}
+
+fn main() -> ExitCode {
+    let out: PathBuf = std::env::args()
+        .nth(1)
+        .map(PathBuf::from)
+        .unwrap_or_else(|| "examples/case".into());
+    let run = || -> Result<(), String> {
+        std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+        let truth = phantom(&PhantomParams::default()).mesh;
+        let sim = simulate_case(
+            &truth,
+            &XrayGeometry::default(),
+            2.0,
+            &NoiseLevel::level(2).ok_or("level")?,
+            1,
+        )
+        .map_err(|e| e.to_string())?;
+        let verts: Vec<[f32; 4]> = truth
+            .vertices
+            .iter()
+            .map(|p| [p.x as f32, p.y as f32, p.z as f32, 0.0])
+            .collect();
+        let mut observed: Vec<Vec<Curve>> = sim.observed.clone();
+        // The third view's annotator left out a quarter of the rim where the wall is blurred.
+        if let Some(c) = observed.get_mut(2).and_then(|v| v.first_mut()) {
+            let keep = c.points.len() * 3 / 4;
+            c.points.truncate(keep);
+            c.closed = false;
+        }
+        let mut file = CaseFile::from_parts(&sim.cameras, &observed, &sim.init);
+        for (k, cam) in sim.cameras.iter().enumerate() {
+            let (w, h) = (cam.width as usize, cam.height as usize);
+            let proj = project(&verts, verts.len(), &[ViewRows::from_camera(cam)]);
+            let acc = blur(&layers(&proj, &truth.triangles, w, h), w, h, 4);
+            let img = image::GrayImage::from_fn(w as u32, h as u32, |x, y| {
+                // Soft tissue background with a vertical gradient, bone brighter.
+                let bg = 50.0 + 30.0 * (y as f32 / h as f32);
+                image::Luma([(bg + 70.0 * acc[y as usize * w + x as usize]).min(255.0) as u8])
+            });
+            let name = format!("view{k}.png");
+            img.save(out.join(&name))
+                .map_err(|e| format!("{name}: {e}"))?;
+            file.views[k].image = Some(PathBuf::from(&name));
+            file.views[k].name = Some(
+                ["AP", "oblique +20", "oblique -20"]
+                    .get(k)
+                    .unwrap_or(&"view")
+                    .to_string(),
+            );
+        }
+        let text = serde_json::to_string_pretty(&file).map_err(|e| e.to_string())?;
+        std::fs::write(out.join("case.json"), text).map_err(|e| e.to_string())?;
+        println!(
+            "wrote {}/case.json and view0..2.png (seed 1)",
+            out.display()
+        );
+        Ok(())
+    };
+    match run() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("make_case: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

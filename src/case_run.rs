@@ -1,0 +1,143 @@
+//! `acetab reconstruct`: a case file in, the reconstruction, the cup report with its uncertainty
+//! and one overlay per view out. Everything is written into a staging folder beside the output
+//! and moved into place only when all of it succeeded, so a failed run leaves no files.
+
+use crate::backend::Kernels;
+use crate::case::{CaseError, CaseFile};
+use crate::mesh::io::{write_ply, MeshIoError};
+use crate::pipeline::{reconstruct_with, ReconError, ReconParams};
+use crate::report::plots::{overlay, PlotError};
+use crate::uncertainty::{cup_report, CupReport, UncertaintyParams};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, thiserror::Error)]
+pub enum CaseRunError {
+    #[error(transparent)]
+    Case(#[from] CaseError),
+    #[error("{path}: {source}")]
+    Recon { path: PathBuf, source: ReconError },
+    #[error(transparent)]
+    Mesh(#[from] MeshIoError),
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}
+
+/// What `run_case` returns (also written as report.json).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct CaseRunReport {
+    pub case: String,
+    pub method: String,
+    pub backend: String,
+    pub cup: CupReport,
+    pub sphere: crate::report::Sphere,
+    pub log: crate::pipeline::SolveLog,
+    pub seconds: f64,
+    pub files: Vec<String>,
+}
+
+fn file_safe(s: &str) -> String {
+    s.chars()
+        .map(|c| match c {
+            '+' => 'p',
+            c if c.is_ascii_alphanumeric() || c == '-' => c,
+            _ => '_',
+        })
+        .collect()
+}
+
+/// Reconstruct the case at `path` and write reconstruction.ply, cup.json, report.json and
+/// overlay-<view>.png into `out`.
+pub fn run_case(
+    path: &Path,
+    out: &Path,
+    prm: &ReconParams,
+    kernels: Kernels,
+    up: &UncertaintyParams,
+) -> Result<CaseRunReport, CaseRunError> {
+    let case = CaseFile::load(path)?;
+    let t = std::time::Instant::now();
+    let recon_err = |source| CaseRunError::Recon {
+        path: path.to_path_buf(),
+        source,
+    };
+    let rec = reconstruct_with(&case.cameras, &case.observed, &case.init, prm, kernels)
+        .map_err(recon_err)?;
+    let cup =
+        cup_report(&rec, &case.cameras, &case.observed, prm, kernels, up).map_err(recon_err)?;
+    let seconds = t.elapsed().as_secs_f64();
+
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let stage = parent.join(format!(
+        ".{}.partial-{}",
+        out.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "out".into()),
+        std::process::id()
+    ));
+    let write_err = |p: &Path, source| CaseRunError::Write {
+        path: p.to_path_buf(),
+        source,
+    };
+    let result = (|| -> Result<CaseRunReport, CaseRunError> {
+        std::fs::create_dir_all(&stage).map_err(|e| write_err(&stage, e))?;
+        let mut files = vec!["reconstruction.ply".to_string()];
+        write_ply(&rec.mesh, None, &stage.join("reconstruction.ply"))?;
+        for (k, cam) in case.cameras.iter().enumerate() {
+            let name = format!("overlay-{k}-{}.png", file_safe(&case.names[k]));
+            let observed: Vec<&[nalgebra::Point2<f64>]> =
+                case.observed[k].iter().map(|c| &c.points[..]).collect();
+            overlay(
+                (cam.width, cam.height),
+                case.images[k].as_deref(),
+                &rec.initial_contours[k].points,
+                &rec.final_contours[k].points,
+                &observed,
+                &stage.join(&name),
+            )?;
+            files.push(name);
+        }
+        files.push("cup.json".into());
+        files.push("report.json".into());
+        let report = CaseRunReport {
+            case: path.display().to_string(),
+            method: prm.method.name().into(),
+            backend: kernels.name().into(),
+            cup: cup.clone(),
+            sphere: rec.sphere,
+            log: rec.log.clone(),
+            seconds,
+            files: files.clone(),
+        };
+        let json = |v: &dyn erased::Ser| v.to_pretty();
+        std::fs::write(stage.join("cup.json"), json(&cup)).map_err(|e| write_err(&stage, e))?;
+        std::fs::write(stage.join("report.json"), json(&report))
+            .map_err(|e| write_err(&stage, e))?;
+        std::fs::create_dir_all(out).map_err(|e| write_err(out, e))?;
+        for f in &files {
+            std::fs::rename(stage.join(f), out.join(f)).map_err(|e| write_err(&out.join(f), e))?;
+        }
+        Ok(report)
+    })();
+    let _ = std::fs::remove_dir_all(&stage);
+    result
+}
+
+mod erased {
+    /// Pretty JSON of any serialisable value (the two reports).
+    pub trait Ser {
+        fn to_pretty(&self) -> String;
+    }
+    impl<T: serde::Serialize> Ser for T {
+        fn to_pretty(&self) -> String {
+            serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+        }
+    }
+}

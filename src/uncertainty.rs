@@ -1,0 +1,184 @@
+//! How sure the cup size is: the reconstruction is re-solved from its result many times with its
+//! inputs resampled, each observed contour jittered by Gaussian noise of the fit's own
+//! reprojection RMS and each correspondence re-weighted by an Exp(1) draw (the Bayesian
+//! bootstrap); the spread of the fitted diameters gives the +- and, per catalogue size, the share
+//! of resamples whose nearest size it is. Seeded; the seed is in the report.
+
+use crate::backend::Kernels;
+use crate::contours::Curve;
+use crate::pipeline::{resolve_from, ReconError, ReconParams, Reconstruction};
+use crate::report::fit_sphere_robust;
+use crate::views::Camera;
+use rand::{Rng, SeedableRng};
+use rand_distr::{Distribution, Exp1, Normal};
+use serde::Serialize;
+
+/// Parameters, with defaults.
+#[derive(Clone, Debug)]
+pub struct UncertaintyParams {
+    /// Resamples (default 16).
+    pub samples: usize,
+    pub seed: u64,
+    /// Contour noise SD in pixels; None: the fit's reprojection RMS (at least 0.5 px).
+    pub noise_px: Option<f64>,
+}
+
+impl Default for UncertaintyParams {
+    fn default() -> Self {
+        UncertaintyParams {
+            samples: 16,
+            seed: 1,
+            noise_px: None,
+        }
+    }
+}
+
+/// One catalogue size and the share of resamples that chose it.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct SizeProbability {
+    pub size_mm: f64,
+    pub probability: f64,
+}
+
+/// The cup report.
+#[derive(Clone, Debug, Serialize)]
+pub struct CupReport {
+    /// Diameter of the sphere fitted to the reconstruction.
+    pub diameter_mm: f64,
+    /// Nearest catalogue size.
+    pub catalogue_mm: f64,
+    /// SD of the resampled diameters, and the half-width of their central 95 % range.
+    pub sd_mm: f64,
+    pub plus_minus_mm: f64,
+    /// The chosen size and its neighbours in the catalogue, with their probabilities (all sizes
+    /// any resample chose are listed).
+    pub probabilities: Vec<SizeProbability>,
+    pub samples: usize,
+    pub seed: u64,
+    pub noise_px: f64,
+    /// The resampled diameters, in draw order.
+    pub resampled_mm: Vec<f64>,
+}
+
+impl CupReport {
+    /// One line for the terminal.
+    pub fn line(&self) -> String {
+        let p_of = |s: f64| {
+            self.probabilities
+                .iter()
+                .find(|p| p.size_mm == s)
+                .map_or(0.0, |p| p.probability)
+        };
+        let others: Vec<String> = self
+            .probabilities
+            .iter()
+            .filter(|p| p.size_mm != self.catalogue_mm)
+            .map(|p| format!("{:.0} mm {:.2}", p.size_mm, p.probability))
+            .collect();
+        format!(
+            "cup {:.1} +- {:.1} mm -> {:.0} mm (p {:.2}{}{})",
+            self.diameter_mm,
+            self.plus_minus_mm,
+            self.catalogue_mm,
+            p_of(self.catalogue_mm),
+            if others.is_empty() { "" } else { "; " },
+            others.join(", ")
+        )
+    }
+}
+
+/// Resample and re-solve `samples` times (see the module comment).
+pub fn cup_report(
+    rec: &Reconstruction,
+    cams: &[Camera],
+    observed: &[Vec<Curve>],
+    prm: &ReconParams,
+    kernels: Kernels,
+    up: &UncertaintyParams,
+) -> Result<CupReport, ReconError> {
+    let noise_px = up.noise_px.unwrap_or(rec.log.reprojection_rms_px).max(0.5);
+    let one_round = ReconParams {
+        correspondence_updates: 1,
+        ..prm.clone()
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(up.seed);
+    let normal = Normal::new(0.0, noise_px).map_err(|e| ReconError::Diverged {
+        what: format!("noise SD {noise_px}: {e}"),
+    })?;
+    let mut diam = Vec::with_capacity(up.samples);
+    for _ in 0..up.samples.max(1) {
+        let jittered: Vec<Vec<Curve>> = observed
+            .iter()
+            .map(|cs| {
+                cs.iter()
+                    .map(|c| Curve {
+                        points: c
+                            .points
+                            .iter()
+                            .map(|p| {
+                                nalgebra::Point2::new(
+                                    p.x + normal.sample(&mut rng),
+                                    p.y + normal.sample(&mut rng),
+                                )
+                            })
+                            .collect(),
+                        closed: c.closed,
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut sub = rand_chacha::ChaCha8Rng::seed_from_u64(rng.next_u64());
+        let mut reweight = |_k: usize| -> f64 { Exp1.sample(&mut sub) };
+        let mesh = resolve_from(
+            &rec.mesh,
+            cams,
+            &jittered,
+            &one_round,
+            kernels,
+            &mut reweight,
+        )?;
+        diam.push(fit_sphere_robust(&mesh.vertices)?.diameter());
+    }
+    let n = diam.len() as f64;
+    let mean = diam.iter().sum::<f64>() / n;
+    let sd = (diam.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
+    let mut sorted = diam.clone();
+    sorted.sort_by(f64::total_cmp);
+    let q = |f: f64| sorted[((f * (n - 1.0)).round() as usize).min(sorted.len() - 1)];
+    let plus_minus = 0.5 * (q(0.975) - q(0.025));
+    let diameter = rec.sphere.diameter();
+    let chosen = prm.catalogue.nearest(diameter).catalogue_mm;
+    let mut probabilities: Vec<SizeProbability> = Vec::new();
+    let sizes = &prm.catalogue.sizes_mm;
+    // The chosen size and its two neighbours are always listed, then any other size drawn.
+    if let Some(k) = sizes.iter().position(|&s| s == chosen) {
+        for &s in &sizes[k.saturating_sub(1)..(k + 2).min(sizes.len())] {
+            probabilities.push(SizeProbability {
+                size_mm: s,
+                probability: 0.0,
+            });
+        }
+    }
+    for d in &diam {
+        let s = prm.catalogue.nearest(*d).catalogue_mm;
+        match probabilities.iter_mut().find(|p| p.size_mm == s) {
+            Some(p) => p.probability += 1.0 / n,
+            None => probabilities.push(SizeProbability {
+                size_mm: s,
+                probability: 1.0 / n,
+            }),
+        }
+    }
+    probabilities.sort_by(|a, b| a.size_mm.total_cmp(&b.size_mm));
+    Ok(CupReport {
+        diameter_mm: diameter,
+        catalogue_mm: chosen,
+        sd_mm: sd,
+        plus_minus_mm: plus_minus,
+        probabilities,
+        samples: diam.len(),
+        seed: up.seed,
+        noise_px,
+        resampled_mm: diam,
+    })
+}
