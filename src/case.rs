@@ -351,6 +351,26 @@ impl CaseFile {
                             "image file not found or unreadable",
                         ));
                     }
+                    // Read the header now, so a bad image fails before any work is done.
+                    let (w, h) = image::image_dimensions(&full).map_err(|e| {
+                        field_err(
+                            path,
+                            f("image"),
+                            full.display(),
+                            format!("cannot be decoded: {e}"),
+                        )
+                    })?;
+                    if (w, h) != (v.width, v.height) {
+                        return Err(field_err(
+                            path,
+                            f("image"),
+                            full.display(),
+                            format!(
+                                "the image is {w}x{h}, the view says {}x{}",
+                                v.width, v.height
+                            ),
+                        ));
+                    }
                     Some(full)
                 }
                 None => None,
