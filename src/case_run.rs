@@ -68,7 +68,7 @@ pub fn run_case(
     let rec = reconstruct_with(&case.cameras, &case.observed, &case.init, prm, kernels)
         .map_err(recon_err)?;
     let cup =
-        cup_report(&rec, &case.cameras, &case.observed, prm, kernels, up).map_err(recon_err)?;
+        cup_report(&rec, &rec.cameras, &case.observed, prm, kernels, up).map_err(recon_err)?;
     let seconds = t.elapsed().as_secs_f64();
 
     let parent = out

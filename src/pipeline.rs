@@ -9,8 +9,9 @@ use crate::correspond::{correspond, CorrespondParams, Method};
 use crate::mesh::Mesh;
 use crate::report::{fit_sphere_robust, CupCatalogue, CupSize, Sphere, SphereFitError};
 use crate::solve::{
-    apply_similarity, levenberg_marquardt, DeformationGraph, EdProblem, EdWeights, GraphParams,
-    LmParams, Observation, SimilarityProblem, SolveError,
+    apply_similarity, corrected_camera, levenberg_marquardt, DeformationGraph, EdProblem,
+    EdWeights, GraphParams, LmParams, Observation, PoseParams, PoseProblem, SimilarityProblem,
+    SolveError,
 };
 use crate::template::{spherical_cap, Placement};
 use crate::views::Camera;
@@ -47,6 +48,8 @@ pub struct ReconParams {
     pub similarity_rim_weight: f64,
     /// Model contours from alpha shapes (default) or rasterised silhouettes.
     pub contour_source: ContourSource,
+    /// Refine per-view pose corrections with the deformation (default off).
+    pub pose: Option<PoseParams>,
 }
 
 impl Default for ReconParams {
@@ -67,6 +70,7 @@ impl Default for ReconParams {
             robust: true,
             similarity_rim_weight: 0.1,
             contour_source: ContourSource::AlphaShape,
+            pose: None,
         }
     }
 }
@@ -107,6 +111,8 @@ pub struct SolveLog {
     /// Final reprojection RMS over the last correspondences, pixels.
     pub reprojection_rms_px: f64,
     pub correspondences: usize,
+    /// Per view, the size of the pose correction found (degrees, mm); empty without refinement.
+    pub pose_corrections: Vec<[f64; 2]>,
 }
 
 /// The result.
@@ -122,6 +128,8 @@ pub struct Reconstruction {
     pub final_contours: Vec<ModelContour>,
     /// Correspondences of the last round.
     pub observations: Vec<Observation>,
+    /// The cameras the result was fitted with (the input ones, or with the pose corrections).
+    pub cameras: Vec<Camera>,
 }
 
 fn contours(
@@ -287,7 +295,70 @@ pub fn reconstruct_with(
         }
     }
 
-    // Stage B: embedded deformation.
+    // Stage A': with pose refinement, similarity and per-view pose corrections alternate on
+    // correspondences recomputed each round, from where stage A settled.
+    let pose_center = centroid(&mesh.vertices);
+    let mut pose_x = vec![0.0; 6 * cams.len()];
+    let mut cams_now: Vec<Camera> = cams.to_vec();
+    if let Some(pp) = &prm.pose {
+        for _ in 0..prm.similarity_rounds {
+            let mut obs = all_correspondences(&mesh, &cams_now, observed, prm, kernels)?;
+            if prm.robust {
+                robust_weights(&mesh, &cams_now, &mut obs);
+            }
+            for o in obs.iter_mut().filter(|o| on_rim[o.vertex as usize]) {
+                o.weight *= prm.similarity_rim_weight;
+            }
+            if obs.len() < min_corr {
+                return Err(ReconError::TooFewCorrespondences {
+                    stage: "pose refinement",
+                    count: obs.len(),
+                });
+            }
+            let before = pose_x.clone();
+            let it = refine_poses(
+                &mesh,
+                &pose_center,
+                cams,
+                &obs,
+                pp,
+                prm,
+                &mut pose_x,
+                &mut cams_now,
+            )?;
+            log.gn_iterations += it;
+            let mut problem = SimilarityProblem::new(&mesh.vertices, &cams_now, &obs);
+            problem.tangential = prm.weights.tangential;
+            let (x, info) =
+                levenberg_marquardt(&problem, vec![0.0; 7], &sim_lm).map_err(|source| {
+                    ReconError::Solve {
+                        stage: "similarity",
+                        source,
+                    }
+                })?;
+            let moved = apply_similarity(&x, &problem.center, &mesh.vertices);
+            let shift = (moved
+                .iter()
+                .zip(&mesh.vertices)
+                .map(|(a, b)| (a - b).norm_squared())
+                .sum::<f64>()
+                / moved.len() as f64)
+                .sqrt();
+            mesh = mesh.with_vertices(moved);
+            check_finite(&mesh)?;
+            log.gn_iterations += info.iterations;
+            let pose_step = before
+                .iter()
+                .zip(&pose_x)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            if shift < prm.similarity_tol_mm && pose_step < 1e-4 {
+                break;
+            }
+        }
+    }
+
+    // Stage B: embedded deformation (with the per-view pose corrections when asked for).
     let (rounds, lm) = match prm.method {
         Method::Srvf => (prm.correspondence_updates.max(1), prm.lm.clone()),
         Method::Icp | Method::IcpNormvec => (
@@ -301,9 +372,9 @@ pub fn reconstruct_with(
     let mut obs = Vec::new();
     let mut converged = true;
     for _ in 0..rounds {
-        obs = all_correspondences(&mesh, cams, observed, prm, kernels)?;
+        obs = all_correspondences(&mesh, &cams_now, observed, prm, kernels)?;
         if prm.robust {
-            robust_weights(&mesh, cams, &mut obs);
+            robust_weights(&mesh, &cams_now, &mut obs);
         }
         if obs.len() < min_corr {
             return Err(ReconError::TooFewCorrespondences {
@@ -311,8 +382,22 @@ pub fn reconstruct_with(
                 count: obs.len(),
             });
         }
+        if let Some(pp) = &prm.pose {
+            // The views' corrections first, on these correspondences and the current shape;
+            // then the shape with the corrected views: both lower the one joint energy.
+            log.gn_iterations += refine_poses(
+                &mesh,
+                &pose_center,
+                cams,
+                &obs,
+                pp,
+                prm,
+                &mut pose_x,
+                &mut cams_now,
+            )?;
+        }
         let graph = DeformationGraph::new(&mesh, &prm.graph);
-        let problem = EdProblem::new(&graph, cams, &obs, prm.weights.clone());
+        let problem = EdProblem::new(&graph, &cams_now, &obs, prm.weights.clone());
         let (x, info) = levenberg_marquardt(&problem, graph.identity(), &lm).map_err(|source| {
             ReconError::Solve {
                 stage: "deformation",
@@ -325,21 +410,72 @@ pub fn reconstruct_with(
         log.gn_iterations += info.iterations;
         converged = info.converged || prm.method != Method::Srvf;
     }
+    log.pose_corrections = if prm.pose.is_some() {
+        pose_x
+            .chunks(6)
+            .map(|c| {
+                let deg = Vector3::new(c[0], c[1], c[2]).norm().to_degrees();
+                let mm = Vector3::new(c[3], c[4], c[5]).norm();
+                [deg, mm]
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     log.converged = converged;
-    log.reprojection_rms_px = rms_px(&mesh, cams, &obs);
+    log.reprojection_rms_px = rms_px(&mesh, &cams_now, &obs);
     log.correspondences = obs.len();
     let sphere = fit_sphere_robust(&mesh.vertices)?;
     let cup = prm.catalogue.nearest(sphere.diameter());
     Ok(Reconstruction {
         initial_contours: contours(&initial, cams, prm, kernels)?,
-        final_contours: contours(&mesh, cams, prm, kernels)?,
+        final_contours: contours(&mesh, &cams_now, prm, kernels)?,
         mesh,
         initial,
         sphere,
         cup,
         log,
         observations: obs,
+        cameras: cams_now,
     })
+}
+
+/// One pose solve on fixed correspondences and shape; updates the corrections and the cameras.
+#[allow(clippy::too_many_arguments)]
+fn refine_poses(
+    mesh: &Mesh,
+    center: &Point3<f64>,
+    cams: &[Camera],
+    obs: &[Observation],
+    pp: &PoseParams,
+    prm: &ReconParams,
+    pose_x: &mut Vec<f64>,
+    cams_now: &mut Vec<Camera>,
+) -> Result<usize, ReconError> {
+    let pose = PoseProblem::new(
+        &mesh.vertices,
+        *center,
+        cams,
+        obs,
+        pp,
+        prm.weights.tangential,
+    );
+    let (x, info) = levenberg_marquardt(&pose, pose_x.clone(), &prm.lm).map_err(|source| {
+        ReconError::Solve {
+            stage: "pose refinement",
+            source,
+        }
+    })?;
+    if x.iter().any(|v| !v.is_finite()) {
+        return Err(ReconError::Diverged {
+            what: "a pose correction is not finite".into(),
+        });
+    }
+    *pose_x = x;
+    *cams_now = (0..cams.len())
+        .map(|k| corrected_camera(&cams[k], center, &pose_x[6 * k..6 * k + 6]))
+        .collect();
+    Ok(info.iterations)
 }
 
 /// Centroid of a point set.

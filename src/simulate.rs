@@ -8,7 +8,7 @@ use crate::pipeline::centroid;
 use crate::report::{fit_sphere, Sphere, SphereFitError};
 use crate::template::Placement;
 use crate::views::{simulated_views, Camera, XrayGeometry};
-use nalgebra::{Rotation3, Unit, Vector3};
+use nalgebra::{Point3, Rotation3, Unit, Vector3};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
@@ -175,4 +175,36 @@ pub fn simulate_case(
         init,
         seed,
     })
+}
+
+/// Views with pose errors: every view except `reference` is turned by `deg` degrees about a
+/// random axis through `center` and shifted by `mm` in a random direction (seeded). The
+/// reference view defines the frame, as the AP view does in practice.
+pub fn perturb_poses(
+    cams: &[Camera],
+    center: &Point3<f64>,
+    deg: f64,
+    mm: f64,
+    reference: usize,
+    seed: u64,
+) -> Vec<Camera> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x9E37_79B9_7F4A_7C15);
+    let unit = |rng: &mut rand_chacha::ChaCha8Rng| loop {
+        let n = Normal::new(0.0, 1.0).expect("unit normal");
+        let v = Vector3::new(n.sample(rng), n.sample(rng), n.sample(rng));
+        if v.norm() > 1e-6 {
+            break v.normalize();
+        }
+    };
+    cams.iter()
+        .enumerate()
+        .map(|(k, c)| {
+            if k == reference {
+                return c.clone();
+            }
+            let w = unit(&mut rng) * deg.to_radians();
+            let t = unit(&mut rng) * mm;
+            crate::solve::corrected_camera(c, center, &[w.x, w.y, w.z, t.x, t.y, t.z])
+        })
+        .collect()
 }

@@ -7,6 +7,7 @@ mod graph;
 mod knn;
 mod lm;
 mod normal;
+mod pose;
 mod similarity;
 
 pub use energy::{EdProblem, EdWeights, Observation};
@@ -14,4 +15,5 @@ pub use graph::{farthest_point_sample, DeformationGraph, GraphParams, NODE_PARAM
 pub use knn::Knn3;
 pub use lm::{levenberg_marquardt, LmInfo, LmParams, Problem, SolveError};
 pub use normal::{LinearSolveError, Linearization, NormalEquations};
+pub use pose::{corrected_camera, PoseParams, PoseProblem};
 pub use similarity::{apply_similarity, SimilarityProblem, SIM_PARAMS};

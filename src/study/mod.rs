@@ -4,6 +4,7 @@
 //! run can be repeated alone, and results do not depend on thread count or sharding.
 
 mod outputs;
+pub mod pose;
 mod runner;
 mod table;
 

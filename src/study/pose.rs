@@ -1,0 +1,131 @@
+//! The pose-refinement simulation: the same cases reconstructed from views whose poses are off
+//! (every view but the reference turned by a fixed angle about a random axis through the object
+//! and shifted by a fixed distance in a random direction), once with the per-view pose
+//! refinement and once without; the truth's observations come from the true poses.
+
+use crate::demo::accuracy;
+use crate::mesh::Mesh;
+use crate::pipeline::{reconstruct, ReconParams};
+use crate::simulate::{perturb_poses, simulate_case, NoiseLevel};
+use crate::solve::PoseParams;
+use crate::views::XrayGeometry;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+/// One case, both ways.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PoseRow {
+    pub run: usize,
+    pub seed: u64,
+    pub mae_without_mm: f64,
+    pub mae_with_mm: f64,
+    pub cup_error_without_mm: f64,
+    pub cup_error_with_mm: f64,
+    /// Size of the corrections found per view (degrees, mm).
+    pub corrections: Vec<[f64; 2]>,
+    pub error: String,
+}
+
+#[derive(Clone, Debug)]
+pub struct PoseStudy {
+    pub runs: usize,
+    pub seed: u64,
+    pub level: u32,
+    pub deg: f64,
+    pub mm: f64,
+    pub threads: usize,
+    pub pose: PoseParams,
+}
+
+impl Default for PoseStudy {
+    fn default() -> Self {
+        PoseStudy {
+            runs: 10,
+            seed: 1,
+            level: 1,
+            deg: 2.0,
+            mm: 5.0,
+            threads: 1,
+            pose: PoseParams::default(),
+        }
+    }
+}
+
+fn one(truth: &Mesh, cfg: &PoseStudy, run: usize) -> PoseRow {
+    let seed = crate::study::run_seed(cfg.seed, 1000 + cfg.level, run);
+    let mut row = PoseRow {
+        run,
+        seed,
+        mae_without_mm: f64::NAN,
+        mae_with_mm: f64::NAN,
+        cup_error_without_mm: f64::NAN,
+        cup_error_with_mm: f64::NAN,
+        corrections: Vec::new(),
+        error: String::new(),
+    };
+    let Some(level) = NoiseLevel::level(cfg.level) else {
+        row.error = format!("no noise level {}", cfg.level);
+        return row;
+    };
+    let sim = match simulate_case(truth, &XrayGeometry::default(), 2.0, &level, seed) {
+        Ok(s) => s,
+        Err(e) => {
+            row.error = e.to_string();
+            return row;
+        }
+    };
+    let cams = perturb_poses(
+        &sim.cameras,
+        &sim.truth_placement.center,
+        cfg.deg,
+        cfg.mm,
+        cfg.pose.reference_view,
+        seed,
+    );
+    let gt = sim.truth_sphere.diameter();
+    for refine in [false, true] {
+        let prm = ReconParams {
+            pose: refine.then(|| cfg.pose.clone()),
+            ..Default::default()
+        };
+        match reconstruct(&cams, &sim.observed, &sim.init, &prm) {
+            Ok(rec) => {
+                let mae = accuracy(truth, &rec.mesh).mae_mm;
+                let cup = rec.sphere.diameter() - gt;
+                if refine {
+                    row.mae_with_mm = mae;
+                    row.cup_error_with_mm = cup;
+                    row.corrections = rec.log.pose_corrections.clone();
+                } else {
+                    row.mae_without_mm = mae;
+                    row.cup_error_without_mm = cup;
+                }
+            }
+            Err(e) => row.error = format!("{}: {e}", if refine { "with" } else { "without" }),
+        }
+    }
+    row
+}
+
+/// Run every case (threads do not change the results).
+pub fn run_pose_study(truth: &Mesh, cfg: &PoseStudy) -> Vec<PoseRow> {
+    let next = AtomicUsize::new(0);
+    let rows: Mutex<Vec<Option<PoseRow>>> = Mutex::new(vec![None; cfg.runs]);
+    std::thread::scope(|s| {
+        for _ in 0..cfg.threads.max(1) {
+            s.spawn(|| loop {
+                let k = next.fetch_add(1, Ordering::Relaxed);
+                if k >= cfg.runs {
+                    break;
+                }
+                let r = one(truth, cfg, k);
+                rows.lock().unwrap_or_else(|e| e.into_inner())[k] = Some(r);
+            });
+        }
+    });
+    rows.into_inner()
+        .unwrap_or_else(|e| e.into_inner())
+        .into_iter()
+        .flatten()
+        .collect()
+}
