@@ -81,10 +81,22 @@ fn a_case_file_reconstructs_through_the_cli() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    let d = v["cup_diameter_mm"].as_f64().unwrap();
+    let d = v["cup"]["diameter_mm"].as_f64().unwrap();
     // The phantom's fitted sphere is 52.45 mm across.
     assert!((d - 52.45).abs() < 2.0, "cup {d}");
-    assert!(out.join("reconstruction.ply").is_file() && out.join("report.json").is_file());
+    // The cup report: a +- and probabilities over the catalogue sizes that sum to one.
+    let pm = v["cup"]["plus_minus_mm"].as_f64().unwrap();
+    assert!(pm.is_finite() && pm >= 0.0);
+    let p: f64 = v["cup"]["probabilities"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["probability"].as_f64().unwrap())
+        .sum();
+    assert!((p - 1.0).abs() < 1e-9, "probabilities sum to {p}");
+    for f in ["reconstruction.ply", "report.json", "cup.json", "overlay-0-view0.png"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
 }
 
 #[test]
