@@ -94,7 +94,12 @@ fn a_case_file_reconstructs_through_the_cli() {
         .map(|p| p["probability"].as_f64().unwrap())
         .sum();
     assert!((p - 1.0).abs() < 1e-9, "probabilities sum to {p}");
-    for f in ["reconstruction.ply", "report.json", "cup.json", "overlay-0-view0.png"] {
+    for f in [
+        "reconstruction.ply",
+        "report.json",
+        "cup.json",
+        "overlay-0-view0.png",
+    ] {
         assert!(out.join(f).is_file(), "{f}");
     }
 }

@@ -195,7 +195,7 @@ fn trace_single_loop(tri: &DelaunayTriangulation<Site>, alpha: f64) -> Option<Ve
         let area = signed_area(&lp.iter().map(|&v| pos(v)).collect::<Vec<_>>());
         if area > 0.0 {
             outer_total += area;
-            if best.as_ref().map_or(true, |b| area > b.0) {
+            if best.as_ref().is_none_or(|b| area > b.0) {
                 best = Some((area, lp));
             }
         }

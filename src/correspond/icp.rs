@@ -25,7 +25,7 @@ pub fn icp_matches(
                 };
                 let p = a + ab * u;
                 let d = (s - p).norm_squared();
-                if best.map_or(true, |b| d < b.0) {
+                if best.is_none_or(|b| d < b.0) {
                     best = Some((d, p, if u < 0.5 { i } else { (i + 1) % n }));
                 }
             }
@@ -80,7 +80,7 @@ pub fn icp_normvec_matches(
                     continue;
                 }
                 let d = (s - m).norm_squared();
-                if best.map_or(true, |b| d < b.0) {
+                if best.is_none_or(|b| d < b.0) {
                     best = Some((d, k));
                 }
             }

@@ -84,8 +84,8 @@ impl DeformBatch {
                     expected: 12 * j,
                 });
             }
-            b.rest.extend(g.rest.iter().map(|p| to4(p)));
-            b.nodes.extend(g.nodes.iter().map(|p| to4(p)));
+            b.rest.extend(g.rest.iter().map(to4));
+            b.nodes.extend(g.nodes.iter().map(to4));
             for n in 0..j {
                 let (a, t) = DeformationGraph::affine(x, n);
                 let a = a - nalgebra::Matrix3::identity();

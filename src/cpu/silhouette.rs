@@ -178,7 +178,7 @@ pub fn trace(mask: &[u32], size: u32) -> Vec<u32> {
                     }
                 }
             }
-            if best.map_or(true, |b| count > b.0) {
+            if best.is_none_or(|b| count > b.0) {
                 best = Some((count, (x, y)));
             }
             next += 1;

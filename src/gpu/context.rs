@@ -144,7 +144,7 @@ impl<'a> Gpu<'a> {
         bytes: u64,
     ) -> Result<(), GpuError> {
         let lim = self.device.limits();
-        let limit = (lim.max_storage_buffer_binding_size as u64).min(lim.max_buffer_size);
+        let limit = lim.max_storage_buffer_binding_size.min(lim.max_buffer_size);
         if bytes > limit {
             return Err(GpuError::TooLarge {
                 kernel,

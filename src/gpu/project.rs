@@ -84,7 +84,7 @@ impl Gpu<'_> {
         if vertex_count == 0 || views.is_empty() || vertices.is_empty() {
             return Ok(None);
         }
-        if vertices.len() % vertex_count != 0 {
+        if !vertices.len().is_multiple_of(vertex_count) {
             return Err(GpuError::Input {
                 kernel: K,
                 message: format!(

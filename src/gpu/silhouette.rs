@@ -192,7 +192,7 @@ impl Gpu<'_> {
                 message: format!("triangle corner {bad} is not one of the {vertex_count} vertices"),
             });
         }
-        if triangles.len() % 3 != 0 || triangles.is_empty() {
+        if !triangles.len().is_multiple_of(3) || triangles.is_empty() {
             return Err(GpuError::Input {
                 kernel: K,
                 message: format!(

@@ -257,7 +257,7 @@ pub fn merge_dirs(dirs: &[PathBuf]) -> Result<Vec<Row>, StudyError> {
             rows.push((r, p.clone()));
         }
     }
-    rows.sort_by(|a, b| a.0.key().cmp(&b.0.key()));
+    rows.sort_by_key(|a| a.0.key());
     for w in rows.windows(2) {
         if w[0].0.key() == w[1].0.key() {
             let r = &w[1].0;

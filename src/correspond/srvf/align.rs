@@ -212,7 +212,7 @@ pub fn align_closed(
             &steps,
             hint.as_deref(),
         );
-        if best.as_ref().map_or(true, |b| w.energy < b.0) {
+        if best.as_ref().is_none_or(|b| w.energy < b.0) {
             *best = Some((w.energy, s, theta, w));
         }
     };
@@ -230,7 +230,7 @@ pub fn align_closed(
                 &steps,
                 None,
             );
-            if best.as_ref().map_or(true, |b| w.energy < b.0) {
+            if best.as_ref().is_none_or(|b| w.energy < b.0) {
                 *best = Some((w.energy, s, theta, w));
             }
         };
@@ -501,7 +501,7 @@ pub fn align_partial(
     let mut best: Option<(f64, bool, f64, f64)> = None;
     for &(rev, start, len) in &picked {
         let (_, w) = eval(&rank_q1[usize::from(rev)], &rank_prm, start, len, None);
-        if best.as_ref().map_or(true, |b| w.energy < b.0) {
+        if best.as_ref().is_none_or(|b| w.energy < b.0) {
             best = Some((w.energy, rev, start, len));
         }
     }

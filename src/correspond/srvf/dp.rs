@@ -251,7 +251,7 @@ pub fn dp_warp_fast(
     if n <= EXACT_DP_MAX {
         return dp_warp(q1, q2, steps);
     }
-    let m = n.div_ceil(2) + usize::from(n % 2 == 0);
+    let m = n.div_ceil(2) + usize::from(n.is_multiple_of(2));
     let fine = |c: usize| (2 * c).min(n - 1);
     let c1: Vec<Vector2<f64>> = (0..m).map(|c| q1[fine(c)]).collect();
     let c2: Vec<Vector2<f64>> = (0..m).map(|c| q2[fine(c)]).collect();
