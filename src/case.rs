@@ -19,12 +19,29 @@ pub struct IntrinsicsFile {
     pub cy: f64,
 }
 
-/// One annotated contour: pixel polyline, closed or open.
+/// What an annotated contour covers.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ContourKind {
+    /// The whole rim, a closed loop.
+    Closed,
+    /// Part of the rim (where blurred walls are left out). The model outline is always closed,
+    /// so an open contour is matched to its best sub-arc, either direction.
+    Open,
+    /// The same as `open`: an arc matched to a part of the model outline.
+    Partial,
+}
+
+/// One annotated contour: a pixel polyline and what it covers, given either as
+/// `"closed": true|false` or as `"kind": "closed"|"open"|"partial"` (exactly one of them).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ContourFile {
     pub points: Vec<[f64; 2]>,
-    pub closed: bool,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub closed: Option<bool>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kind: Option<ContourKind>,
 }
 
 /// One view.
@@ -304,10 +321,23 @@ impl CaseFile {
                         ));
                     }
                 }
+                let closed = match (c.closed, c.kind) {
+                    (Some(b), None) => b,
+                    (None, Some(k)) => k == ContourKind::Closed,
+                    (Some(b), Some(k)) if b == (k == ContourKind::Closed) => b,
+                    (b, k) => {
+                        return Err(field_err(
+                            path,
+                            cf("closed/kind"),
+                            format!("closed {b:?}, kind {k:?}"),
+                            "give either \"closed\": true|false or \"kind\": \"closed\"|\"open\"|\"partial\" (and not two that disagree)",
+                        ))
+                    }
+                };
                 let mut pts: Vec<Point2<f64>> =
                     c.points.iter().map(|p| Point2::new(p[0], p[1])).collect();
                 pts.dedup_by(|a, b| (*a - *b).norm() < 1e-9);
-                if c.closed && pts.len() > 1 && (pts[0] - pts[pts.len() - 1]).norm() < 1e-9 {
+                if closed && pts.len() > 1 && (pts[0] - pts[pts.len() - 1]).norm() < 1e-9 {
                     pts.pop(); // an explicitly repeated first point
                 }
                 let distinct = pts.len();
@@ -328,12 +358,12 @@ impl CaseFile {
                         "the contour is smaller than 2 pixels",
                     ));
                 }
-                if c.closed && signed_area(&pts) < 0.0 {
+                if closed && signed_area(&pts) < 0.0 {
                     pts.reverse(); // all closed curves run the same way as model contours
                 }
                 curves.push(Curve {
                     points: pts,
-                    closed: c.closed,
+                    closed,
                 });
             }
             let image = match &v.image {
@@ -408,7 +438,8 @@ impl CaseFile {
                         .iter()
                         .map(|cv| ContourFile {
                             points: cv.points.iter().map(|p| [p.x, p.y]).collect(),
-                            closed: cv.closed,
+                            closed: Some(cv.closed),
+                            kind: None,
                         })
                         .collect(),
                 })
