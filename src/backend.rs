@@ -44,9 +44,9 @@ pub enum Kernels<'g> {
 /// Why a kernel call failed.
 #[derive(Debug, thiserror::Error)]
 pub enum KernelError {
-    #[error(transparent)]
+    #[error("GPU: {0}")]
     Gpu(#[from] GpuError),
-    #[error("view {view}: {source}")]
+    #[error("view {view}: model contour: {source}")]
     Contour { view: usize, source: ContourError },
 }
 

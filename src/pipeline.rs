@@ -78,7 +78,7 @@ impl Default for ReconParams {
 /// Why a reconstruction failed.
 #[derive(Debug, thiserror::Error)]
 pub enum ReconError {
-    #[error("model contour or deformation kernel: {0}")]
+    #[error("{0}")]
     Kernel(#[from] KernelError),
     #[error("view {view}, contour {contour}: correspondence: {source}")]
     Correspond {
