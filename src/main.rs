@@ -126,6 +126,9 @@ enum Command {
         /// Repetitions per timing (the median is reported).
         #[arg(long, default_value_t = 5)]
         repeats: usize,
+        /// A quick pass (one small mesh, DP batches of 1 and 4): checks the bench runs, not speed.
+        #[arg(long)]
+        quick: bool,
     },
     /// Pose refinement in simulation: cases whose oblique views' poses are off by --deg and
     /// --mm, reconstructed with and without the per-view pose refinement.
@@ -412,14 +415,19 @@ fn run(cli: Cli) -> Result<(), String> {
             json,
             study_runs,
             repeats,
+            quick,
         } => {
             let dev = GpuDevice::from_env().map_err(|e| format!("acetab bench: {e}"))?;
             let gpu = dev.engine().map_err(|e| e.to_string())?;
-            let prm = acetab::bench::BenchParams {
+            let mut prm = acetab::bench::BenchParams {
                 study_runs,
                 repeats,
                 ..Default::default()
             };
+            if quick {
+                prm.mesh_sizes = vec![500];
+                prm.dp_batches = vec![1, 4];
+            }
             let report = acetab::bench::run_bench(&gpu, &dev.describe(), &prm, &|s| {
                 if !json {
                     eprintln!("  measured {s}")

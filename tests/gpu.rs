@@ -356,3 +356,46 @@ fn the_batcher_merges_concurrent_requests_into_one_dispatch_with_exact_results()
         assert_ne!(swapped, alone);
     });
 }
+
+#[test]
+fn acetab_bench_prints_its_table_as_json() {
+    if device().is_none() {
+        return;
+    }
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_acetab"))
+        .args([
+            "bench",
+            "--json",
+            "--quick",
+            "--study-runs",
+            "2",
+            "--repeats",
+            "1",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let kernels: Vec<&str> = v["kernels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["kernel"].as_str().unwrap())
+        .collect();
+    for k in ["deform", "project", "silhouette", "srvf_dp"] {
+        assert!(kernels.contains(&k), "{k} missing from {kernels:?}");
+    }
+    for r in v["kernels"].as_array().unwrap() {
+        for f in ["cpu_ms", "gpu_ms", "ratio"] {
+            assert!(
+                r[f].as_f64().is_some_and(|x| x.is_finite() && x > 0.0),
+                "{r}"
+            );
+        }
+    }
+    let study = v["study"].as_array().unwrap();
+    assert_eq!(study.len(), 3, "cpu, gpu and batched gpu throughput");
+    assert!(study
+        .iter()
+        .all(|s| s["runs"] == 2 && s["runs_per_second"].as_f64().unwrap() > 0.0));
+}
