@@ -86,6 +86,13 @@ enum Command {
         /// Model contours from alpha shapes or rasterised silhouettes.
         #[arg(long, value_enum, default_value_t = ContourSource::AlphaShape)]
         contours: ContourSource,
+        /// ED energy weights w_rot, w_reg, w_obs (defaults: the published 1, 10, 100).
+        #[arg(long, default_value_t = 1.0)]
+        w_rot: f64,
+        #[arg(long, default_value_t = 10.0)]
+        w_reg: f64,
+        #[arg(long, default_value_t = 100.0)]
+        w_obs: f64,
         #[arg(long)]
         out: PathBuf,
     },
@@ -275,8 +282,16 @@ fn run(cli: Cli) -> Result<(), String> {
             shard,
             backend,
             contours,
+            w_rot,
+            w_reg,
+            w_obs,
             out,
         } => {
+            for (flag, w) in [("--w-rot", w_rot), ("--w-reg", w_reg), ("--w-obs", w_obs)] {
+                if !(w.is_finite() && w >= 0.0) {
+                    return Err(format!("{flag} {w}: must be a finite non-negative weight"));
+                }
+            }
             let cfg = StudyConfig {
                 levels: parse_list(&levels, "--levels", |x| {
                     x.parse::<u32>().ok().filter(|l| (1..=5).contains(l))
@@ -294,6 +309,12 @@ fn run(cli: Cli) -> Result<(), String> {
                 shard: parse_shard(&shard)?,
                 params: ReconParams {
                     contour_source: contours,
+                    weights: acetab::solve::EdWeights {
+                        rot: w_rot,
+                        reg: w_reg,
+                        obs: w_obs,
+                        ..Default::default()
+                    },
                     ..Default::default()
                 },
                 ..Default::default()
