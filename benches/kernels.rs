@@ -74,7 +74,7 @@ fn bench(c: &mut Criterion) {
             .collect()
     };
     let steps = coprime_steps(5);
-    for problems in [1usize, 16, 256] {
+    for problems in [1usize, 16, 256, 1024] {
         let qs: Vec<_> = (0..problems)
             .map(|k| {
                 (
