@@ -230,11 +230,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 ..Default::default()
             };
             let dev = open_device(backend)?;
-            let engine = dev
-                .as_ref()
-                .map(|d| d.engine())
-                .transpose()
-                .map_err(|e| e.to_string())?;
+            let engine = engine_on(&dev)?;
             let kernels = engine.as_ref().map_or(Kernels::Cpu, Kernels::Gpu);
             let (report, truth, rec) =
                 run_demo_with(seed, level, &prm, kernels).map_err(|e| e.to_string())?;
@@ -299,13 +295,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 runs,
                 methods: parse_list(&methods, "--methods", |x| Method::from_str(x, true).ok())?,
                 seed,
-                threads: threads
-                    .unwrap_or_else(|| {
-                        std::thread::available_parallelism()
-                            .map(|n| n.get())
-                            .unwrap_or(1)
-                    })
-                    .max(1),
+                threads: threads_or_all(threads),
                 shard: parse_shard(&shard)?,
                 params: ReconParams {
                     contour_source: contours,
@@ -338,11 +328,7 @@ fn run(cli: Cli) -> Result<(), String> {
             );
             let start = std::time::Instant::now();
             let dev = open_device(backend)?;
-            let engine = dev
-                .as_ref()
-                .map(|d| d.engine())
-                .transpose()
-                .map_err(|e| e.to_string())?;
+            let engine = engine_on(&dev)?;
             // On the GPU, runs in flight together share dispatches (one submit per kernel).
             let batcher = engine
                 .as_ref()
@@ -508,13 +494,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 level,
                 deg,
                 mm,
-                threads: threads
-                    .unwrap_or_else(|| {
-                        std::thread::available_parallelism()
-                            .map(|n| n.get())
-                            .unwrap_or(1)
-                    })
-                    .max(1),
+                threads: threads_or_all(threads),
                 ..Default::default()
             };
             let t = std::time::Instant::now();
@@ -584,11 +564,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 ..Default::default()
             };
             let dev = open_device(backend)?;
-            let engine = dev
-                .as_ref()
-                .map(|d| d.engine())
-                .transpose()
-                .map_err(|e| e.to_string())?;
+            let engine = engine_on(&dev)?;
             let kernels = engine.as_ref().map_or(Kernels::Cpu, Kernels::Gpu);
             let up = UncertaintyParams {
                 samples: uncertainty_samples as usize,
@@ -616,6 +592,25 @@ fn run(cli: Cli) -> Result<(), String> {
             Ok(())
         }
     }
+}
+
+/// The engine on the device, if any (its pipelines compile here).
+fn engine_on(dev: &Option<GpuDevice>) -> Result<Option<acetab::gpu::Gpu<'_>>, String> {
+    dev.as_ref()
+        .map(|d| d.engine())
+        .transpose()
+        .map_err(|e| e.to_string())
+}
+
+/// `--threads`, or every core.
+fn threads_or_all(threads: Option<usize>) -> usize {
+    threads
+        .unwrap_or_else(|| {
+            std::thread::available_parallelism()
+                .map(|n| n.get())
+                .unwrap_or(1)
+        })
+        .max(1)
 }
 
 fn parse_list<T>(s: &str, flag: &str, f: impl Fn(&str) -> Option<T>) -> Result<Vec<T>, String> {

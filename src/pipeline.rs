@@ -10,8 +10,8 @@ use crate::mesh::Mesh;
 use crate::report::{fit_sphere_robust, CupCatalogue, CupSize, Sphere, SphereFitError};
 use crate::solve::{
     apply_similarity, corrected_camera, levenberg_marquardt, DeformationGraph, EdProblem,
-    EdWeights, GraphParams, LmParams, Observation, PoseParams, PoseProblem, SimilarityProblem,
-    SolveError,
+    EdWeights, GraphParams, LmInfo, LmParams, Observation, PoseParams, PoseProblem,
+    SimilarityProblem, SolveError,
 };
 use crate::template::{spherical_cap, Placement};
 use crate::views::Camera;
@@ -270,24 +270,8 @@ pub fn reconstruct_with(
                 count: obs.len(),
             });
         }
-        let mut problem = SimilarityProblem::new(&mesh.vertices, cams, &obs);
-        problem.tangential = prm.weights.tangential;
-        let (x, info) = levenberg_marquardt(&problem, vec![0.0; 7], &sim_lm).map_err(|source| {
-            ReconError::Solve {
-                stage: "similarity",
-                source,
-            }
-        })?;
-        let moved = apply_similarity(&x, &problem.center, &mesh.vertices);
-        let shift = (moved
-            .iter()
-            .zip(&mesh.vertices)
-            .map(|(a, b)| (a - b).norm_squared())
-            .sum::<f64>()
-            / moved.len() as f64)
-            .sqrt();
-        mesh = mesh.with_vertices(moved);
-        check_finite(&mesh)?;
+        let (moved, shift, info) = similarity_step(&mesh, cams, &obs, prm, &sim_lm)?;
+        mesh = moved;
         log.similarity_rounds += 1;
         log.gn_iterations += info.iterations;
         if shift < prm.similarity_tol_mm {
@@ -327,25 +311,8 @@ pub fn reconstruct_with(
                 &mut cams_now,
             )?;
             log.gn_iterations += it;
-            let mut problem = SimilarityProblem::new(&mesh.vertices, &cams_now, &obs);
-            problem.tangential = prm.weights.tangential;
-            let (x, info) =
-                levenberg_marquardt(&problem, vec![0.0; 7], &sim_lm).map_err(|source| {
-                    ReconError::Solve {
-                        stage: "similarity",
-                        source,
-                    }
-                })?;
-            let moved = apply_similarity(&x, &problem.center, &mesh.vertices);
-            let shift = (moved
-                .iter()
-                .zip(&mesh.vertices)
-                .map(|(a, b)| (a - b).norm_squared())
-                .sum::<f64>()
-                / moved.len() as f64)
-                .sqrt();
-            mesh = mesh.with_vertices(moved);
-            check_finite(&mesh)?;
+            let (moved, shift, info) = similarity_step(&mesh, &cams_now, &obs, prm, &sim_lm)?;
+            mesh = moved;
             log.gn_iterations += info.iterations;
             let pose_step = before
                 .iter()
@@ -438,6 +405,34 @@ pub fn reconstruct_with(
         observations: obs,
         cameras: cams_now,
     })
+}
+
+/// One similarity solve on fixed correspondences: the moved mesh and its RMS shift (mm).
+fn similarity_step(
+    mesh: &Mesh,
+    cams: &[Camera],
+    obs: &[Observation],
+    prm: &ReconParams,
+    lm: &LmParams,
+) -> Result<(Mesh, f64, LmInfo), ReconError> {
+    let mut problem = SimilarityProblem::new(&mesh.vertices, cams, obs);
+    problem.tangential = prm.weights.tangential;
+    let (x, info) =
+        levenberg_marquardt(&problem, vec![0.0; 7], lm).map_err(|source| ReconError::Solve {
+            stage: "similarity",
+            source,
+        })?;
+    let moved = apply_similarity(&x, &problem.center, &mesh.vertices);
+    let shift = (moved
+        .iter()
+        .zip(&mesh.vertices)
+        .map(|(a, b)| (a - b).norm_squared())
+        .sum::<f64>()
+        / moved.len().max(1) as f64)
+        .sqrt();
+    let out = mesh.with_vertices(moved);
+    check_finite(&out)?;
+    Ok((out, shift, info))
 }
 
 /// One pose solve on fixed correspondences and shape; updates the corrections and the cameras.

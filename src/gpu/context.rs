@@ -156,6 +156,30 @@ impl<'a> Gpu<'a> {
         Ok(())
     }
 
+    /// One compute dispatch of `pipeline` with bind group 0, then read back `read`.
+    pub(crate) fn dispatch_and_read(
+        &self,
+        kernel: &'static str,
+        pipeline: &wgpu::ComputePipeline,
+        group: &wgpu::BindGroup,
+        groups: (u32, u32, u32),
+        read: &[(&wgpu::Buffer, u64)],
+    ) -> Result<Vec<Vec<u8>>, GpuError> {
+        self.submit_and_read(
+            kernel,
+            |enc| {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(kernel),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, group, &[]);
+                pass.dispatch_workgroups(groups.0, groups.1, groups.2);
+            },
+            read,
+        )
+    }
+
     /// Run `record` under a validation + out-of-memory error scope, submit, and read back
     /// `(buffer, bytes)` through the shared staging buffer.
     pub(crate) fn submit_and_read(

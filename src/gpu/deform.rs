@@ -93,17 +93,11 @@ impl Gpu<'_> {
             K,
             &[&u, &bufs[0], &bufs[1], &bufs[2], &bufs[3], &bufs[4], &out],
         );
-        let read = self.submit_and_read(
+        let read = self.dispatch_and_read(
             K,
-            |enc| {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some(K),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&self.deform.pipeline);
-                pass.set_bind_group(0, &group, &[]);
-                pass.dispatch_workgroups(gx, gy, 1);
-            },
+            &self.deform.pipeline,
+            &group,
+            (gx, gy, 1),
             &[(&out, out_bytes)],
         );
         pool.give(bufs);

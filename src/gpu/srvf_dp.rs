@@ -128,17 +128,11 @@ impl Gpu<'_> {
             K,
             &[&u, &ins[0], &ins[1], &ins[2], &ins[3], &cost, &back],
         );
-        let read = self.submit_and_read(
+        let read = self.dispatch_and_read(
             K,
-            |enc| {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some(K),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&self.srvf_dp.pipeline);
-                pass.set_bind_group(0, &group, &[]);
-                pass.dispatch_workgroups(b.problems, 1, 1);
-            },
+            &self.srvf_dp.pipeline,
+            &group,
+            (b.problems, 1, 1),
             &[(&cost, table_bytes), (&back, table_bytes)],
         );
         pool.give(ins);
