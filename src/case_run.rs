@@ -1,6 +1,7 @@
 //! `acetab reconstruct`: a case file in, the reconstruction, the cup report with its uncertainty
 //! and one overlay per view out. Everything is written into a staging folder beside the output
-//! and moved into place only when all of it succeeded, so a failed run leaves no files.
+//! and moved into place only when all of it succeeded (`fsutil::fill_dir_atomically`), so a
+//! failed run leaves no files.
 
 use crate::backend::Kernels;
 use crate::case::{CaseError, CaseFile};
@@ -71,63 +72,51 @@ pub fn run_case(
         cup_report(&rec, &rec.cameras, &case.observed, prm, kernels, up).map_err(recon_err)?;
     let seconds = t.elapsed().as_secs_f64();
 
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let stage = parent.join(format!(
-        ".{}.partial-{}",
-        out.file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "out".into()),
-        std::process::id()
-    ));
     let write_err = |p: &Path, source| CaseRunError::Write {
         path: p.to_path_buf(),
         source,
     };
-    let result = (|| -> Result<CaseRunReport, CaseRunError> {
-        std::fs::create_dir_all(&stage).map_err(|e| write_err(&stage, e))?;
-        let mut files = vec!["reconstruction.ply".to_string()];
-        write_ply(&rec.mesh, None, &stage.join("reconstruction.ply"))?;
-        for (k, cam) in case.cameras.iter().enumerate() {
-            let name = format!("overlay-{k}-{}.png", file_safe(&case.names[k]));
-            let observed: Vec<&[nalgebra::Point2<f64>]> =
-                case.observed[k].iter().map(|c| &c.points[..]).collect();
-            overlay(
-                (cam.width, cam.height),
-                case.images[k].as_deref(),
-                &rec.initial_contours[k].points,
-                &rec.final_contours[k].points,
-                &observed,
-                &stage.join(&name),
-            )?;
-            files.push(name);
-        }
-        files.push("cup.json".into());
-        files.push("report.json".into());
-        let report = CaseRunReport {
-            case: path.display().to_string(),
-            method: prm.method.name().into(),
-            backend: kernels.name().into(),
-            cup: cup.clone(),
-            sphere: rec.sphere,
-            log: rec.log.clone(),
-            seconds,
-            files: files.clone(),
-        };
-        let json = |v: &dyn erased::Ser| v.to_pretty();
-        std::fs::write(stage.join("cup.json"), json(&cup)).map_err(|e| write_err(&stage, e))?;
-        std::fs::write(stage.join("report.json"), json(&report))
-            .map_err(|e| write_err(&stage, e))?;
-        std::fs::create_dir_all(out).map_err(|e| write_err(out, e))?;
-        for f in &files {
-            std::fs::rename(stage.join(f), out.join(f)).map_err(|e| write_err(&out.join(f), e))?;
-        }
-        Ok(report)
-    })();
-    let _ = std::fs::remove_dir_all(&stage);
-    result
+    let mut report = None;
+    crate::fsutil::fill_dir_atomically(
+        out,
+        |stage| {
+            let mut files = vec!["reconstruction.ply".to_string()];
+            write_ply(&rec.mesh, None, &stage.join("reconstruction.ply"))?;
+            for (k, cam) in case.cameras.iter().enumerate() {
+                let name = format!("overlay-{k}-{}.png", file_safe(&case.names[k]));
+                let observed: Vec<&[nalgebra::Point2<f64>]> =
+                    case.observed[k].iter().map(|c| &c.points[..]).collect();
+                overlay(
+                    (cam.width, cam.height),
+                    case.images[k].as_deref(),
+                    &rec.initial_contours[k].points,
+                    &rec.final_contours[k].points,
+                    &observed,
+                    &stage.join(&name),
+                )?;
+                files.push(name);
+            }
+            files.push("cup.json".into());
+            files.push("report.json".into());
+            let r = CaseRunReport {
+                case: path.display().to_string(),
+                method: prm.method.name().into(),
+                backend: kernels.name().into(),
+                cup: cup.clone(),
+                sphere: rec.sphere,
+                log: rec.log.clone(),
+                seconds,
+                files,
+            };
+            let json = |v: &dyn erased::Ser| v.to_pretty();
+            std::fs::write(stage.join("cup.json"), json(&cup)).map_err(|e| write_err(stage, e))?;
+            std::fs::write(stage.join("report.json"), json(&r)).map_err(|e| write_err(stage, e))?;
+            report = Some(r);
+            Ok(())
+        },
+        write_err,
+    )?;
+    Ok(report.expect("set by the successful fill"))
 }
 
 mod erased {

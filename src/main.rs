@@ -6,7 +6,7 @@ use acetab::contours::read_curve_csv;
 use acetab::correspond::srvf::{align, aligned_b, CurveKind, SrvfParams};
 use acetab::correspond::Method;
 use acetab::demo::{run_demo_with, write_error_ply};
-use acetab::fsutil::write_atomic;
+use acetab::fsutil::fill_dir_atomically;
 use acetab::gpu::{GpuBatcher, GpuDevice};
 use acetab::mesh::io::read_mesh;
 use acetab::mesh::io::write_ply;
@@ -208,9 +208,9 @@ fn open_device(choice: BackendChoice) -> Result<Option<GpuDevice>, String> {
     }
 }
 
-fn create_dir(out: &Path) -> Result<(), String> {
-    std::fs::create_dir_all(out)
-        .map_err(|e| format!("{}: cannot create output folder: {e}", out.display()))
+/// An I/O error on an output path, for `fill_dir_atomically`.
+fn io_msg(p: &Path, e: std::io::Error) -> String {
+    format!("{}: cannot write: {e}", p.display())
 }
 
 fn run(cli: Cli) -> Result<(), String> {
@@ -235,12 +235,17 @@ fn run(cli: Cli) -> Result<(), String> {
             let (report, truth, rec) =
                 run_demo_with(seed, level, &prm, kernels).map_err(|e| e.to_string())?;
             let report_json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
-            create_dir(&out)?;
-            write_error_ply(&rec.mesh, &truth, &out.join("reconstruction.ply"))
-                .map_err(|e| e.to_string())?;
-            write_ply(&truth, None, &out.join("truth.ply")).map_err(|e| e.to_string())?;
-            write_atomic(&out.join("report.json"), report_json.as_bytes())
-                .map_err(|e| format!("{}: {e}", out.display()))?;
+            fill_dir_atomically(
+                &out,
+                |d| {
+                    write_error_ply(&rec.mesh, &truth, &d.join("reconstruction.ply"))
+                        .map_err(|e| e.to_string())?;
+                    write_ply(&truth, None, &d.join("truth.ply")).map_err(|e| e.to_string())?;
+                    std::fs::write(d.join("report.json"), report_json.as_bytes())
+                        .map_err(|e| format!("{}: {e}", d.display()))
+                },
+                io_msg,
+            )?;
             if json {
                 println!(
                     "{}",
@@ -347,9 +352,14 @@ fn run(cli: Cli) -> Result<(), String> {
                 "gt": gt, "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
                 "shard": shard, "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),
             });
-            create_dir(&out)?;
-            write_tables(&rows, &out, &meta).map_err(|e| e.to_string())?;
-            write_examples(&examples, &truth, &out).map_err(|e| e.to_string())?;
+            fill_dir_atomically(
+                &out,
+                |d| {
+                    write_tables(&rows, d, &meta).map_err(|e| e.to_string())?;
+                    write_examples(&examples, &truth, d).map_err(|e| e.to_string())
+                },
+                io_msg,
+            )?;
             eprintln!(
                 "{} runs in {:.1} s (seed {seed}); results in {}",
                 rows.len(),
@@ -411,9 +421,12 @@ fn run(cli: Cli) -> Result<(), String> {
         }
         Command::Merge { dirs, out } => {
             let rows = merge_dirs(&dirs).map_err(|e| e.to_string())?;
-            create_dir(&out)?;
             let meta = serde_json::json!({ "merged": dirs });
-            write_tables(&rows, &out, &meta).map_err(|e| e.to_string())?;
+            fill_dir_atomically(
+                &out,
+                |d| write_tables(&rows, d, &meta).map_err(|e| e.to_string()),
+                io_msg,
+            )?;
             eprintln!("{} runs merged into {}", rows.len(), out.display());
             print_summary(&rows);
             Ok(())
