@@ -8,6 +8,7 @@
 use acetab::case::CaseFile;
 use acetab::contours::Curve;
 use acetab::cpu::project::{project, ViewRows};
+use acetab::cpu::silhouette::for_each_covered;
 use acetab::simulate::{simulate_case, NoiseLevel};
 use acetab::template::{phantom, PhantomParams};
 use acetab::views::XrayGeometry;
@@ -18,44 +19,8 @@ use std::process::ExitCode;
 fn layers(proj: &[[f32; 4]], tris: &[[u32; 3]], w: usize, h: usize) -> Vec<f32> {
     let mut acc = vec![0f32; w * h];
     for t in tris {
-        let c: Vec<[f32; 2]> = t
-            .iter()
-            .map(|&i| [proj[i as usize][0], proj[i as usize][1]])
-            .collect();
-        let e = |a: [f32; 2], b: [f32; 2], p: [f32; 2]| {
-            (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
-        };
-        let area = e(c[0], c[1], c[2]);
-        if area.abs() < 1e-9 {
-            continue;
-        }
-        let x0 = c
-            .iter()
-            .map(|p| p[0])
-            .fold(f32::MAX, f32::min)
-            .floor()
-            .max(0.0) as usize;
-        let y0 = c
-            .iter()
-            .map(|p| p[1])
-            .fold(f32::MAX, f32::min)
-            .floor()
-            .max(0.0) as usize;
-        let x1 = (c.iter().map(|p| p[0]).fold(f32::MIN, f32::max).ceil() as usize).min(w);
-        let y1 = (c.iter().map(|p| p[1]).fold(f32::MIN, f32::max).ceil() as usize).min(h);
-        for y in y0..y1 {
-            for x in x0..x1 {
-                let p = [x as f32 + 0.5, y as f32 + 0.5];
-                let b = [
-                    e(c[1], c[2], p) / area,
-                    e(c[2], c[0], p) / area,
-                    e(c[0], c[1], p) / area,
-                ];
-                if b.iter().all(|&v| v >= 0.0) {
-                    acc[y * w + x] += 1.0;
-                }
-            }
-        }
+        let c = t.map(|i| [proj[i as usize][0], proj[i as usize][1]]);
+        for_each_covered(c, w, h, |x, y, _| acc[y * w + x] += 1.0);
     }
     acc
 }

@@ -67,23 +67,19 @@ impl Kernels<'_> {
         graph: &DeformationGraph,
         x: &[f64],
     ) -> Result<Vec<Point3<f64>>, KernelError> {
-        match self {
-            Kernels::Cpu => Ok(graph.deform(x)),
-            Kernels::Gpu(g) => {
-                let b = DeformBatch::from_graphs(&[(graph, x)]).map_err(|e| GpuError::Input {
-                    kernel: "deform",
-                    message: e.to_string(),
-                })?;
-                Ok(crate::cpu::deform::positions(&graph.rest, &g.deform(&b)?))
-            }
-            Kernels::Batched(g) => {
-                let b = DeformBatch::from_graphs(&[(graph, x)]).map_err(|e| GpuError::Input {
-                    kernel: "deform",
-                    message: e.to_string(),
-                })?;
-                Ok(crate::cpu::deform::positions(&graph.rest, &g.deform(b)?))
-            }
+        if let Kernels::Cpu = self {
+            return Ok(graph.deform(x));
         }
+        let b = DeformBatch::from_graphs(&[(graph, x)]).map_err(|e| GpuError::Input {
+            kernel: "deform",
+            message: e.to_string(),
+        })?;
+        let displacement = match self {
+            Kernels::Batched(g) => g.deform(b)?,
+            Kernels::Gpu(g) => g.deform(&b)?,
+            Kernels::Cpu => unreachable!("returned above"),
+        };
+        Ok(crate::cpu::deform::positions(&graph.rest, &displacement))
     }
 
     /// Projected vertices (u, v, depth, valid) per view, in f32 as the kernels produce them.

@@ -108,9 +108,10 @@ pub fn run_case(
                 seconds,
                 files,
             };
-            let json = |v: &dyn erased::Ser| v.to_pretty();
-            std::fs::write(stage.join("cup.json"), json(&cup)).map_err(|e| write_err(stage, e))?;
-            std::fs::write(stage.join("report.json"), json(&r)).map_err(|e| write_err(stage, e))?;
+            std::fs::write(stage.join("cup.json"), pretty(&cup))
+                .map_err(|e| write_err(stage, e))?;
+            std::fs::write(stage.join("report.json"), pretty(&r))
+                .map_err(|e| write_err(stage, e))?;
             report = Some(r);
             Ok(())
         },
@@ -119,14 +120,7 @@ pub fn run_case(
     Ok(report.expect("set by the successful fill"))
 }
 
-mod erased {
-    /// Pretty JSON of any serialisable value (the two reports).
-    pub trait Ser {
-        fn to_pretty(&self) -> String;
-    }
-    impl<T: serde::Serialize> Ser for T {
-        fn to_pretty(&self) -> String {
-            serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
-        }
-    }
+/// Pretty JSON of a report (the two report types serialise infallibly: plain fields).
+fn pretty<T: serde::Serialize>(v: &T) -> String {
+    serde_json::to_string_pretty(v).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
 }

@@ -244,7 +244,6 @@ pub fn reconstruct_with(
     ));
     let mut mesh = initial.clone();
     let mut log = SolveLog::default();
-    let min_corr = 12;
 
     // Stage A: similarity, correspondences recomputed each round.
     let sim_lm = LmParams {
@@ -257,18 +256,9 @@ pub fn reconstruct_with(
         on_rim[b as usize] = true;
     }
     for _ in 0..prm.similarity_rounds {
-        let mut obs = all_correspondences(&mesh, cams, observed, prm, kernels)?;
-        if prm.robust {
-            robust_weights(&mesh, cams, &mut obs);
-        }
+        let mut obs = weighted_correspondences(&mesh, cams, observed, prm, kernels, "similarity")?;
         for o in obs.iter_mut().filter(|o| on_rim[o.vertex as usize]) {
             o.weight *= prm.similarity_rim_weight;
-        }
-        if obs.len() < min_corr {
-            return Err(ReconError::TooFewCorrespondences {
-                stage: "similarity",
-                count: obs.len(),
-            });
         }
         let (moved, shift, info) = similarity_step(&mesh, cams, &obs, prm, &sim_lm)?;
         mesh = moved;
@@ -286,18 +276,16 @@ pub fn reconstruct_with(
     let mut cams_now: Vec<Camera> = cams.to_vec();
     if let Some(pp) = &prm.pose {
         for _ in 0..prm.similarity_rounds {
-            let mut obs = all_correspondences(&mesh, &cams_now, observed, prm, kernels)?;
-            if prm.robust {
-                robust_weights(&mesh, &cams_now, &mut obs);
-            }
+            let mut obs = weighted_correspondences(
+                &mesh,
+                &cams_now,
+                observed,
+                prm,
+                kernels,
+                "pose refinement",
+            )?;
             for o in obs.iter_mut().filter(|o| on_rim[o.vertex as usize]) {
                 o.weight *= prm.similarity_rim_weight;
-            }
-            if obs.len() < min_corr {
-                return Err(ReconError::TooFewCorrespondences {
-                    stage: "pose refinement",
-                    count: obs.len(),
-                });
             }
             let before = pose_x.clone();
             let it = refine_poses(
@@ -339,16 +327,7 @@ pub fn reconstruct_with(
     let mut obs = Vec::new();
     let mut converged = true;
     for _ in 0..rounds {
-        obs = all_correspondences(&mesh, &cams_now, observed, prm, kernels)?;
-        if prm.robust {
-            robust_weights(&mesh, &cams_now, &mut obs);
-        }
-        if obs.len() < min_corr {
-            return Err(ReconError::TooFewCorrespondences {
-                stage: "deformation",
-                count: obs.len(),
-            });
-        }
+        obs = weighted_correspondences(&mesh, &cams_now, observed, prm, kernels, "deformation")?;
         if let Some(pp) = &prm.pose {
             // The views' corrections first, on these correspondences and the current shape;
             // then the shape with the corrected views: both lower the one joint energy.
@@ -363,16 +342,8 @@ pub fn reconstruct_with(
                 &mut cams_now,
             )?;
         }
-        let graph = DeformationGraph::new(&mesh, &prm.graph);
-        let problem = EdProblem::new(&graph, &cams_now, &obs, prm.weights.clone());
-        let (x, info) = levenberg_marquardt(&problem, graph.identity(), &lm).map_err(|source| {
-            ReconError::Solve {
-                stage: "deformation",
-                source,
-            }
-        })?;
-        mesh = mesh.with_vertices(kernels.deform(&graph, &x)?);
-        check_finite(&mesh)?;
+        let (deformed, info) = ed_solve(&mesh, &cams_now, &obs, prm, &lm, kernels, "deformation")?;
+        mesh = deformed;
         log.correspondence_updates += 1;
         log.gn_iterations += info.iterations;
         converged = info.converged || prm.method != Method::Srvf;
@@ -405,6 +376,50 @@ pub fn reconstruct_with(
         observations: obs,
         cameras: cams_now,
     })
+}
+
+/// Fewest correspondences a solve accepts.
+const MIN_CORRESPONDENCES: usize = 12;
+
+/// Correspondences in every view with their robust weights; too few is an error of `stage`.
+fn weighted_correspondences(
+    mesh: &Mesh,
+    cams: &[Camera],
+    observed: &[Vec<Curve>],
+    prm: &ReconParams,
+    kernels: Kernels,
+    stage: &'static str,
+) -> Result<Vec<Observation>, ReconError> {
+    let mut obs = all_correspondences(mesh, cams, observed, prm, kernels)?;
+    if prm.robust {
+        robust_weights(mesh, cams, &mut obs);
+    }
+    if obs.len() < MIN_CORRESPONDENCES {
+        return Err(ReconError::TooFewCorrespondences {
+            stage,
+            count: obs.len(),
+        });
+    }
+    Ok(obs)
+}
+
+/// One ED solve on fixed correspondences, the graph built on `mesh`: the deformed mesh.
+fn ed_solve(
+    mesh: &Mesh,
+    cams: &[Camera],
+    obs: &[Observation],
+    prm: &ReconParams,
+    lm: &LmParams,
+    kernels: Kernels,
+    stage: &'static str,
+) -> Result<(Mesh, LmInfo), ReconError> {
+    let graph = DeformationGraph::new(mesh, &prm.graph);
+    let problem = EdProblem::new(&graph, cams, obs, prm.weights.clone());
+    let (x, info) = levenberg_marquardt(&problem, graph.identity(), lm)
+        .map_err(|source| ReconError::Solve { stage, source })?;
+    let out = mesh.with_vertices(kernels.deform(&graph, &x)?);
+    check_finite(&out)?;
+    Ok((out, info))
 }
 
 /// One similarity solve on fixed correspondences: the moved mesh and its RMS shift (mm).
@@ -490,28 +505,9 @@ pub fn resolve_from(
     kernels: Kernels,
     reweight: &mut dyn FnMut(usize) -> f64,
 ) -> Result<Mesh, ReconError> {
-    let mut obs = all_correspondences(mesh, cams, observed, prm, kernels)?;
-    if prm.robust {
-        robust_weights(mesh, cams, &mut obs);
-    }
+    let mut obs = weighted_correspondences(mesh, cams, observed, prm, kernels, "resampling")?;
     for (k, o) in obs.iter_mut().enumerate() {
         o.weight *= reweight(k);
     }
-    if obs.len() < 12 {
-        return Err(ReconError::TooFewCorrespondences {
-            stage: "resampling",
-            count: obs.len(),
-        });
-    }
-    let graph = DeformationGraph::new(mesh, &prm.graph);
-    let problem = EdProblem::new(&graph, cams, &obs, prm.weights.clone());
-    let (x, _) = levenberg_marquardt(&problem, graph.identity(), &prm.lm).map_err(|source| {
-        ReconError::Solve {
-            stage: "resampling",
-            source,
-        }
-    })?;
-    let out = mesh.with_vertices(kernels.deform(&graph, &x)?);
-    check_finite(&out)?;
-    Ok(out)
+    Ok(ed_solve(mesh, cams, &obs, prm, &prm.lm, kernels, "resampling")?.0)
 }

@@ -190,8 +190,8 @@ pub fn perturb_poses(
 ) -> Vec<Camera> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x9E37_79B9_7F4A_7C15);
     let unit = |rng: &mut rand_chacha::ChaCha8Rng| loop {
-        let n = Normal::new(0.0, 1.0).expect("unit normal");
-        let v = Vector3::new(n.sample(rng), n.sample(rng), n.sample(rng));
+        let mut n = || -> f64 { rand_distr::StandardNormal.sample(rng) };
+        let v = Vector3::new(n(), n(), n());
         if v.norm() > 1e-6 {
             break v.normalize();
         }

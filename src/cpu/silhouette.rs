@@ -56,6 +56,48 @@ fn edge(a: [f32; 2], b: [f32; 2], p: [f32; 2]) -> f32 {
     (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
 }
 
+/// Every cell (x, y) of a `w` x `h` grid whose centre (x + 0.5, y + 0.5) lies inside triangle
+/// `c` (either winding; edges included), with its barycentric weights. Degenerate or non-finite
+/// triangles cover nothing.
+pub fn for_each_covered(
+    c: [[f32; 2]; 3],
+    w: usize,
+    h: usize,
+    mut f: impl FnMut(usize, usize, [f32; 3]),
+) {
+    let area = edge(c[0], c[1], c[2]);
+    if area == 0.0 || !area.is_finite() {
+        return;
+    }
+    let lo = |k: usize| {
+        c.iter()
+            .map(|p| p[k])
+            .fold(f32::INFINITY, f32::min)
+            .floor()
+            .max(0.0) as usize
+    };
+    let hi = |k: usize, n: usize| {
+        (c.iter()
+            .map(|p| p[k])
+            .fold(f32::NEG_INFINITY, f32::max)
+            .ceil() as usize)
+            .min(n)
+    };
+    for y in lo(1)..hi(1, h) {
+        for x in lo(0)..hi(0, w) {
+            let p = [x as f32 + 0.5, y as f32 + 0.5];
+            let b = [
+                edge(c[1], c[2], p) / area,
+                edge(c[2], c[0], p) / area,
+                edge(c[0], c[1], p) / area,
+            ];
+            if b.iter().all(|&v| v >= 0.0) {
+                f(x, y, b);
+            }
+        }
+    }
+}
+
 /// The render pass on the CPU: every triangle in order, texel centres inside it (either winding)
 /// take 1 + the id of the corner with the largest barycentric weight (first corner on ties);
 /// later triangles overwrite earlier ones, as the GPU's primitive order does. Texel coverage
@@ -73,54 +115,17 @@ pub fn rasterise(projected: &[[f32; 4]], triangles: &[u32], w: &Window) -> Vec<u
         else {
             continue;
         };
-        let area = edge(c[0], c[1], c[2]);
-        if area == 0.0 || !area.is_finite() {
-            continue;
-        }
-        let xmin = c
-            .iter()
-            .map(|p| p[0])
-            .fold(f32::INFINITY, f32::min)
-            .floor()
-            .max(0.0) as usize;
-        let ymin = c
-            .iter()
-            .map(|p| p[1])
-            .fold(f32::INFINITY, f32::min)
-            .floor()
-            .max(0.0) as usize;
-        let xmax = (c
-            .iter()
-            .map(|p| p[0])
-            .fold(f32::NEG_INFINITY, f32::max)
-            .ceil() as usize)
-            .min(n);
-        let ymax = (c
-            .iter()
-            .map(|p| p[1])
-            .fold(f32::NEG_INFINITY, f32::max)
-            .ceil() as usize)
-            .min(n);
-        for y in ymin..ymax {
-            for x in xmin..xmax {
-                let p = [x as f32 + 0.5, y as f32 + 0.5];
-                let b = [
-                    edge(c[1], c[2], p) / area,
-                    edge(c[2], c[0], p) / area,
-                    edge(c[0], c[1], p) / area,
-                ];
-                if b.iter().all(|&v| v >= 0.0) {
-                    let mut k = 0;
-                    if b[1] > b[k] {
-                        k = 1;
-                    }
-                    if b[2] > b[k] {
-                        k = 2;
-                    }
-                    ids[y * n + x] = t[k] + 1;
-                }
+        let c = [c[0], c[1], c[2]];
+        for_each_covered(c, n, n, |x, y, b| {
+            let mut k = 0;
+            if b[1] > b[k] {
+                k = 1;
             }
-        }
+            if b[2] > b[k] {
+                k = 2;
+            }
+            ids[y * n + x] = t[k] + 1;
+        });
     }
     ids
 }

@@ -2,7 +2,7 @@
 //! with the kernel's loop structure and operation order, so that the back-pointers agree with
 //! the GPU's exactly. The traceback (shared with the f64 engine) turns them into warps.
 
-use crate::correspond::srvf::{traceback, warp_from_path, Warp};
+use crate::correspond::srvf::{prepare_steps, traceback, warp_from_path, Warp};
 use nalgebra::Vector2;
 
 /// Cost of a cell no path reaches (the kernel's UNREACHED).
@@ -96,20 +96,18 @@ impl DpBatch {
             b.q1.extend(q1.iter().map(|v| [v.x as f32, v.y as f32]));
             b.q2.extend(q2.iter().map(|v| [v.x as f32, v.y as f32]));
         }
-        for &(a, bb) in steps {
+        for st in prepare_steps(steps) {
             b.steps.push(StepEntry {
-                a: a as u32,
-                b: bb as u32,
-                sqrt_slope: (bb as f64 / a as f64).sqrt() as f32,
+                a: st.a as u32,
+                b: st.b as u32,
+                sqrt_slope: st.sqrt_slope as f32,
                 tap_start: b.taps.len() as u32,
             });
-            for r in 0..a {
-                let off = r * bb / a;
-                b.taps.push(TapEntry {
-                    offset: off as u32,
-                    frac: ((r * bb) as f64 / a as f64 - off as f64) as f32,
-                });
-            }
+            b.taps
+                .extend(st.taps.iter().map(|&(offset, frac)| TapEntry {
+                    offset: offset as u32,
+                    frac: frac as f32,
+                }));
         }
         Ok(b)
     }

@@ -108,6 +108,15 @@ pub(crate) fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
+/// The layout every single-group kernel uses: the uniform at binding 0, then `read` read-only
+/// storage buffers, then `write` writable ones (keep in the shaders' binding order).
+pub(crate) fn kernel_entries(read: u32, write: u32) -> Vec<wgpu::BindGroupLayoutEntry> {
+    std::iter::once(uniform_entry(0))
+        .chain((1..=read).map(|b| storage(b, true)))
+        .chain((read + 1..=read + write).map(|b| storage(b, false)))
+        .collect()
+}
+
 /// A compute pipeline for `entry` of the named shader with one bind group of `entries`.
 pub(crate) fn compute_pipeline(
     device: &wgpu::Device,

@@ -1,7 +1,7 @@
 //! GPU module of `shaders/deform.wgsl` (CPU twin: `crate::cpu::deform`).
 
 use super::buffers::{
-    bind, bytes_of, compute_pipeline, fill, storage, uniform, uniform_entry, SENTINEL_F32,
+    bind, bytes_of, compute_pipeline, fill, kernel_entries, uniform, SENTINEL_F32,
 };
 use super::{Gpu, GpuError};
 use crate::cpu::deform::DeformBatch;
@@ -23,15 +23,7 @@ pub(crate) struct DeformKernel {
 
 impl DeformKernel {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
-        let entries = [
-            uniform_entry(0),
-            storage(1, true),
-            storage(2, true),
-            storage(3, true),
-            storage(4, true),
-            storage(5, true),
-            storage(6, false),
-        ];
+        let entries = kernel_entries(5, 1);
         let (pipeline, layout) = compute_pipeline(device, "deform", "main", &entries);
         DeformKernel { pipeline, layout }
     }

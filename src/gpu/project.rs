@@ -1,7 +1,7 @@
 //! GPU module of `shaders/project.wgsl` (CPU twin: `crate::cpu::project`).
 
 use super::buffers::{
-    bind, bytes_of, compute_pipeline, fill, storage, uniform, uniform_entry, SENTINEL_F32,
+    bind, bytes_of, compute_pipeline, fill, kernel_entries, uniform, SENTINEL_F32,
 };
 use super::{Gpu, GpuError};
 use crate::cpu::project::ViewRows;
@@ -44,12 +44,7 @@ pub(crate) struct ProjectKernel {
 
 impl ProjectKernel {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
-        let entries = [
-            uniform_entry(0),
-            storage(1, true),
-            storage(2, true),
-            storage(3, false),
-        ];
+        let entries = kernel_entries(2, 1);
         let (pipeline, layout) = compute_pipeline(device, "project", "main", &entries);
         ProjectKernel { pipeline, layout }
     }

@@ -2,7 +2,7 @@
 //! draws the projected mesh into an R32Uint id texture, then the `edges` compute pass marks the
 //! silhouette texels with their vertex ids; the host traces them into an ordered loop.
 
-use super::buffers::{bytes_of, fill, storage, uniform, uniform_entry, SENTINEL_U32};
+use super::buffers::{bind, bytes_of, fill, storage, uniform, uniform_entry, SENTINEL_U32};
 use super::{Gpu, GpuError};
 use crate::cpu::project::ViewRows;
 use crate::cpu::silhouette::{trace, Window};
@@ -161,12 +161,24 @@ impl Gpu<'_> {
         view: &ViewRows,
         size: u32,
     ) -> Result<Silhouette, GpuError> {
-        let projected = self.project(vertices, vertices.len(), std::slice::from_ref(view))?;
-        let window = Window::around(&projected, size).ok_or(GpuError::Input {
+        let empty = GpuError::Input {
             kernel: "silhouette",
             message: "no vertex lies in front of the source".into(),
-        })?;
-        self.silhouette_of_projected(&projected, triangles, &window)
+        };
+        // The projections stay on the device for the raster pass; they are read back once, for
+        // the window around them.
+        let (buf, bytes) = self
+            .project_to_buffer(vertices, vertices.len(), std::slice::from_ref(view))?
+            .ok_or(empty.clone())?;
+        let result = self
+            .submit_and_read("project", |_| {}, &[(&buf, bytes)])
+            .and_then(|read| {
+                let projected: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&read[0]);
+                let window = Window::around(&projected, size).ok_or(empty)?;
+                self.silhouette_from_buffer(&buf, projected.len(), triangles, &window)
+            });
+        self.pool.give([buf]);
+        result
     }
 
     fn silhouette_from_buffer(
@@ -241,24 +253,12 @@ impl Gpu<'_> {
             (row_bytes * n) as u64,
             wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
         );
-        let raster_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("silhouette raster"),
-            layout: &self.silhouette.raster_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: u.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: projected.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: tb.as_entire_binding(),
-                },
-            ],
-        });
+        let raster_group = bind(
+            d,
+            &self.silhouette.raster_layout,
+            "silhouette raster",
+            &[&u, projected, &tb],
+        );
         let edges_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("silhouette edges"),
             layout: &self.silhouette.edges_layout,

@@ -2,8 +2,7 @@
 //! workgroup, filled by anti-diagonals; back-pointers come back and are traced on the host.
 
 use super::buffers::{
-    bind, bytes_of, compute_pipeline, fill, storage, uniform, uniform_entry, SENTINEL_F32,
-    SENTINEL_U32,
+    bind, bytes_of, compute_pipeline, fill, kernel_entries, uniform, SENTINEL_F32, SENTINEL_U32,
 };
 use super::{Gpu, GpuError};
 use crate::correspond::srvf::Warp;
@@ -65,15 +64,7 @@ pub(crate) struct SrvfDpKernel {
 
 impl SrvfDpKernel {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
-        let entries = [
-            uniform_entry(0),
-            storage(1, true),
-            storage(2, true),
-            storage(3, true),
-            storage(4, true),
-            storage(5, false),
-            storage(6, false),
-        ];
+        let entries = kernel_entries(4, 2);
         let (pipeline, layout) = compute_pipeline(device, "srvf_dp", "main", &entries);
         SrvfDpKernel { pipeline, layout }
     }

@@ -197,45 +197,34 @@ pub fn align_closed(
     }
     let q1g = closed_grid(&q1, 0);
     let mut best: Option<(f64, usize, f64, Warp)> = None;
-    let refine = |s: usize, best: &mut Option<(f64, usize, f64, Warp)>, near: bool| {
-        // A neighbouring seed shifts the optimal path by one cell: search near the best one.
-        let hint = if near {
-            best.as_ref().map(|b| b.3.path.clone())
-        } else {
-            None
-        };
-        let (theta, w) = rotate_and_warp(
-            &q1g,
-            &closed_grid(&q2, s),
-            energies[s].1,
-            prm,
-            &steps,
-            hint.as_deref(),
-        );
-        if best.as_ref().is_none_or(|b| w.energy < b.0) {
-            *best = Some((w.energy, s, theta, w));
-        }
-    };
-    if exhaustive {
-        let exact = SrvfParams {
-            band: 0,
-            ..prm.clone()
-        };
-        let refine = |s: usize, best: &mut Option<(f64, usize, f64, Warp)>| {
+    // Refine seed s with full DP (under `p`); `near`: search a band around the best path so far,
+    // since a neighbouring seed shifts the optimal path by one cell.
+    let refine =
+        |s: usize, best: &mut Option<(f64, usize, f64, Warp)>, near: bool, p: &SrvfParams| {
+            let hint = if near {
+                best.as_ref().map(|b| b.3.path.clone())
+            } else {
+                None
+            };
             let (theta, w) = rotate_and_warp(
                 &q1g,
                 &closed_grid(&q2, s),
                 energies[s].1,
-                &exact,
+                p,
                 &steps,
-                None,
+                hint.as_deref(),
             );
             if best.as_ref().is_none_or(|b| w.energy < b.0) {
                 *best = Some((w.energy, s, theta, w));
             }
         };
+    if exhaustive {
+        let exact = SrvfParams {
+            band: 0,
+            ..prm.clone()
+        };
         for s in order {
-            refine(s, &mut best);
+            refine(s, &mut best, false, &exact);
         }
     } else {
         // Coarse to fine: rank the candidate seeds by a DP at <= 48 samples, then refine the two
@@ -258,14 +247,14 @@ pub fn align_closed(
             .collect();
         ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
         for &(_, s) in ranked.iter().take(2) {
-            refine(s, &mut best, false);
+            refine(s, &mut best, false, prm);
         }
         // The candidates are kept apart, so walk the seed one sample at a time while it helps.
         for dir in [1usize, t - 1] {
             loop {
                 let current = best.as_ref().map(|b| (b.0, b.1)).expect("refined above");
                 let s = (current.1 + dir) % t;
-                refine(s, &mut best, true);
+                refine(s, &mut best, true, prm);
                 if best.as_ref().map(|b| b.1) != Some(s) {
                     break;
                 }

@@ -80,14 +80,15 @@ pub fn dp_warp(q1: &[Vector2<f64>], q2: &[Vector2<f64>], steps: &[(usize, usize)
 
 /// One coprime step (a, b) prepared for the inner loop: sqrt of its slope and, for each of the
 /// `a` samples it covers, the integer offset into q2 and the interpolation fraction.
-struct PreparedStep {
-    a: usize,
-    b: usize,
-    sqrt_slope: f64,
-    taps: Vec<(usize, f64)>,
+/// Shared by the f64 DP here and the f32 tables of the GPU kernel and its twin.
+pub(crate) struct PreparedStep {
+    pub a: usize,
+    pub b: usize,
+    pub sqrt_slope: f64,
+    pub taps: Vec<(usize, f64)>,
 }
 
-fn prepare(steps: &[(usize, usize)]) -> Vec<PreparedStep> {
+pub(crate) fn prepare(steps: &[(usize, usize)]) -> Vec<PreparedStep> {
     steps
         .iter()
         .map(|&(a, b)| PreparedStep {
