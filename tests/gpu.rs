@@ -284,6 +284,30 @@ fn whole_reconstruction_on_the_gpu_matches_the_cpu() {
         eprintln!("MAE cpu {a:.4} gpu {b:.4} mm");
         assert!((a - b).abs() < 0.05, "MAE cpu {a} gpu {b}");
         assert!((cpu.sphere.diameter() - gpu_r.sphere.diameter()).abs() < 0.1);
+        // Companion: a result 1 mm off everywhere must fail the same 0.05 mm bar.
+        let shifted = gpu_r.mesh.transformed(
+            1.0,
+            &nalgebra::Rotation3::identity(),
+            &nalgebra::Vector3::new(1.0, 0.0, 0.0),
+        );
+        let c = accuracy(&truth, &shifted).mae_mm;
+        assert!((a - c).abs() >= 0.05, "a shifted mesh passed: {a} vs {c}");
+        // Stricter than the MAE bar (which a 0.3 mm shift slips under): vertex by
+        // vertex, the GPU result is the CPU's within 1e-3 mm; the shifted mesh is not.
+        let worst = |m: &acetab::mesh::Mesh| {
+            cpu.mesh
+                .vertices
+                .iter()
+                .zip(&m.vertices)
+                .map(|(p, q)| (p - q).norm())
+                .fold(0.0, f64::max)
+        };
+        assert!(
+            worst(&gpu_r.mesh) < 1e-3,
+            "vertices differ by {} mm",
+            worst(&gpu_r.mesh)
+        );
+        assert!(worst(&shifted) >= 1e-3);
     });
 }
 
@@ -316,6 +340,9 @@ fn study_runs_batched_on_the_gpu_match_the_cpu() {
             );
             assert!((c.mae_mm - s.mae_mm).abs() < 0.05 && (s.mae_mm - b.mae_mm).abs() < 1e-12);
         }
+        // Companion: the batched-vs-single check (1e-12) rejects a result 1e-9 mm away.
+        let nudged = batched[0].mae_mm + 1e-9;
+        assert!((single[0].mae_mm - nudged).abs() >= 1e-12);
     });
 }
 
