@@ -25,8 +25,17 @@ pub struct Accuracy {
 
 /// Truth -> reconstruction distances.
 pub fn accuracy(truth: &Mesh, recon: &Mesh) -> Accuracy {
-    let pts = surface_samples(truth, 20_000, 0);
-    let s = DistanceStats::from(&surface_distance(&pts, recon));
+    accuracy_from(&accuracy_samples(truth), recon)
+}
+
+/// The points on the truth that `accuracy` measures from (20,000, evenly spread, seed 0).
+pub fn accuracy_samples(truth: &Mesh) -> Vec<nalgebra::Point3<f64>> {
+    surface_samples(truth, 20_000, 0)
+}
+
+/// `accuracy` from samples drawn once by `accuracy_samples`.
+pub fn accuracy_from(samples: &[nalgebra::Point3<f64>], recon: &Mesh) -> Accuracy {
+    let s = DistanceStats::from(&surface_distance(samples, recon));
     Accuracy {
         mae_mm: s.mean,
         sd_mm: s.sd,

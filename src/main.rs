@@ -649,12 +649,21 @@ fn parse_shard(s: &str) -> Result<(usize, usize), String> {
 
 fn print_summary(rows: &[acetab::study::Row]) {
     println!(
-        "{:<12} {:>5} {:>5} {:>9} {:>9} {:>11} {:>9} {:>9}",
-        "method", "level", "runs", "MAE mm", "SD", "cup err mm", "|cup|<=1", "median s"
+        "{:<12} {:>5} {:>5} {:>9} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9}",
+        "method",
+        "level",
+        "runs",
+        "MAE mm",
+        "SD",
+        "cup err mm",
+        "|cup|<=1",
+        "surface",
+        "limb",
+        "median s"
     );
     for s in summarize(rows) {
         println!(
-            "{:<12} {:>5} {:>5} {:>9.3} {:>9.3} {:>+11.2} {:>6}/{:<2} {:>9.2}",
+            "{:<12} {:>5} {:>5} {:>9.3} {:>9.3} {:>+11.2} {:>6}/{:<2} {:>6}/{:<2} {:>6}/{:<2} {:>9.2}",
             s.method.name(),
             s.level,
             s.runs,
@@ -662,6 +671,10 @@ fn print_summary(rows: &[acetab::study::Row]) {
             s.mae_sd,
             s.cup_error_mean,
             s.cup_within_1mm,
+            s.runs,
+            s.surface_fit_within_1mm,
+            s.runs,
+            s.limb_within_1mm,
             s.runs,
             s.median_seconds
         );

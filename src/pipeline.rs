@@ -1,6 +1,8 @@
-//! The whole method, stage after stage: place the template, then alternate model contours ->
-//! correspondences -> solve, first for a similarity, then for the deformation graph, and fit the
-//! cup sphere to the result.
+//! The whole method, stage after stage: place the template on the sphere the outlines' limbs
+//! define (stage 0), then alternate model contours -> correspondences -> solve, first turning the
+//! cap about that sphere's centre (stage A; the full similarity when there is no limb sphere),
+//! then for the deformation graph with its sphere prior (stage B), and fit the cup sphere to the
+//! observed part of the result.
 
 use crate::backend::{ContourSource, KernelError, Kernels};
 use crate::contours::{Curve, ModelContour};
@@ -13,6 +15,7 @@ use crate::solve::{
     EdWeights, GraphParams, LmInfo, LmParams, Observation, PoseParams, PoseProblem,
     SimilarityProblem, SolveError,
 };
+use crate::solve::{limb_sphere, Problem, SpherePrior};
 use crate::template::{spherical_cap, Placement};
 use crate::views::Camera;
 use nalgebra::{Point3, Vector3};
@@ -29,8 +32,9 @@ pub struct ReconParams {
     pub graph: GraphParams,
     pub weights: EdWeights,
     pub lm: LmParams,
-    /// Similarity stage: correspondence rounds at most (default 15); stops when a round moves
-    /// the template by less than `similarity_tol_mm` (default 0.05 mm RMS).
+    /// Similarity stage: correspondence rounds at most (default 10); stops when a round moves
+    /// the cap by less than `similarity_tol_mm` (default 0.5 mm: centre shift + radius change +
+    /// axis turn times the radius).
     pub similarity_rounds: usize,
     pub similarity_tol_mm: f64,
     /// ED stage for SRVF: correspondence computations (default 3; each followed by GN until the
@@ -39,17 +43,47 @@ pub struct ReconParams {
     /// ED stage for the ICP baselines: correspondences recomputed every GN iteration, this many
     /// times at most (default 20).
     pub icp_iterations: usize,
+    /// ... or until an iteration moves the surface by less than this RMS (default 0.02 mm).
+    pub icp_tol_mm: f64,
     pub catalogue: CupCatalogue,
     /// Cauchy robust weights on the reprojection residuals (default on).
     pub robust: bool,
     /// Weight of correspondences on the template's rim during the similarity stage (default
     /// 0.1). A real acetabulum is shallower than a hemisphere and notched, so its rim outline is
-    /// not the hemisphere's; the dome's silhouette (a sphere's limb) fixes centre and size.
+    /// not the hemisphere's; the dome's silhouette is. With the rim at full weight the cap's axis
+    /// settles sooner but follows the rim into wrong orientations from poor starts: on m1_lhip
+    /// and m4_rhip at levels 3-4 (20 runs each), 4 and 2 runs ended over 1.5 mm MAE with weight
+    /// 1, 8 and 1 with 0.3, none with 0.1.
     pub similarity_rim_weight: f64,
     /// Model contours from alpha shapes (default) or rasterised silhouettes.
     pub contour_source: ContourSource,
     /// Refine per-view pose corrections with the deformation (default off).
     pub pose: Option<PoseParams>,
+    /// Stage 0: place the template on the sphere fitted to the outlines' limbs (default on);
+    /// the start's axis is kept. See `solve::limb_sphere`.
+    pub limb_start: bool,
+    /// Noise floor of the limb fit, mm at the object (default 0.5).
+    pub limb_scale_mm: f64,
+    /// Similarity stage turns the template about its sphere centre only (default on with
+    /// `limb_start`): the limb fit has fixed centre and size.
+    pub similarity_rotation_only: bool,
+    /// With the sphere known, also start from the axis mirrored through the first view's image
+    /// plane and keep the better of the two (default on).
+    pub mirrored_start: bool,
+    /// Weight per vertex of the sphere prior in the deformation (0 = off; see
+    /// `solve::SpherePrior`).
+    pub sphere_prior: f64,
+    /// About this many vertices (every k-th) carry the sphere prior, weighted k-fold
+    /// (default 600).
+    pub sphere_prior_vertices: usize,
+    /// Weight of correspondences on the template's rim during the deformation (default 1).
+    pub deformation_rim_weight: f64,
+    /// SRVF samples per curve during the similarity stage (default 100; the deformation uses
+    /// `correspond.srvf.samples`).
+    pub similarity_srvf_samples: usize,
+    /// Closed-curve seeds refined by full DP during the similarity stage (default 2; see
+    /// `SrvfParams::seed_candidates`).
+    pub similarity_seed_candidates: usize,
 }
 
 impl Default for ReconParams {
@@ -62,15 +96,25 @@ impl Default for ReconParams {
             graph: GraphParams::default(),
             weights: EdWeights::default(),
             lm: LmParams::default(),
-            similarity_rounds: 15,
-            similarity_tol_mm: 0.05,
+            similarity_rounds: 10,
+            similarity_tol_mm: 0.5,
             correspondence_updates: 3,
             icp_iterations: 20,
+            icp_tol_mm: 0.02,
             catalogue: CupCatalogue::default(),
             robust: true,
             similarity_rim_weight: 0.1,
             contour_source: ContourSource::AlphaShape,
             pose: None,
+            limb_start: true,
+            limb_scale_mm: 0.5,
+            similarity_rotation_only: true,
+            mirrored_start: true,
+            sphere_prior: 0.3,
+            sphere_prior_vertices: 600,
+            deformation_rim_weight: 1.0,
+            similarity_srvf_samples: 100,
+            similarity_seed_candidates: 2,
         }
     }
 }
@@ -113,6 +157,8 @@ pub struct SolveLog {
     pub correspondences: usize,
     /// Per view, the size of the pose correction found (degrees, mm); empty without refinement.
     pub pose_corrections: Vec<[f64; 2]>,
+    /// The sphere fitted to the outlines' limbs (centre x, y, z and radius, mm), when used.
+    pub limb_sphere: Option<[f64; 4]>,
 }
 
 /// The result.
@@ -120,7 +166,12 @@ pub struct SolveLog {
 pub struct Reconstruction {
     pub mesh: Mesh,
     pub initial: Mesh,
+    /// The cup sphere: fitted (robustly) to the part of the reconstructed surface the X-rays
+    /// observe, the vertices the last correspondences tie to the outlines (see
+    /// `observed_part_sphere`); the whole surface's fit when too few.
     pub sphere: Sphere,
+    /// The sphere fitted (robustly) to every reconstructed vertex.
+    pub surface_sphere: Sphere,
     pub cup: CupSize,
     pub log: SolveLog,
     /// Model contours of the initial and final meshes per view.
@@ -237,37 +288,101 @@ pub fn reconstruct_with(
             observed: observed.len(),
         });
     }
-    let initial = init.place(&spherical_cap(
+    let unit = spherical_cap(
         1.0,
         prm.template_vertices,
         prm.template_polar_deg.to_radians(),
-    ));
-    let mut mesh = initial.clone();
+    );
+    let initial = init.place(&unit);
     let mut log = SolveLog::default();
+    let mut start = init.clone();
+    if prm.limb_start {
+        if let Ok(ls) = limb_sphere(cams, observed, prm.limb_scale_mm) {
+            start.center = ls.center;
+            start.radius = ls.radius;
+            log.limb_sphere = Some([ls.center.x, ls.center.y, ls.center.z, ls.radius]);
+        }
+    }
+    let rotation_only = prm.similarity_rotation_only && log.limb_sphere.is_some();
+    let mut on_rim = vec![false; unit.vertex_count()];
+    for [a, b] in unit.boundary_edges() {
+        on_rim[a as usize] = true;
+        on_rim[b as usize] = true;
+    }
+    let about = rotation_only.then_some(start.center);
 
-    // Stage A: similarity, correspondences recomputed each round.
+    // Stage A: similarity, correspondences recomputed each round. Two starts when the sphere is
+    // known: the given axis and its mirror image through the first view's image plane. An
+    // acetabulum opening forwards and one opening backwards by as much cast nearly the same
+    // outline in a frontal view; only the oblique views tell them apart, so the mirrored start
+    // is probed too.
+    let mut starts = vec![start.clone()];
+    if rotation_only && prm.mirrored_start {
+        if let Some(cam) = cams.first() {
+            let d = cam.r.matrix().row(2).transpose();
+            let a = start.axis.into_inner();
+            let m = a - 2.0 * a.dot(&d) * d;
+            if let Some(axis) = nalgebra::Unit::try_new(m, 1e-9) {
+                if (axis.into_inner() - a).norm() > 1e-3 {
+                    starts.push(Placement {
+                        axis,
+                        ..start.clone()
+                    });
+                }
+            }
+        }
+    }
+    // The given start is kept unless the mirrored one reprojects clearly better (by the factor
+    // MIRROR_SWITCH): where the two are close the outlines cannot tell them apart, and the
+    // start's own orientation is the better guess.
+    let mut best: Option<(Mesh, usize, usize, f64, Placement)> = None;
+    let (mut rounds_all, mut its_all) = (0, 0);
+    // The similarity stage fixes only a handful of parameters: coarser SRVF curves do.
+    let mut coarse = prm.clone();
+    coarse.correspond.srvf.samples = prm
+        .correspond
+        .srvf
+        .samples
+        .min(prm.similarity_srvf_samples.max(16));
+    coarse.correspond.srvf.seed_candidates = prm
+        .correspond
+        .srvf
+        .seed_candidates
+        .min(prm.similarity_seed_candidates.max(1));
+    let mut stage = |mesh: Mesh, max_rounds: usize, placement: Placement| {
+        let r = similarity_stage(
+            mesh, cams, observed, &coarse, kernels, &on_rim, about, max_rounds, placement,
+        );
+        if let Ok((_, rounds, its, _, _)) = &r {
+            rounds_all += rounds;
+            its_all += its;
+        }
+        r
+    };
+    for (k, st) in starts.iter().enumerate() {
+        if k == 0 {
+            best = Some(stage(st.place(&unit), prm.similarity_rounds, st.clone())?);
+            continue;
+        }
+        // A few rounds tell a wrong orientation from a right one; only a clear winner is
+        // carried on to convergence.
+        let (probe, _, _, score, at) = stage(st.place(&unit), MIRROR_PROBE_ROUNDS, st.clone())?;
+        if best.as_ref().is_some_and(|b| score < b.3 * MIRROR_SWITCH) {
+            best = Some(stage(probe, prm.similarity_rounds, at)?);
+        }
+    }
+    let Some((mut mesh, _, _, _, mut placement)) = best else {
+        return Err(ReconError::TooFewCorrespondences {
+            stage: "similarity",
+            count: 0,
+        });
+    };
+    log.similarity_rounds += rounds_all;
+    log.gn_iterations += its_all;
     let sim_lm = LmParams {
         max_iterations: 10,
         ..prm.lm.clone()
     };
-    let mut on_rim = vec![false; mesh.vertex_count()];
-    for [a, b] in mesh.boundary_edges() {
-        on_rim[a as usize] = true;
-        on_rim[b as usize] = true;
-    }
-    for _ in 0..prm.similarity_rounds {
-        let mut obs = weighted_correspondences(&mesh, cams, observed, prm, kernels, "similarity")?;
-        for o in obs.iter_mut().filter(|o| on_rim[o.vertex as usize]) {
-            o.weight *= prm.similarity_rim_weight;
-        }
-        let (moved, shift, info) = similarity_step(&mesh, cams, &obs, prm, &sim_lm)?;
-        mesh = moved;
-        log.similarity_rounds += 1;
-        log.gn_iterations += info.iterations;
-        if shift < prm.similarity_tol_mm {
-            break;
-        }
-    }
 
     // Stage A': with pose refinement, similarity and per-view pose corrections alternate on
     // correspondences recomputed each round, from where stage A settled.
@@ -299,7 +414,9 @@ pub fn reconstruct_with(
                 &mut cams_now,
             )?;
             log.gn_iterations += it;
-            let (moved, shift, info) = similarity_step(&mesh, &cams_now, &obs, prm, &sim_lm)?;
+            let about = rotation_only.then_some(start.center);
+            let (moved, shift, info) =
+                similarity_step(&mesh, &cams_now, &obs, prm, &sim_lm, about, &mut placement)?;
             mesh = moved;
             log.gn_iterations += info.iterations;
             let pose_step = before
@@ -326,8 +443,13 @@ pub fn reconstruct_with(
     };
     let mut obs = Vec::new();
     let mut converged = true;
+    // The sphere prior's sphere starts as the template's and is carried from solve to solve.
+    let mut prior_sphere = Some((placement.center, placement.radius));
     for _ in 0..rounds {
         obs = weighted_correspondences(&mesh, &cams_now, observed, prm, kernels, "deformation")?;
+        for o in obs.iter_mut().filter(|o| on_rim[o.vertex as usize]) {
+            o.weight *= prm.deformation_rim_weight;
+        }
         if let Some(pp) = &prm.pose {
             // The views' corrections first, on these correspondences and the current shape;
             // then the shape with the corrected views: both lower the one joint energy.
@@ -342,11 +464,24 @@ pub fn reconstruct_with(
                 &mut cams_now,
             )?;
         }
-        let (deformed, info) = ed_solve(&mesh, &cams_now, &obs, prm, &lm, kernels, "deformation")?;
+        let (deformed, info) = ed_solve(
+            &mesh,
+            &cams_now,
+            &obs,
+            prm,
+            &lm,
+            kernels,
+            "deformation",
+            &mut prior_sphere,
+        )?;
+        let moved = rms_motion(&mesh, &deformed);
         mesh = deformed;
         log.correspondence_updates += 1;
         log.gn_iterations += info.iterations;
         converged = info.converged || prm.method != Method::Srvf;
+        if prm.method != Method::Srvf && moved < prm.icp_tol_mm {
+            break;
+        }
     }
     log.pose_corrections = if prm.pose.is_some() {
         pose_x
@@ -363,7 +498,8 @@ pub fn reconstruct_with(
     log.converged = converged;
     log.reprojection_rms_px = rms_px(&mesh, &cams_now, &obs);
     log.correspondences = obs.len();
-    let sphere = fit_sphere_robust(&mesh.vertices)?;
+    let surface_sphere = fit_sphere_robust(&mesh.vertices)?;
+    let sphere = observed_part_sphere(&mesh, &obs).unwrap_or(surface_sphere);
     let cup = prm.catalogue.nearest(sphere.diameter());
     Ok(Reconstruction {
         initial_contours: contours(&initial, cams, prm, kernels)?,
@@ -371,11 +507,100 @@ pub fn reconstruct_with(
         mesh,
         initial,
         sphere,
+        surface_sphere,
         cup,
         log,
         observations: obs,
         cameras: cams_now,
     })
+}
+
+/// Stage A from `mesh`: similarity (or rotation about `about`) solves on correspondences
+/// recomputed each round until the template settles. Returns the mesh, the rounds, the GN
+/// iterations and the score that ranks starts: the median reprojection residual (px) of the
+/// last round's correspondences.
+#[allow(clippy::too_many_arguments)]
+fn similarity_stage(
+    mut mesh: Mesh,
+    cams: &[Camera],
+    observed: &[Vec<Curve>],
+    prm: &ReconParams,
+    kernels: Kernels,
+    on_rim: &[bool],
+    about: Option<Point3<f64>>,
+    max_rounds: usize,
+    mut placement: Placement,
+) -> Result<(Mesh, usize, usize, f64, Placement), ReconError> {
+    let sim_lm = LmParams {
+        max_iterations: 10,
+        ..prm.lm.clone()
+    };
+    let (mut rounds, mut its) = (0, 0);
+    let mut last = Vec::new();
+    for _ in 0..max_rounds {
+        let mut obs = weighted_correspondences(&mesh, cams, observed, prm, kernels, "similarity")?;
+        for o in obs.iter_mut().filter(|o| on_rim[o.vertex as usize]) {
+            o.weight *= prm.similarity_rim_weight;
+        }
+        let (moved, shift, info) =
+            similarity_step(&mesh, cams, &obs, prm, &sim_lm, about, &mut placement)?;
+        mesh = moved;
+        rounds += 1;
+        its += info.iterations;
+        last = obs;
+        if shift < prm.similarity_tol_mm {
+            break;
+        }
+    }
+    let mut r = residuals_px(&mesh, cams, &last);
+    r.sort_by(f64::total_cmp);
+    let score = r.get(r.len() / 2).copied().unwrap_or(f64::INFINITY);
+    Ok((mesh, rounds, its, score, placement))
+}
+
+/// The mirrored start replaces the given one only when its score is below this fraction of the
+/// given one's. On the shared acetabula a wrong orientation scores about twice the right one,
+/// while the two mirror images of a good start score within about 15 % of each other.
+const MIRROR_SWITCH: f64 = 0.7;
+
+/// Similarity rounds the mirrored start gets before it is compared.
+const MIRROR_PROBE_ROUNDS: usize = 4;
+
+/// Fewest distinct observed vertices the cup sphere is fitted to.
+const MIN_SPHERE_VERTICES: usize = 30;
+
+/// Robust sphere fit to the reconstructed vertices that the correspondences hold to the outlines
+/// (robust weight above one half). Away from the outlines the surface is the template's
+/// interpolation, which the X-rays never see; there the deformation's smoothing, not the patient,
+/// decides the shape, and a whole-surface fit follows it. None when too few such vertices.
+pub fn observed_part_sphere(mesh: &Mesh, obs: &[Observation]) -> Option<Sphere> {
+    let mut ids: Vec<u32> = obs
+        .iter()
+        .filter(|o| o.weight > 0.5)
+        .map(|o| o.vertex)
+        .filter(|&v| (v as usize) < mesh.vertex_count())
+        .collect();
+    ids.sort_unstable();
+    ids.dedup();
+    if ids.len() < MIN_SPHERE_VERTICES {
+        return None;
+    }
+    let pts: Vec<Point3<f64>> = ids.iter().map(|&v| mesh.vertices[v as usize]).collect();
+    fit_sphere_robust(&pts)
+        .ok()
+        .filter(|s| s.radius.is_finite())
+}
+
+/// RMS distance between two poses of the same mesh's vertices.
+fn rms_motion(a: &Mesh, b: &Mesh) -> f64 {
+    let n = a.vertex_count().max(1) as f64;
+    (a.vertices
+        .iter()
+        .zip(&b.vertices)
+        .map(|(p, q)| (p - q).norm_squared())
+        .sum::<f64>()
+        / n)
+        .sqrt()
 }
 
 /// Fewest correspondences a solve accepts.
@@ -404,6 +629,7 @@ fn weighted_correspondences(
 }
 
 /// One ED solve on fixed correspondences, the graph built on `mesh`: the deformed mesh.
+#[allow(clippy::too_many_arguments)]
 fn ed_solve(
     mesh: &Mesh,
     cams: &[Camera],
@@ -412,39 +638,78 @@ fn ed_solve(
     lm: &LmParams,
     kernels: Kernels,
     stage: &'static str,
+    sphere: &mut Option<(Point3<f64>, f64)>,
 ) -> Result<(Mesh, LmInfo), ReconError> {
     let graph = DeformationGraph::new(mesh, &prm.graph);
-    let problem = EdProblem::new(&graph, cams, obs, prm.weights.clone());
-    let (x, info) = levenberg_marquardt(&problem, graph.identity(), lm)
+    let mut problem = EdProblem::new(&graph, cams, obs, prm.weights.clone());
+    if prm.sphere_prior > 0.0 && sphere.is_none() {
+        *sphere = fit_sphere_robust(&mesh.vertices)
+            .ok()
+            .map(|s| (s.center_point(), s.radius));
+    }
+    if let (true, Some(_)) = (prm.sphere_prior > 0.0, &sphere) {
+        // Every k-th vertex, weighted k-fold: the same energy at a fraction of the rows.
+        let n = mesh.vertex_count();
+        let k = n.div_ceil(prm.sphere_prior_vertices.max(1)).max(1);
+        problem.sphere = Some(SpherePrior {
+            weight: prm.sphere_prior * k as f64,
+            vertices: (0..n as u32).step_by(k).collect(),
+        });
+    }
+    let at = sphere.unwrap_or((Point3::origin(), 0.0));
+    let (x, info) = levenberg_marquardt(&problem, problem.start(at), lm)
         .map_err(|source| ReconError::Solve { stage, source })?;
-    let out = mesh.with_vertices(kernels.deform(&graph, &x)?);
+    let nodes = graph.node_count() * crate::solve::NODE_PARAMS;
+    if problem.sphere.is_some() {
+        let b = &x[nodes..];
+        *sphere = Some((Point3::new(b[0], b[1], b[2]), b[3]));
+    }
+    let out = mesh.with_vertices(kernels.deform(&graph, &x[..nodes])?);
     check_finite(&out)?;
     Ok((out, info))
 }
 
-/// One similarity solve on fixed correspondences: the moved mesh and its RMS shift (mm).
+/// One similarity solve on fixed correspondences: the moved mesh, and how far the cap moved (mm),
+/// measured on its placement (`placement` is moved along): centre shift + radius change + the
+/// axis's turn times the radius. Vertex motion would count turns about the cap's own axis, which
+/// change nothing and which the correspondences leave free.
 fn similarity_step(
     mesh: &Mesh,
     cams: &[Camera],
     obs: &[Observation],
     prm: &ReconParams,
     lm: &LmParams,
+    rotation_about: Option<Point3<f64>>,
+    placement: &mut Placement,
 ) -> Result<(Mesh, f64, LmInfo), ReconError> {
     let mut problem = SimilarityProblem::new(&mesh.vertices, cams, obs);
     problem.tangential = prm.weights.tangential;
-    let (x, info) =
-        levenberg_marquardt(&problem, vec![0.0; 7], lm).map_err(|source| ReconError::Solve {
-            stage: "similarity",
-            source,
-        })?;
+    if let Some(c) = rotation_about {
+        problem.center = c;
+        problem.rotation_only = true;
+    }
+    let x0 = vec![0.0; problem.block_size()];
+    let (x, info) = levenberg_marquardt(&problem, x0, lm).map_err(|source| ReconError::Solve {
+        stage: "similarity",
+        source,
+    })?;
     let moved = apply_similarity(&x, &problem.center, &mesh.vertices);
-    let shift = (moved
-        .iter()
-        .zip(&mesh.vertices)
-        .map(|(a, b)| (a - b).norm_squared())
-        .sum::<f64>()
-        / moved.len().max(1) as f64)
-        .sqrt();
+    let f = crate::solve::full_state(&x);
+    let rot = nalgebra::Rotation3::new(Vector3::new(f[0], f[1], f[2]));
+    let scale = f[6].exp();
+    let center = problem.center
+        + Vector3::new(f[3], f[4], f[5])
+        + scale * (rot * (placement.center - problem.center));
+    let axis = rot * placement.axis;
+    let turn = placement.axis.dot(&axis).clamp(-1.0, 1.0).acos();
+    let shift = (center - placement.center).norm()
+        + (scale - 1.0).abs() * placement.radius
+        + turn * placement.radius;
+    *placement = Placement {
+        center,
+        radius: placement.radius * scale,
+        axis,
+    };
     let out = mesh.with_vertices(moved);
     check_finite(&out)?;
     Ok((out, shift, info))
@@ -509,5 +774,16 @@ pub fn resolve_from(
     for (k, o) in obs.iter_mut().enumerate() {
         o.weight *= reweight(k);
     }
-    Ok(ed_solve(mesh, cams, &obs, prm, &prm.lm, kernels, "resampling")?.0)
+    let mut sphere = None;
+    Ok(ed_solve(
+        mesh,
+        cams,
+        &obs,
+        prm,
+        &prm.lm,
+        kernels,
+        "resampling",
+        &mut sphere,
+    )?
+    .0)
 }

@@ -137,6 +137,71 @@ pub fn perturb(p: &Placement, level: &NoiseLevel, rng: &mut impl rand::Rng) -> P
     }
 }
 
+/// What every run of a study shares: the truth's fitted hemisphere, the views aimed at it and
+/// the truth's noise-free outlines. `case` adds one run's noise and start.
+#[derive(Clone, Debug)]
+pub struct SimSetup {
+    pub placement: Placement,
+    pub sphere: Sphere,
+    pub cameras: Vec<Camera>,
+    /// The truth's alpha-shape outline per view, before noise.
+    pub outlines: Vec<Vec<nalgebra::Point2<f64>>>,
+}
+
+impl SimSetup {
+    pub fn new(truth: &Mesh, geometry: &XrayGeometry) -> Result<SimSetup, SimError> {
+        let (placement, sphere) = fit_placement(truth)?;
+        let cameras = simulated_views(geometry, &placement.center);
+        let mut outlines = Vec::new();
+        for (view, cam) in cameras.iter().enumerate() {
+            let c = model_contour(truth, cam, Some(observed_alpha(truth, cam, &placement)))
+                .map_err(|source| SimError::Contour { view, source })?;
+            outlines.push(c.points);
+        }
+        Ok(SimSetup {
+            placement,
+            sphere,
+            cameras,
+            outlines,
+        })
+    }
+
+    /// One run: Gaussian noise of `noise_px` on every outline point, the start perturbed by
+    /// `level`; all draws from ChaCha8(seed).
+    pub fn case(&self, noise_px: f64, level: &NoiseLevel, seed: u64) -> SimCase {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let noise = Normal::new(0.0, noise_px.max(0.0)).expect("finite SD");
+        let observed = self
+            .outlines
+            .iter()
+            .map(|pts| {
+                let points = pts
+                    .iter()
+                    .map(|p| {
+                        nalgebra::Point2::new(
+                            p.x + noise.sample(&mut rng),
+                            p.y + noise.sample(&mut rng),
+                        )
+                    })
+                    .collect();
+                vec![Curve {
+                    points,
+                    closed: true,
+                }]
+            })
+            .collect();
+        let init = perturb(&self.placement, level, &mut rng);
+        SimCase {
+            cameras: self.cameras.clone(),
+            observed,
+            truth_placement: self.placement.clone(),
+            truth_sphere: self.sphere,
+            init,
+            seed,
+        }
+    }
+}
+
 /// Simulate: views aimed at the truth's sphere centre, alpha-shape contours with `noise_px`
 /// Gaussian noise per point, start perturbed by `level`; all draws from ChaCha8(seed).
 pub fn simulate_case(
@@ -146,35 +211,7 @@ pub fn simulate_case(
     level: &NoiseLevel,
     seed: u64,
 ) -> Result<SimCase, SimError> {
-    let (placement, sphere) = fit_placement(truth)?;
-    let cameras = simulated_views(geometry, &placement.center);
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let noise = Normal::new(0.0, noise_px.max(0.0)).expect("finite SD");
-    let mut observed = Vec::new();
-    for (view, cam) in cameras.iter().enumerate() {
-        let c = model_contour(truth, cam, Some(observed_alpha(truth, cam, &placement)))
-            .map_err(|source| SimError::Contour { view, source })?;
-        let pts = c
-            .points
-            .iter()
-            .map(|p| {
-                nalgebra::Point2::new(p.x + noise.sample(&mut rng), p.y + noise.sample(&mut rng))
-            })
-            .collect();
-        observed.push(vec![Curve {
-            points: pts,
-            closed: true,
-        }]);
-    }
-    let init = perturb(&placement, level, &mut rng);
-    Ok(SimCase {
-        cameras,
-        observed,
-        truth_placement: placement,
-        truth_sphere: sphere,
-        init,
-        seed,
-    })
+    Ok(SimSetup::new(truth, geometry)?.case(noise_px, level, seed))
 }
 
 /// Views with pose errors: every view except `reference` is turned by `deg` degrees about a

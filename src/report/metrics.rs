@@ -115,30 +115,44 @@ pub fn surface_distance(points: &[Point3<f64>], to: &Mesh) -> Vec<f64> {
 /// point lies on the border of `to` (within 1e-6 mm of a boundary edge): where `to` simply ends
 /// (a horseshoe's notch and fossa) the distance says nothing about the fit.
 pub fn interior_distance(from: &Mesh, to: &Mesh) -> Vec<f64> {
-    let Some(q) = SurfaceQuery::new(to) else {
-        return Vec::new();
-    };
-    let border: Vec<(Point3<f64>, Point3<f64>)> = to
-        .boundary_edges()
-        .iter()
-        .map(|[a, b]| (to.vertices[*a as usize], to.vertices[*b as usize]))
-        .collect();
-    from.vertices
-        .iter()
-        .filter_map(|p| {
-            let c = q.closest_point(p);
-            let on_border = border.iter().any(|(a, b)| {
-                let ab = b - a;
-                let u = if ab.norm_squared() > 0.0 {
-                    ((c - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                (a + ab * u - c).norm() < 1e-6
-            });
-            (!on_border).then(|| (c - p).norm())
-        })
-        .collect()
+    InteriorQuery::new(to).map_or_else(Vec::new, |q| q.distances(from))
+}
+
+/// `interior_distance` to one surface, prepared once for many meshes.
+pub struct InteriorQuery {
+    query: SurfaceQuery,
+    border: Vec<(Point3<f64>, Point3<f64>)>,
+}
+
+impl InteriorQuery {
+    pub fn new(to: &Mesh) -> Option<InteriorQuery> {
+        let query = SurfaceQuery::new(to)?;
+        let border = to
+            .boundary_edges()
+            .iter()
+            .map(|[a, b]| (to.vertices[*a as usize], to.vertices[*b as usize]))
+            .collect();
+        Some(InteriorQuery { query, border })
+    }
+
+    pub fn distances(&self, from: &Mesh) -> Vec<f64> {
+        from.vertices
+            .iter()
+            .filter_map(|p| {
+                let c = self.query.closest_point(p);
+                let on_border = self.border.iter().any(|(a, b)| {
+                    let ab = b - a;
+                    let u = if ab.norm_squared() > 0.0 {
+                        ((c - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    };
+                    (a + ab * u - c).norm() < 1e-6
+                });
+                (!on_border).then(|| (c - p).norm())
+            })
+            .collect()
+    }
 }
 
 /// Per-vertex colours for an error map: blue (0 mm) through green to red (>= `max_mm`).

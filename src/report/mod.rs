@@ -8,6 +8,7 @@ mod sphere;
 
 pub use cup::{CupCatalogue, CupSize};
 pub use metrics::{
-    error_colors, interior_distance, surface_distance, surface_samples, DistanceStats, SurfaceQuery,
+    error_colors, interior_distance, surface_distance, surface_samples, DistanceStats,
+    InteriorQuery, SurfaceQuery,
 };
 pub use sphere::{fit_sphere, fit_sphere_robust, Sphere, SphereFitError};

@@ -76,6 +76,102 @@ pub struct EdProblem<'a> {
     pub weights: EdWeights,
     /// Pixels per millimetre per view (divides the reprojection residual).
     pub px_per_mm: Vec<f64>,
+    /// Optional sphere prior (see `SpherePrior`).
+    pub sphere: Option<SpherePrior>,
+}
+
+/// E_sph = sum_i (|v_i - S| - R)^2 over the listed vertices, the sphere (S, R) solved with the
+/// deformation: one extra parameter block after the nodes' (S then R, its other 8 entries held
+/// at zero). An acetabulum is close to a sphere (the cup that replaces it is one), and three
+/// views about one axis see its walls only edge-on; this term keeps the deformation from
+/// bending the walls where no outline watches them, while the sphere itself may move and grow.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpherePrior {
+    /// Weight per vertex (mm^-2 like E_reg's).
+    pub weight: f64,
+    pub vertices: Vec<u32>,
+}
+
+/// Weight of the rows that hold the sphere block's unused entries at zero.
+const UNUSED_HOLD: f64 = 1e-3;
+
+impl EdProblem<'_> {
+    /// The parameter vector to start from: identity nodes, then the sphere block at `sphere`
+    /// (centre, radius) when the prior is on.
+    pub fn start(&self, sphere: (Point3<f64>, f64)) -> Vec<f64> {
+        let mut x = self.graph.identity();
+        if self.sphere.is_some() {
+            let mut b = [0.0; NODE_PARAMS];
+            b[..3].copy_from_slice(sphere.0.coords.as_slice());
+            b[3] = sphere.1;
+            x.extend_from_slice(&b);
+        }
+        x
+    }
+
+    fn sphere_rows(&self, x: &[f64], jac: bool, l: &mut Linearization) {
+        let Some(sp) = &self.sphere else {
+            return;
+        };
+        let g = self.graph;
+        let sb = g.node_count();
+        let o = sb * NODE_PARAMS;
+        let c = Point3::new(x[o], x[o + 1], x[o + 2]);
+        let rad = x[o + 3];
+        let ws = sp.weight.sqrt();
+        let mut blocks: Vec<(u32, [f64; NODE_PARAMS])> = Vec::new();
+        for &i in &sp.vertices {
+            let i = i as usize;
+            if i >= g.rest.len() {
+                continue;
+            }
+            let v = g.deform_vertex(x, i);
+            let d = v - c;
+            let len = d.norm();
+            let r = ws * (len - rad);
+            if !jac {
+                l.push_residual(r);
+                continue;
+            }
+            let n = if len > 1e-12 {
+                d / len
+            } else {
+                nalgebra::Vector3::zeros()
+            };
+            blocks.clear();
+            let p = g.rest[i];
+            for &(j, w) in &g.weights[i] {
+                let dp = p - g.nodes[j as usize];
+                let mut b = [0.0; NODE_PARAMS];
+                for row in 0..3 {
+                    let f = ws * n[row] * w;
+                    for col in 0..3 {
+                        b[row * 3 + col] = f * dp[col];
+                    }
+                    b[9 + row] = f;
+                }
+                blocks.push((j, b));
+            }
+            let mut b = [0.0; NODE_PARAMS];
+            b[0] = -ws * n.x;
+            b[1] = -ws * n.y;
+            b[2] = -ws * n.z;
+            b[3] = -ws;
+            blocks.push((sb as u32, b));
+            let refs: Vec<(u32, &[f64])> = blocks.iter().map(|(j, b)| (*j, &b[..])).collect();
+            l.push_row(r, &refs);
+        }
+        for k in 4..NODE_PARAMS {
+            let r = UNUSED_HOLD * x[o + k];
+            if jac {
+                let mut b = [0.0; NODE_PARAMS];
+                b[k] = UNUSED_HOLD;
+                l.push_row(r, &[(sb as u32, &b)]);
+            } else {
+                l.push_residual(r);
+            }
+        }
+    }
 }
 
 impl<'a> EdProblem<'a> {
@@ -104,6 +200,7 @@ impl<'a> EdProblem<'a> {
             observations,
             weights,
             px_per_mm,
+            sphere: None,
         }
     }
 }
@@ -114,12 +211,12 @@ impl Problem for EdProblem<'_> {
     }
 
     fn n_blocks(&self) -> usize {
-        self.graph.node_count()
+        self.graph.node_count() + usize::from(self.sphere.is_some())
     }
 
     fn linearize(&self, x: &[f64], jac: bool) -> Linearization {
         let g = self.graph;
-        let mut l = Linearization::new(NODE_PARAMS, g.node_count());
+        let mut l = Linearization::new(NODE_PARAMS, self.n_blocks());
         // E_rot: columns c1, c2, c3 of A_j orthonormal.
         let wr = self.weights.rot.sqrt();
         for j in 0..g.node_count() {
@@ -219,6 +316,7 @@ impl Problem for EdProblem<'_> {
                 }
             }
         }
+        self.sphere_rows(x, jac, &mut l);
         l
     }
 }
@@ -290,6 +388,72 @@ mod tests {
             }
         }
         assert!(worst < 1e-5, "worst relative Jacobian error {worst}");
+    }
+
+    /// The problem with the sphere prior on every vertex, at a perturbed point.
+    fn with_prior<'a>(
+        g: &'a DeformationGraph,
+        cams: &'a [Camera],
+        obs: &'a [Observation],
+    ) -> (EdProblem<'a>, Vec<f64>) {
+        let mut p = EdProblem::new(g, cams, obs, EdWeights::default());
+        p.sphere = Some(SpherePrior {
+            weight: 0.3,
+            vertices: (0..g.rest.len() as u32).collect(),
+        });
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let x: Vec<f64> = p
+            .start((Point3::new(0.5, -0.3, 0.2), 25.0))
+            .iter()
+            .map(|v| v + rng.random_range(-0.05..0.05))
+            .collect();
+        (p, x)
+    }
+
+    fn worst_fd_error(p: &EdProblem, x: &[f64], j: &nalgebra::DMatrix<f64>) -> f64 {
+        let r0 = p.linearize(x, false).r;
+        let h = 1e-6;
+        let mut worst: f64 = 0.0;
+        for k in (0..x.len()).step_by(5).chain(x.len() - 12..x.len()) {
+            let mut xp = x.to_vec();
+            xp[k] += h;
+            let mut xm = x.to_vec();
+            xm[k] -= h;
+            let (rp, rm) = (p.linearize(&xp, false).r, p.linearize(&xm, false).r);
+            for row in 0..r0.len() {
+                let fd = (rp[row] - rm[row]) / (2.0 * h);
+                worst = worst.max((fd - j[(row, k)]).abs() / (1.0 + fd.abs()));
+            }
+        }
+        worst
+    }
+
+    #[test]
+    fn sphere_prior_jacobian_matches_finite_differences() {
+        let (g, cams, obs) = setup();
+        let (p, x) = with_prior(&g, &cams, &obs);
+        assert_eq!(p.n_blocks(), g.node_count() + 1);
+        let mut j = p.linearize(&x, true).dense_jacobian();
+        assert_eq!(j.ncols(), x.len());
+        assert!(worst_fd_error(&p, &x, &j) < 1e-5);
+        // Companion: a 1 % error in the radius column of one prior row is caught.
+        let row = j.nrows() - 9; // the last vertex's prior row
+        let k = g.node_count() * NODE_PARAMS + 3;
+        assert!(j[(row, k)].abs() > 0.1);
+        j[(row, k)] *= 1.01;
+        assert!(worst_fd_error(&p, &x, &j) > 1e-5);
+    }
+
+    #[test]
+    fn sphere_prior_is_zero_on_its_sphere_and_not_off_it() {
+        let (g, cams, _) = setup();
+        // hemisphere(26.0, ..) is centred at the origin with radius 26.
+        let (p, _) = with_prior(&g, &cams, &[]);
+        let cost = |x: &[f64]| p.linearize(x, false).cost();
+        let on = p.start((Point3::origin(), 26.0));
+        assert!(cost(&on) < 1e-12, "{}", cost(&on));
+        let off = p.start((Point3::new(0.0, 0.0, 1.0), 26.0));
+        assert!(cost(&off) > 1e-3, "{}", cost(&off));
     }
 
     #[test]

@@ -5,15 +5,17 @@
 mod energy;
 mod graph;
 mod knn;
+mod limb;
 mod lm;
 mod normal;
 mod pose;
 mod similarity;
 
-pub use energy::{EdProblem, EdWeights, Observation};
+pub use energy::{EdProblem, EdWeights, Observation, SpherePrior};
 pub use graph::{farthest_point_sample, DeformationGraph, GraphParams, NODE_PARAMS};
 pub use knn::Knn3;
+pub use limb::{limb_sphere, LimbError, LimbSphere};
 pub use lm::{levenberg_marquardt, LmInfo, LmParams, Problem, SolveError};
 pub use normal::{LinearSolveError, Linearization, NormalEquations};
 pub use pose::{corrected_camera, PoseParams, PoseProblem};
-pub use similarity::{apply_similarity, SimilarityProblem, SIM_PARAMS};
+pub use similarity::{apply_similarity, full_state, SimilarityProblem, SIM_PARAMS};

@@ -24,10 +24,14 @@ pub struct SimilarityProblem<'a> {
     pub px_per_mm: Vec<f64>,
     /// Along-contour weight of the reprojection error (see `Observation::residual_frame`).
     pub tangential: f64,
+    /// Solve for the rotation about `center` alone (3 parameters; translation and scale stay
+    /// zero), as when the sphere is already known.
+    pub rotation_only: bool,
 }
 
 /// Apply a similarity state to points.
 pub fn apply_similarity(x: &[f64], center: &Point3<f64>, pts: &[Point3<f64>]) -> Vec<Point3<f64>> {
+    let x = full_state(x);
     let r = Rotation3::new(Vector3::new(x[0], x[1], x[2]));
     let t = Vector3::new(x[3], x[4], x[5]);
     let s = x[6].exp();
@@ -56,19 +60,26 @@ impl<'a> SimilarityProblem<'a> {
             observations,
             px_per_mm,
             tangential: 1.0,
+            rotation_only: false,
         }
     }
 }
 
 impl Problem for SimilarityProblem<'_> {
     fn block_size(&self) -> usize {
-        SIM_PARAMS
+        if self.rotation_only {
+            3
+        } else {
+            SIM_PARAMS
+        }
     }
     fn n_blocks(&self) -> usize {
         1
     }
     fn linearize(&self, x: &[f64], jac: bool) -> Linearization {
-        let mut l = Linearization::new(SIM_PARAMS, 1);
+        let n = self.block_size();
+        let mut l = Linearization::new(n, 1);
+        let x = full_state(x);
         let r = Rotation3::new(Vector3::new(x[0], x[1], x[2]));
         let t = Vector3::new(x[3], x[4], x[5]);
         let s = x[6].exp();
@@ -94,7 +105,7 @@ impl Problem for SimilarityProblem<'_> {
                 // d v / d omega = -[q]x, so d r / d omega = q x jr.
                 let dw = q.cross(&jr);
                 let d = [dw.x, dw.y, dw.z, jr.x, jr.y, jr.z, jr.dot(&q)];
-                l.push_row(res[row], &[(0, &d)]);
+                l.push_row(res[row], &[(0, &d[..n])]);
             }
         }
         l
@@ -103,16 +114,19 @@ impl Problem for SimilarityProblem<'_> {
         let r = Rotation3::new(Vector3::new(d[0], d[1], d[2]))
             * Rotation3::new(Vector3::new(x[0], x[1], x[2]));
         let w = r.scaled_axis();
-        vec![
-            w.x,
-            w.y,
-            w.z,
-            x[3] + d[3],
-            x[4] + d[4],
-            x[5] + d[5],
-            x[6] + d[6],
-        ]
+        let mut out = vec![w.x, w.y, w.z];
+        out.extend(x.iter().zip(d).skip(3).map(|(a, b)| a + b));
+        out
     }
+}
+
+/// A 3- (rotation only) or 7-parameter state as the full 7.
+pub fn full_state(x: &[f64]) -> [f64; SIM_PARAMS] {
+    let mut f = [0.0; SIM_PARAMS];
+    for (a, b) in f.iter_mut().zip(x) {
+        *a = *b;
+    }
+    f
 }
 
 #[cfg(test)]

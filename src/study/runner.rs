@@ -3,11 +3,11 @@
 use super::table::Row;
 use crate::backend::Kernels;
 use crate::correspond::Method;
-use crate::demo::accuracy;
+use crate::demo::{accuracy_from, accuracy_samples};
 use crate::mesh::Mesh;
 use crate::pipeline::{reconstruct_with, ReconParams, Reconstruction};
-use crate::report::{interior_distance, DistanceStats};
-use crate::simulate::{simulate_case, NoiseLevel, SimCase};
+use crate::report::{DistanceStats, InteriorQuery};
+use crate::simulate::{NoiseLevel, SimCase, SimSetup};
 use crate::views::XrayGeometry;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -104,15 +104,42 @@ pub fn run_one_with(
     cfg: &StudyConfig,
     kernels: Kernels,
 ) -> (Row, Option<ExampleRun>) {
+    run_prepared(&Prepared::new(truth, cfg), task, cfg, kernels)
+}
+
+/// What every run of a study shares, computed once: the simulation set-up (its error as text),
+/// the accuracy samples on the truth and the truth prepared for `recon_mae_mm`.
+struct Prepared {
+    setup: Result<SimSetup, String>,
+    samples: Vec<nalgebra::Point3<f64>>,
+    interior: Option<InteriorQuery>,
+}
+
+impl Prepared {
+    fn new(truth: &Mesh, cfg: &StudyConfig) -> Prepared {
+        Prepared {
+            setup: SimSetup::new(truth, &cfg.geometry).map_err(|e| e.to_string()),
+            samples: accuracy_samples(truth),
+            interior: InteriorQuery::new(truth),
+        }
+    }
+}
+
+fn run_prepared(
+    prep: &Prepared,
+    task: &Task,
+    cfg: &StudyConfig,
+    kernels: Kernels,
+) -> (Row, Option<ExampleRun>) {
     let mut row = Row::failed(task, "");
     let Some(level) = NoiseLevel::level(task.level) else {
         row.error = format!("no noise level {}", task.level);
         return (row, None);
     };
-    let sim = match simulate_case(truth, &cfg.geometry, cfg.noise_px, &level, task.seed) {
-        Ok(s) => s,
+    let sim = match &prep.setup {
+        Ok(s) => s.case(cfg.noise_px, &level, task.seed),
         Err(e) => {
-            row.error = e.to_string();
+            row.error = e.clone();
             return (row, None);
         }
     };
@@ -131,12 +158,18 @@ pub fn run_one_with(
         }
     };
     row.seconds = start.elapsed().as_secs_f64();
-    let acc = accuracy(truth, &rec.mesh);
+    let acc = accuracy_from(&prep.samples, &rec.mesh);
     row.mae_mm = acc.mae_mm;
     row.sd_mm = acc.sd_mm;
     row.p95_mm = acc.p95_mm;
-    row.recon_mae_mm = DistanceStats::from(&interior_distance(&rec.mesh, truth)).mean;
+    let interior = prep
+        .interior
+        .as_ref()
+        .map_or_else(Vec::new, |q| q.distances(&rec.mesh));
+    row.recon_mae_mm = DistanceStats::from(&interior).mean;
     row.cup_diameter_mm = rec.sphere.diameter();
+    row.surface_fit_diameter_mm = rec.surface_sphere.diameter();
+    row.limb_diameter_mm = rec.log.limb_sphere.map_or(f64::NAN, |l| 2.0 * l[3]);
     row.converged = rec.log.converged;
     row.iterations = rec.log.gn_iterations;
     row.correspondence_updates = rec.log.correspondence_updates;
@@ -170,6 +203,7 @@ pub fn run_study_with(
     kernels: Kernels,
 ) -> (Vec<Row>, Vec<ExampleRun>) {
     let list = tasks(cfg);
+    let prep = Prepared::new(truth, cfg);
     let next = AtomicUsize::new(0);
     let rows: Mutex<Vec<Option<Row>>> = Mutex::new(vec![None; list.len()]);
     let examples: Mutex<Vec<ExampleRun>> = Mutex::new(Vec::new());
@@ -182,7 +216,7 @@ pub fn run_study_with(
                 if k >= list.len() {
                     break;
                 }
-                let (row, ex) = run_one_with(truth, &list[k], cfg, kernels);
+                let (row, ex) = run_prepared(&prep, &list[k], cfg, kernels);
                 if let (Some(ex), true) = (ex, first_of_method(k)) {
                     examples.lock().unwrap_or_else(|e| e.into_inner()).push(ex);
                 }

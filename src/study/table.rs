@@ -20,6 +20,10 @@ pub struct Row {
     pub recon_mae_mm: f64,
     pub cup_diameter_mm: f64,
     pub gt_cup_diameter_mm: f64,
+    /// The sphere fitted to the whole reconstructed surface (the cup uses its observed part).
+    pub surface_fit_diameter_mm: f64,
+    /// The sphere fitted to the outlines' limbs before any deformation (NaN when not used).
+    pub limb_diameter_mm: f64,
     pub converged: bool,
     pub iterations: usize,
     pub correspondence_updates: usize,
@@ -40,6 +44,8 @@ impl Row {
             recon_mae_mm: f64::NAN,
             cup_diameter_mm: f64::NAN,
             gt_cup_diameter_mm: f64::NAN,
+            surface_fit_diameter_mm: f64::NAN,
+            limb_diameter_mm: f64::NAN,
             converged: false,
             iterations: 0,
             correspondence_updates: 0,
@@ -58,7 +64,9 @@ impl Row {
     }
 }
 
-const HEADER: &str = "method,level,run,seed,mae_mm,sd_mm,p95_mm,recon_mae_mm,cup_diameter_mm,gt_cup_diameter_mm,converged,iterations,correspondence_updates,seconds,error";
+const HEADER: &str = "method,level,run,seed,mae_mm,sd_mm,p95_mm,recon_mae_mm,cup_diameter_mm,gt_cup_diameter_mm,surface_fit_diameter_mm,limb_diameter_mm,converged,iterations,correspondence_updates,seconds,error";
+
+const FIELDS: usize = 17;
 
 /// Problems with study files.
 #[derive(Debug, thiserror::Error)]
@@ -94,7 +102,7 @@ pub fn write_csv(rows: &[Row], path: &Path) -> Result<(), StudyError> {
     s.push('\n');
     for r in rows {
         s.push_str(&format!(
-            "{},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{},{},{},{:.4},{}\n",
+            "{},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{},{},{},{:.4},{}\n",
             r.method.name(),
             r.level,
             r.run,
@@ -105,6 +113,8 @@ pub fn write_csv(rows: &[Row], path: &Path) -> Result<(), StudyError> {
             r.recon_mae_mm,
             r.cup_diameter_mm,
             r.gt_cup_diameter_mm,
+            r.surface_fit_diameter_mm,
+            r.limb_diameter_mm,
             r.converged,
             r.iterations,
             r.correspondence_updates,
@@ -139,9 +149,12 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
         if line.trim().is_empty() {
             continue;
         }
-        let f: Vec<&str> = line.splitn(15, ',').collect();
-        if f.len() != 15 {
-            return Err(perr(i + 1, format!("{} fields, expected 15", f.len())));
+        let f: Vec<&str> = line.splitn(FIELDS, ',').collect();
+        if f.len() != FIELDS {
+            return Err(perr(
+                i + 1,
+                format!("{} fields, expected {FIELDS}", f.len()),
+            ));
         }
         let num = |k: usize| {
             f[k].parse::<f64>()
@@ -172,11 +185,13 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
             recon_mae_mm: num(7)?,
             cup_diameter_mm: num(8)?,
             gt_cup_diameter_mm: num(9)?,
-            converged: f[10] == "true",
-            iterations: int(11)? as usize,
-            correspondence_updates: int(12)? as usize,
-            seconds: num(13)?,
-            error: f[14].to_string(),
+            surface_fit_diameter_mm: num(10)?,
+            limb_diameter_mm: num(11)?,
+            converged: f[12] == "true",
+            iterations: int(13)? as usize,
+            correspondence_updates: int(14)? as usize,
+            seconds: num(15)?,
+            error: f[16].to_string(),
         });
     }
     Ok(rows)
@@ -196,6 +211,9 @@ pub struct Summary {
     pub cup_error_sd: f64,
     /// Runs with |cup diameter - truth| <= 1 mm.
     pub cup_within_1mm: usize,
+    /// The same for the whole-surface sphere fit and for the limb sphere.
+    pub surface_fit_within_1mm: usize,
+    pub limb_within_1mm: usize,
     pub median_seconds: f64,
 }
 
@@ -208,6 +226,13 @@ fn mean_sd(v: &[f64]) -> (f64, f64) {
         m,
         (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt(),
     )
+}
+
+/// Runs whose `diameter` is within 1 mm of the truth's.
+fn within(rows: &[&Row], diameter: impl Fn(&Row) -> f64) -> usize {
+    rows.iter()
+        .filter(|r| (diameter(r) - r.gt_cup_diameter_mm).abs() <= 1.0)
+        .count()
 }
 
 /// Summaries in canonical order. Failed runs count in `runs` and `failed`, not in the means.
@@ -242,6 +267,8 @@ pub fn summarize(rows: &[Row]) -> Vec<Summary> {
                 cup_error_mean,
                 cup_error_sd,
                 cup_within_1mm: ce.iter().filter(|e| e.abs() <= 1.0).count(),
+                surface_fit_within_1mm: within(&ok, |r| r.surface_fit_diameter_mm),
+                limb_within_1mm: within(&ok, |r| r.limb_diameter_mm),
                 median_seconds: secs.get(secs.len() / 2).copied().unwrap_or(f64::NAN),
             }
         })
@@ -338,10 +365,13 @@ mod tests {
         rows[2].error = "failed".into();
         rows[2].converged = false;
         rows[1].cup_diameter_mm = 52.0;
+        rows[0].limb_diameter_mm = 50.9;
+        rows[1].limb_diameter_mm = 51.1;
         let s = summarize(&rows);
         assert_eq!(s.len(), 1);
         assert_eq!((s[0].runs, s[0].converged, s[0].failed), (3, 2, 1));
         assert!((s[0].mae_mean - 0.5).abs() < 1e-12 && (s[0].mae_sd - 0.1).abs() < 1e-12);
         assert_eq!(s[0].cup_within_1mm, 1);
+        assert_eq!((s[0].limb_within_1mm, s[0].surface_fit_within_1mm), (1, 0));
     }
 }
