@@ -60,7 +60,8 @@ pub struct ReconParams {
     /// Refine per-view pose corrections with the deformation (default off).
     pub pose: Option<PoseParams>,
     /// Stage 0: place the template on the sphere fitted to the outlines' limbs (default on);
-    /// the start's axis is kept. See `solve::limb_sphere`.
+    /// the start's axis is kept. See `solve::limb_sphere`. Not used with `pose`: the limbs of
+    /// views with wrong poses do not meet on one sphere.
     pub limb_start: bool,
     /// Noise floor of the limb fit, mm at the object (default 0.5).
     pub limb_scale_mm: f64,
@@ -296,7 +297,8 @@ pub fn reconstruct_with(
     let initial = init.place(&unit);
     let mut log = SolveLog::default();
     let mut start = init.clone();
-    if prm.limb_start {
+    // The limb sphere needs the views' poses as given; with pose refinement it is left out.
+    if prm.limb_start && prm.pose.is_none() {
         if let Ok(ls) = limb_sphere(cams, observed, prm.limb_scale_mm) {
             start.center = ls.center;
             start.radius = ls.radius;
@@ -414,9 +416,10 @@ pub fn reconstruct_with(
                 &mut cams_now,
             )?;
             log.gn_iterations += it;
-            let about = rotation_only.then_some(start.center);
+            // The full similarity here: the limb sphere was fitted with the uncorrected views,
+            // so centre and size must follow the corrections.
             let (moved, shift, info) =
-                similarity_step(&mesh, &cams_now, &obs, prm, &sim_lm, about, &mut placement)?;
+                similarity_step(&mesh, &cams_now, &obs, prm, &sim_lm, None, &mut placement)?;
             mesh = moved;
             log.gn_iterations += info.iterations;
             let pose_step = before
