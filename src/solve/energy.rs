@@ -373,20 +373,7 @@ mod tests {
             .map(|v| v + rng.random_range(-0.05..0.05))
             .collect();
         let j = p.linearize(&x, true).dense_jacobian();
-        let r0 = p.linearize(&x, false).r;
-        let h = 1e-6;
-        let mut worst: f64 = 0.0;
-        for k in (0..x.len()).step_by(7) {
-            let mut xp = x.clone();
-            xp[k] += h;
-            let mut xm = x.clone();
-            xm[k] -= h;
-            let (rp, rm) = (p.linearize(&xp, false).r, p.linearize(&xm, false).r);
-            for row in 0..r0.len() {
-                let fd = (rp[row] - rm[row]) / (2.0 * h);
-                worst = worst.max((fd - j[(row, k)]).abs() / (1.0 + fd.abs()));
-            }
-        }
+        let worst = worst_fd_error(&p, &x, &j);
         assert!(worst < 1e-5, "worst relative Jacobian error {worst}");
     }
 
