@@ -68,8 +68,8 @@ pub struct ReconParams {
     /// Similarity stage turns the template about its sphere centre only (default on with
     /// `limb_start`): the limb fit has fixed centre and size.
     pub similarity_rotation_only: bool,
-    /// With the sphere known, also start from the axis mirrored through the first view's image
-    /// plane and keep the better of the two (default on).
+    /// With the sphere known, also probe the axis mirrored through the first view's image plane,
+    /// and take it when it reprojects clearly better (default on).
     pub mirrored_start: bool,
     /// Weight per vertex of the sphere prior in the deformation (0 = off; see
     /// `solve::SpherePrior`).
@@ -77,8 +77,6 @@ pub struct ReconParams {
     /// About this many vertices (every k-th) carry the sphere prior, weighted k-fold
     /// (default 600).
     pub sphere_prior_vertices: usize,
-    /// Weight of correspondences on the template's rim during the deformation (default 1).
-    pub deformation_rim_weight: f64,
     /// SRVF samples per curve during the similarity stage (default 100; the deformation uses
     /// `correspond.srvf.samples`).
     pub similarity_srvf_samples: usize,
@@ -113,7 +111,6 @@ impl Default for ReconParams {
             mirrored_start: true,
             sphere_prior: 0.3,
             sphere_prior_vertices: 600,
-            deformation_rim_weight: 1.0,
             similarity_srvf_samples: 100,
             similarity_seed_candidates: 2,
         }
@@ -313,78 +310,57 @@ pub fn reconstruct_with(
     }
     let about = rotation_only.then_some(start.center);
 
-    // Stage A: similarity, correspondences recomputed each round. Two starts when the sphere is
-    // known: the given axis and its mirror image through the first view's image plane. An
-    // acetabulum opening forwards and one opening backwards by as much cast nearly the same
-    // outline in a frontal view; only the oblique views tell them apart, so the mirrored start
-    // is probed too.
-    let mut starts = vec![start.clone()];
-    if rotation_only && prm.mirrored_start {
-        if let Some(cam) = cams.first() {
-            let d = cam.r.matrix().row(2).transpose();
-            let a = start.axis.into_inner();
-            let m = a - 2.0 * a.dot(&d) * d;
-            if let Some(axis) = nalgebra::Unit::try_new(m, 1e-9) {
-                if (axis.into_inner() - a).norm() > 1e-3 {
-                    starts.push(Placement {
-                        axis,
-                        ..start.clone()
-                    });
-                }
-            }
-        }
-    }
-    // The given start is kept unless the mirrored one reprojects clearly better (by the factor
-    // MIRROR_SWITCH): where the two are close the outlines cannot tell them apart, and the
-    // start's own orientation is the better guess.
-    let mut best: Option<(Mesh, usize, usize, f64, Placement)> = None;
-    let (mut rounds_all, mut its_all) = (0, 0);
+    // Stage A: similarity, correspondences recomputed each round. When the sphere is known the
+    // axis mirrored through the first view's image plane is probed too: an acetabulum opening
+    // forwards and one opening backwards by as much cast nearly the same outline in a frontal
+    // view, and only the oblique views tell them apart. The given start is kept unless the
+    // mirrored one reprojects clearly better (by the factor MIRROR_SWITCH): where the two are
+    // close the outlines cannot tell them apart, and the start's own orientation is the better
+    // guess.
     // The similarity stage fixes only a handful of parameters: coarser SRVF curves do.
     let mut coarse = prm.clone();
-    coarse.correspond.srvf.samples = prm
-        .correspond
-        .srvf
-        .samples
-        .min(prm.similarity_srvf_samples.max(16));
-    coarse.correspond.srvf.seed_candidates = prm
-        .correspond
-        .srvf
+    let srvf = &mut coarse.correspond.srvf;
+    srvf.samples = srvf.samples.min(prm.similarity_srvf_samples.max(16));
+    srvf.seed_candidates = srvf
         .seed_candidates
         .min(prm.similarity_seed_candidates.max(1));
-    let mut stage = |mesh: Mesh, max_rounds: usize, placement: Placement| {
+    let stage = |placement: Placement, max_rounds: usize, log: &mut SolveLog| {
+        let mesh = placement.place(&unit);
         let r = similarity_stage(
             mesh, cams, observed, &coarse, kernels, &on_rim, about, max_rounds, placement,
-        );
-        if let Ok((_, rounds, its, _, _)) = &r {
-            rounds_all += rounds;
-            its_all += its;
-        }
-        r
+        )?;
+        log.similarity_rounds += r.rounds;
+        log.gn_iterations += r.iterations;
+        Ok::<_, ReconError>(r)
     };
-    for (k, st) in starts.iter().enumerate() {
-        if k == 0 {
-            best = Some(stage(st.place(&unit), prm.similarity_rounds, st.clone())?);
-            continue;
-        }
+    let mut best = stage(start.clone(), prm.similarity_rounds, &mut log)?;
+    if let Some(axis) = mirrored_axis(&start, cams).filter(|_| rotation_only && prm.mirrored_start)
+    {
+        let mirrored = Placement {
+            axis,
+            ..start.clone()
+        };
         // A few rounds tell a wrong orientation from a right one; only a clear winner is
         // carried on to convergence.
-        let (probe, _, _, score, at) = stage(st.place(&unit), MIRROR_PROBE_ROUNDS, st.clone())?;
-        if best.as_ref().is_some_and(|b| score < b.3 * MIRROR_SWITCH) {
-            best = Some(stage(probe, prm.similarity_rounds, at)?);
+        let probe = stage(mirrored, MIRROR_PROBE_ROUNDS, &mut log)?;
+        if probe.score < best.score * MIRROR_SWITCH {
+            best = similarity_stage(
+                probe.mesh,
+                cams,
+                observed,
+                &coarse,
+                kernels,
+                &on_rim,
+                about,
+                prm.similarity_rounds,
+                probe.placement,
+            )?;
+            log.similarity_rounds += best.rounds;
+            log.gn_iterations += best.iterations;
         }
     }
-    let Some((mut mesh, _, _, _, mut placement)) = best else {
-        return Err(ReconError::TooFewCorrespondences {
-            stage: "similarity",
-            count: 0,
-        });
-    };
-    log.similarity_rounds += rounds_all;
-    log.gn_iterations += its_all;
-    let sim_lm = LmParams {
-        max_iterations: 10,
-        ..prm.lm.clone()
-    };
+    let (mut mesh, mut placement) = (best.mesh, best.placement);
+    let sim_lm = similarity_lm(prm);
 
     // Stage A': with pose refinement, similarity and per-view pose corrections alternate on
     // correspondences recomputed each round, from where stage A settled.
@@ -450,9 +426,6 @@ pub fn reconstruct_with(
     let mut prior_sphere = Some((placement.center, placement.radius));
     for _ in 0..rounds {
         obs = weighted_correspondences(&mesh, &cams_now, observed, prm, kernels, "deformation")?;
-        for o in obs.iter_mut().filter(|o| on_rim[o.vertex as usize]) {
-            o.weight *= prm.deformation_rim_weight;
-        }
         if let Some(pp) = &prm.pose {
             // The views' corrections first, on these correspondences and the current shape;
             // then the shape with the corrected views: both lower the one joint energy.
@@ -518,10 +491,42 @@ pub fn reconstruct_with(
     })
 }
 
-/// Stage A from `mesh`: similarity (or rotation about `about`) solves on correspondences
-/// recomputed each round until the template settles. Returns the mesh, the rounds, the GN
-/// iterations and the score that ranks starts: the median reprojection residual (px) of the
-/// last round's correspondences.
+/// The mirrored start replaces the given one only when its score is below this fraction of the
+/// given one's. On the shared acetabula a wrong orientation scores about twice the right one,
+/// while the two mirror images of a good start score within about 15 % of each other.
+const MIRROR_SWITCH: f64 = 0.7;
+
+/// Similarity rounds the mirrored start gets before it is compared.
+const MIRROR_PROBE_ROUNDS: usize = 4;
+
+/// What one run of stage A ended with.
+struct StageA {
+    mesh: Mesh,
+    placement: Placement,
+    rounds: usize,
+    iterations: usize,
+    /// Median reprojection residual (px) of the last round's correspondences: ranks starts.
+    score: f64,
+}
+
+/// LM settings of one similarity solve.
+fn similarity_lm(prm: &ReconParams) -> LmParams {
+    LmParams {
+        max_iterations: 10,
+        ..prm.lm.clone()
+    }
+}
+
+/// The axis of `start` mirrored through the first view's image plane, when it differs.
+fn mirrored_axis(start: &Placement, cams: &[Camera]) -> Option<nalgebra::Unit<Vector3<f64>>> {
+    let d = cams.first()?.r.matrix().row(2).transpose();
+    let a = start.axis.into_inner();
+    nalgebra::Unit::try_new(a - 2.0 * a.dot(&d) * d, 1e-9)
+        .filter(|m| (m.into_inner() - a).norm() > 1e-3)
+}
+
+/// Stage A from `mesh` (the template at `placement`): similarity (or rotation about `about`)
+/// solves on correspondences recomputed each round until the cap settles.
 #[allow(clippy::too_many_arguments)]
 fn similarity_stage(
     mut mesh: Mesh,
@@ -533,12 +538,9 @@ fn similarity_stage(
     about: Option<Point3<f64>>,
     max_rounds: usize,
     mut placement: Placement,
-) -> Result<(Mesh, usize, usize, f64, Placement), ReconError> {
-    let sim_lm = LmParams {
-        max_iterations: 10,
-        ..prm.lm.clone()
-    };
-    let (mut rounds, mut its) = (0, 0);
+) -> Result<StageA, ReconError> {
+    let sim_lm = similarity_lm(prm);
+    let (mut rounds, mut iterations) = (0, 0);
     let mut last = Vec::new();
     for _ in 0..max_rounds {
         let mut obs = weighted_correspondences(&mesh, cams, observed, prm, kernels, "similarity")?;
@@ -549,7 +551,7 @@ fn similarity_stage(
             similarity_step(&mesh, cams, &obs, prm, &sim_lm, about, &mut placement)?;
         mesh = moved;
         rounds += 1;
-        its += info.iterations;
+        iterations += info.iterations;
         last = obs;
         if shift < prm.similarity_tol_mm {
             break;
@@ -558,16 +560,14 @@ fn similarity_stage(
     let mut r = residuals_px(&mesh, cams, &last);
     r.sort_by(f64::total_cmp);
     let score = r.get(r.len() / 2).copied().unwrap_or(f64::INFINITY);
-    Ok((mesh, rounds, its, score, placement))
+    Ok(StageA {
+        mesh,
+        placement,
+        rounds,
+        iterations,
+        score,
+    })
 }
-
-/// The mirrored start replaces the given one only when its score is below this fraction of the
-/// given one's. On the shared acetabula a wrong orientation scores about twice the right one,
-/// while the two mirror images of a good start score within about 15 % of each other.
-const MIRROR_SWITCH: f64 = 0.7;
-
-/// Similarity rounds the mirrored start gets before it is compared.
-const MIRROR_PROBE_ROUNDS: usize = 4;
 
 /// Fewest distinct observed vertices the cup sphere is fitted to.
 const MIN_SPHERE_VERTICES: usize = 30;
@@ -650,7 +650,7 @@ fn ed_solve(
             .ok()
             .map(|s| (s.center_point(), s.radius));
     }
-    if let (true, Some(_)) = (prm.sphere_prior > 0.0, &sphere) {
+    if prm.sphere_prior > 0.0 && sphere.is_some() {
         // Every k-th vertex, weighted k-fold: the same energy at a fraction of the rows.
         let n = mesh.vertex_count();
         let k = n.div_ceil(prm.sphere_prior_vertices.max(1)).max(1);
