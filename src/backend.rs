@@ -111,13 +111,10 @@ impl Kernels<'_> {
             // cocircular, and the last bits of an f32 projection flip Delaunay and alpha
             // decisions, so GPU projections would make the backends disagree. The GPU projects
             // for the silhouette path, where its raster needs the projections on the device.
-            (_, ContourSource::AlphaShape) => cams
-                .iter()
+            (_, ContourSource::AlphaShape) => crate::contours::model_contours(mesh, cams)
+                .into_iter()
                 .enumerate()
-                .map(|(view, c)| {
-                    crate::contours::model_contour(mesh, c, None)
-                        .map_err(|source| KernelError::Contour { view, source })
-                })
+                .map(|(view, c)| c.map_err(|source| KernelError::Contour { view, source }))
                 .collect(),
             (_, ContourSource::Silhouette) => {
                 let per_view = self.project_f32(mesh, cams)?;

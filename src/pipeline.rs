@@ -11,9 +11,10 @@ use crate::correspond::{correspond, CorrespondParams, Method};
 use crate::mesh::Mesh;
 use crate::report::{fit_sphere_robust, CupCatalogue, CupSize, Sphere, SphereFitError};
 use crate::solve::{
-    apply_similarity, corrected_camera, levenberg_marquardt, DeformationGraph, EdProblem,
-    EdWeights, GraphParams, LmInfo, LmParams, Observation, PoseParams, PoseProblem,
-    SimilarityProblem, SolveError,
+    apply_similarity, corrected_camera, levenberg_marquardt,
+    levenberg_marquardt_cached,
+    DeformationGraph, EdProblem, EdWeights, GraphParams, LmInfo, LmParams, Observation,
+    PoseParams, PoseProblem, SimilarityProblem, SolveError, SymbolicCache,
 };
 use crate::solve::{limb_sphere, Problem, SpherePrior};
 use crate::template::{spherical_cap, Placement};
@@ -424,6 +425,7 @@ pub fn reconstruct_with(
     let mut converged = true;
     // The sphere prior's sphere starts as the template's and is carried from solve to solve.
     let mut prior_sphere = Some((placement.center, placement.radius));
+    let mut symbolic = SymbolicCache::default();
     for _ in 0..rounds {
         obs = weighted_correspondences(&mesh, &cams_now, observed, prm, kernels, "deformation")?;
         if let Some(pp) = &prm.pose {
@@ -449,6 +451,7 @@ pub fn reconstruct_with(
             kernels,
             "deformation",
             &mut prior_sphere,
+            &mut symbolic,
         )?;
         let moved = rms_motion(&mesh, &deformed);
         mesh = deformed;
@@ -642,6 +645,7 @@ fn ed_solve(
     kernels: Kernels,
     stage: &'static str,
     sphere: &mut Option<(Point3<f64>, f64)>,
+    symbolic: &mut SymbolicCache,
 ) -> Result<(Mesh, LmInfo), ReconError> {
     let graph = DeformationGraph::new(mesh, &prm.graph);
     let mut problem = EdProblem::new(&graph, cams, obs, prm.weights.clone());
@@ -660,7 +664,7 @@ fn ed_solve(
         });
     }
     let at = sphere.unwrap_or((Point3::origin(), 0.0));
-    let (x, info) = levenberg_marquardt(&problem, problem.start(at), lm)
+    let (x, info) = levenberg_marquardt_cached(&problem, problem.start(at), lm, symbolic)
         .map_err(|source| ReconError::Solve { stage, source })?;
     let nodes = graph.node_count() * crate::solve::NODE_PARAMS;
     if problem.sphere.is_some() {
@@ -787,6 +791,7 @@ pub fn resolve_from(
         kernels,
         "resampling",
         &mut sphere,
+        &mut SymbolicCache::default(),
     )?
     .0)
 }

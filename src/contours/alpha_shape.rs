@@ -45,16 +45,21 @@ impl HasPosition for Site {
 
 /// Default alpha (circumradius bound, pixels): 1.2 times the 95th percentile of projected edge lengths.
 pub fn default_alpha(mesh: &Mesh, projected: &[Point2<f64>]) -> f64 {
-    let mut l: Vec<f64> = mesh
-        .edges()
+    alpha_from_edges(&mesh.edges(), projected)
+}
+
+/// `default_alpha` with the mesh's edges given (they depend on its triangles only).
+fn alpha_from_edges(edges: &[[u32; 2]], projected: &[Point2<f64>]) -> f64 {
+    let mut l: Vec<f64> = edges
         .iter()
         .map(|[a, b]| (projected[*a as usize] - projected[*b as usize]).norm())
         .collect();
     if l.is_empty() {
         return 1.0;
     }
-    l.sort_by(f64::total_cmp);
-    1.2 * l[((l.len() - 1) as f64 * 0.95) as usize].max(1e-9)
+    let k = ((l.len() - 1) as f64 * 0.95) as usize;
+    let (_, kth, _) = l.select_nth_unstable_by(k, f64::total_cmp);
+    1.2 * kth.max(1e-9)
 }
 
 /// Project the mesh into the camera and take the alpha-shape outline (alpha from `default_alpha`
@@ -64,6 +69,31 @@ pub fn model_contour(
     cam: &Camera,
     alpha: Option<f64>,
 ) -> Result<ModelContour, ContourError> {
+    let alpha = match alpha {
+        Some(a) => Alpha::Given(a),
+        None => Alpha::FromEdges(&mesh.edges()),
+    };
+    contour_in_view(mesh, cam, alpha)
+}
+
+/// `model_contour` with the default alpha in every view, the mesh's edges listed once.
+pub fn model_contours(mesh: &Mesh, cams: &[Camera]) -> Vec<Result<ModelContour, ContourError>> {
+    let edges = mesh.edges();
+    cams.iter()
+        .map(|c| contour_in_view(mesh, c, Alpha::FromEdges(&edges)))
+        .collect()
+}
+
+enum Alpha<'a> {
+    Given(f64),
+    FromEdges(&'a [[u32; 2]]),
+}
+
+fn contour_in_view(
+    mesh: &Mesh,
+    cam: &Camera,
+    alpha: Alpha<'_>,
+) -> Result<ModelContour, ContourError> {
     let mut projected = Vec::with_capacity(mesh.vertex_count());
     for (vertex, v) in mesh.vertices.iter().enumerate() {
         projected.push(
@@ -71,7 +101,10 @@ pub fn model_contour(
                 .map_err(|source| ContourError::Projection { vertex, source })?,
         );
     }
-    let alpha = alpha.unwrap_or_else(|| default_alpha(mesh, &projected));
+    let alpha = match alpha {
+        Alpha::Given(a) => a,
+        Alpha::FromEdges(e) => alpha_from_edges(e, &projected),
+    };
     alpha_shape_contour(&projected, alpha)
 }
 

@@ -6,7 +6,7 @@ mod curve_file;
 mod polyline;
 
 pub use alpha_shape::{
-    alpha_shape_contour, default_alpha, model_contour, ContourError, ModelContour,
+    alpha_shape_contour, default_alpha, model_contour, model_contours, ContourError, ModelContour,
 };
 pub use curve_file::{read_curve_csv, CurveFileError};
 pub use polyline::{

@@ -1,7 +1,7 @@
 //! Gauss-Newton with Levenberg-Marquardt damping on block-sparse problems: a step that would
 //! raise the cost is refused and the damping raised, so the accepted cost never rises.
 
-use super::normal::{LinearSolveError, Linearization};
+use super::normal::{LinearSolveError, Linearization, SymbolicCache};
 
 /// A least-squares problem min sum r(x)^2.
 pub trait Problem {
@@ -74,6 +74,19 @@ pub fn levenberg_marquardt<P: Problem>(
     x0: Vec<f64>,
     prm: &LmParams,
 ) -> Result<(Vec<f64>, LmInfo), SolveError> {
+    levenberg_marquardt_cached(p, x0, prm, &mut SymbolicCache::default())
+}
+
+/// As `levenberg_marquardt`, keeping the sparse symbolic factorisation in `cache` so that a
+/// sequence of solves whose block patterns fit in the kept one computes it once. What the cache
+/// held changes the result by rounding at most (a kept pattern larger than the problem's adds
+/// zero blocks).
+pub fn levenberg_marquardt_cached<P: Problem>(
+    p: &P,
+    x0: Vec<f64>,
+    prm: &LmParams,
+    cache: &mut SymbolicCache,
+) -> Result<(Vec<f64>, LmInfo), SolveError> {
     let mut x = x0;
     let mut lin = p.linearize(&x, true);
     let mut cost = lin.cost();
@@ -85,21 +98,14 @@ pub fn levenberg_marquardt<P: Problem>(
         ..Default::default()
     };
     let mut lambda = prm.lambda0;
-    let mut symbolic = None;
-    let mut pattern: Option<Vec<(u32, u32)>> = None;
     while info.iterations < prm.max_iterations {
         info.iterations += 1;
         let ne = lin.normal_equations();
-        let pat = ne.pattern();
-        if pattern.as_ref() != Some(&pat) {
-            symbolic = None; // topology changed: new symbolic factorisation
-            pattern = Some(pat);
-        }
         let diag = ne.diagonal();
         let mut accepted = false;
         while lambda <= prm.max_lambda {
             let damping: Vec<f64> = diag.iter().map(|d| lambda * d.max(1e-9) + 1e-12).collect();
-            let delta = match ne.solve(&damping, &mut symbolic) {
+            let delta = match ne.solve(&damping, cache) {
                 Ok(d) => d,
                 Err(LinearSolveError::NotPositiveDefinite { .. }) => {
                     lambda *= 10.0;

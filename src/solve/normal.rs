@@ -2,10 +2,12 @@
 //! Cholesky (LL^T). Parameters come in blocks (12 per deformation node, 7 for a similarity);
 //! every residual row touches a few blocks, so J^T J is block-sparse.
 
-use faer::linalg::solvers::SolveCore;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-use faer::sparse::{SparseColMat, Triplet};
-use faer::{Conj, Mat, Side};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering,
+};
+use faer::sparse::{Argsort, Pair, SparseColMat, SymbolicSparseColMat};
+use faer::{Conj, Mat, Par, Side};
 use std::collections::HashMap;
 
 /// Residuals r and a Jacobian J stored row by row, each row as (block, bs values) pairs.
@@ -141,6 +143,32 @@ pub enum LinearSolveError {
     Faer(String),
 }
 
+/// The symbolic Cholesky factorisation of the last new block pattern solved, kept for later
+/// solves whose pattern is the same or lies within it. Within one Levenberg-Marquardt run the
+/// pattern never changes, so a solve with many iterations computes it once.
+#[derive(Default)]
+pub struct SymbolicCache {
+    entry: Option<CachedPattern>,
+    /// Solves that reused the kept factorisation, and solves that computed a new one.
+    pub hits: usize,
+    pub misses: usize,
+}
+
+struct CachedPattern {
+    n: usize,
+    block_size: usize,
+    keys: Vec<(u32, u32)>,
+    csc: SymbolicSparseColMat<usize>,
+    argsort: Argsort<usize>,
+    chol: SymbolicCholesky<usize>,
+}
+
+/// Whether sorted `a` is contained in sorted `b`.
+fn is_sorted_subset(a: &[(u32, u32)], b: &[(u32, u32)]) -> bool {
+    let mut it = b.iter();
+    a.iter().all(|x| it.any(|y| y == x))
+}
+
 impl NormalEquations {
     /// The block pattern (same pattern -> the symbolic factorisation can be reused).
     pub fn pattern(&self) -> Vec<(u32, u32)> {
@@ -161,29 +189,51 @@ impl NormalEquations {
         d
     }
 
-    /// Lower-triangle triplets of H + diag(damping).
-    fn triplets(&self, damping: &[f64]) -> Vec<Triplet<usize, usize, f64>> {
+    /// Lower-triangle entries of H + diag(damping) laid out on `layout`, a sorted superset of
+    /// this system's block pattern: (row, column) pairs and their values, in an order fixed by
+    /// the layout alone. Layout blocks this system lacks are zeros (a diagonal one gets the
+    /// damping, at least 1, as a parameter no row touches does).
+    fn lower_entries(
+        &self,
+        layout: &[(u32, u32)],
+        damping: &[f64],
+        values: &mut Vec<f64>,
+    ) -> Vec<Pair<usize, usize>> {
         let bs = self.block_size;
-        let mut t = Vec::with_capacity(self.keys.len() * bs * bs);
-        for &((p, q), at) in &self.keys {
-            let blk = &self.blocks[at * bs * bs..(at + 1) * bs * bs];
+        let mut idx = Vec::with_capacity(layout.len() * bs * bs);
+        values.clear();
+        let zeros = vec![0.0; bs * bs];
+        let mut mine = self.keys.iter().peekable();
+        for &(p, q) in layout {
+            let blk = match mine.peek() {
+                Some(&&(k, at)) if k == (p, q) => {
+                    mine.next();
+                    Some(&self.blocks[at * bs * bs..(at + 1) * bs * bs])
+                }
+                _ => None,
+            };
             for a in 0..bs {
                 for b in 0..bs {
                     let (row, col) = (p as usize * bs + a, q as usize * bs + b);
                     if row < col {
                         continue;
                     }
-                    let mut v = blk[a * bs + b];
+                    let mut v = blk.unwrap_or(&zeros)[a * bs + b];
                     if row == col {
-                        v += damping[row];
+                        v += if blk.is_some() {
+                            damping[row]
+                        } else {
+                            damping[row].max(1.0)
+                        };
                     }
-                    t.push(Triplet::new(row, col, v));
+                    idx.push(Pair { row, col });
+                    values.push(v);
                 }
             }
         }
-        // Parameters no row touches still need a diagonal entry.
+        // Parameters the layout has no diagonal block for still need a diagonal entry.
         let mut seen = vec![false; self.n];
-        for &((p, q), _) in &self.keys {
+        for &(p, q) in layout {
             if p == q {
                 for a in 0..bs {
                     seen[p as usize * bs + a] = true;
@@ -192,39 +242,88 @@ impl NormalEquations {
         }
         for (i, s) in seen.iter().enumerate() {
             if !s {
-                t.push(Triplet::new(i, i, damping[i].max(1.0)));
+                idx.push(Pair { row: i, col: i });
+                values.push(damping[i].max(1.0));
             }
         }
-        t
+        idx
     }
 
-    /// Solve (H + diag(damping)) delta = -g, reusing `symbolic` when given (same pattern).
+    /// Solve (H + diag(damping)) delta = -g. The symbolic factorisation (fill-reducing ordering,
+    /// elimination tree) depends on the block pattern only. It is taken from `cache` when the
+    /// pattern is part of the one kept there: the blocks this system lacks enter as zeros, which
+    /// changes the answer by rounding only. Otherwise the pattern joined with the kept one (when
+    /// that adds few blocks; else this pattern alone) is factorised and kept.
     pub fn solve(
         &self,
         damping: &[f64],
-        symbolic: &mut Option<SymbolicLlt<usize>>,
+        cache: &mut SymbolicCache,
     ) -> Result<Vec<f64>, LinearSolveError> {
-        let trip = self.triplets(damping);
-        let h = SparseColMat::<usize, f64>::try_new_from_triplets(self.n, self.n, &trip)
-            .map_err(|e| LinearSolveError::Faer(format!("{e:?}")))?;
-        let sym = match symbolic {
-            Some(s) => s.clone(),
-            None => {
-                let s = SymbolicLlt::try_new(h.symbolic(), Side::Lower)
-                    .map_err(|e| LinearSolveError::Faer(format!("{e:?}")))?;
-                *symbolic = Some(s.clone());
-                s
-            }
-        };
-        let llt =
-            Llt::try_new_with_symbolic(sym, h.as_ref(), Side::Lower).map_err(|e| match e {
-                faer::sparse::linalg::LltError::Numeric(
-                    faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index },
-                ) => LinearSolveError::NotPositiveDefinite { pivot: index },
-                e => LinearSolveError::Faer(format!("{e:?}")),
+        let faer_err = |e: &dyn std::fmt::Debug| LinearSolveError::Faer(format!("{e:?}"));
+        let mut values = Vec::new();
+        let pattern = self.pattern();
+        let kept = cache
+            .entry
+            .as_ref()
+            .filter(|c| c.n == self.n && c.block_size == self.block_size);
+        let covered = kept.is_some_and(|c| is_sorted_subset(&pattern, &c.keys));
+        if covered {
+            cache.hits += 1;
+        } else {
+            let layout = pattern;
+            let idx = self.lower_entries(&layout, damping, &mut Vec::new());
+            let (csc, argsort) = SymbolicSparseColMat::try_new_from_indices(self.n, self.n, &idx)
+                .map_err(|e| faer_err(&e))?;
+            let chol = factorize_symbolic_cholesky(
+                csc.as_ref(),
+                Side::Lower,
+                SymmetricOrdering::Amd,
+                Default::default(),
+            )
+            .map_err(|e| faer_err(&e))?;
+            cache.entry = Some(CachedPattern {
+                n: self.n,
+                block_size: self.block_size,
+                keys: layout,
+                csc,
+                argsort,
+                chol,
+            });
+            cache.misses += 1;
+        }
+        // Invariant: the entry was matched or filled just above.
+        let c = cache.entry.as_ref().expect("cached pattern present");
+        let _ = self.lower_entries(&c.keys, damping, &mut values);
+        let h = SparseColMat::new_from_argsort(c.csc.clone(), &c.argsort, &values)
+            .map_err(|e| faer_err(&e))?;
+        // Sequential on purpose: these systems have a few thousand unknowns, where faer's
+        // threads cost more than they save, and a study already runs one case per core.
+        let par = Par::Seq;
+        let mut l_values = vec![0.0; c.chol.len_val()];
+        let mut mem = MemBuffer::try_new(
+            c.chol
+                .factorize_numeric_llt_scratch::<f64>(par, Default::default())
+                .or(c.chol.solve_in_place_scratch::<f64>(1, par)),
+        )
+        .map_err(|e| faer_err(&e))?;
+        let llt = c
+            .chol
+            .factorize_numeric_llt(
+                &mut l_values,
+                h.as_ref(),
+                Side::Lower,
+                Default::default(),
+                par,
+                MemStack::new(&mut mem),
+                Default::default(),
+            )
+            .map_err(|e| match e {
+                faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index } => {
+                    LinearSolveError::NotPositiveDefinite { pivot: index }
+                }
             })?;
         let mut rhs = Mat::<f64>::from_fn(self.n, 1, |i, _| -self.g[i]);
-        llt.solve_in_place_with_conj(Conj::No, rhs.as_mut());
+        llt.solve_in_place_with_conj(Conj::No, rhs.as_mut(), par, MemStack::new(&mut mem));
         Ok((0..self.n).map(|i| rhs[(i, 0)]).collect())
     }
 
@@ -277,7 +376,7 @@ mod tests {
             assert!((ne.g[i] - g[i]).abs() < 1e-12);
         }
         let damping = vec![1e-3; ne.n];
-        let mut sym = None;
+        let mut sym = SymbolicCache::default();
         let d = ne.solve(&damping, &mut sym).unwrap();
         // (J^T J + D) d = -J^T r
         let hd = ne.h_times(&d);
@@ -290,6 +389,46 @@ mod tests {
         // Reusing the symbolic factorisation gives the same answer.
         let d2 = ne.solve(&damping, &mut sym).unwrap();
         assert_eq!(d, d2);
+        assert_eq!((sym.hits, sym.misses), (1, 1));
+    }
+
+    /// Largest |(H + D) d + g| entry.
+    fn worst_residual(ne: &NormalEquations, damping: &[f64], d: &[f64]) -> f64 {
+        let hd = ne.h_times(d);
+        (0..ne.n)
+            .map(|i| (hd[i] + damping[i] * d[i] + ne.g[i]).abs())
+            .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn a_kept_factorisation_serves_a_pattern_within_it_and_a_new_pattern_gets_its_own() {
+        // Full pattern first: every pair of the five blocks coupled.
+        let mut full = random_problem(21);
+        for p in 0..5u32 {
+            for q in 0..p {
+                full.push_row(0.5, &[(p, &[1.0, 0.5, 0.25]), (q, &[0.3, -0.2, 0.1])]);
+            }
+        }
+        // A pattern within it (random_problem couples some pairs only), and one outside it
+        // (more blocks).
+        let within = random_problem(22);
+        let mut outside = Linearization::new(3, 6);
+        for b in 0..6u32 {
+            outside.push_row(1.0, &[(b, &[1.0, 2.0, 3.0]), ((b + 1) % 6, &[0.5, 0.0, 1.0])]);
+            outside.push_row(-1.0, &[(b, &[0.0, 1.0, 0.0])]);
+            outside.push_row(2.0, &[(b, &[0.0, 0.0, 1.0])]);
+        }
+        let mut cache = SymbolicCache::default();
+        for (l, hits, misses) in [(&full, 0, 1), (&within, 1, 1), (&outside, 1, 2)] {
+            let ne = l.normal_equations();
+            let damping = vec![1e-3; ne.n];
+            let d = ne.solve(&damping, &mut cache).unwrap();
+            assert!(worst_residual(&ne, &damping, &d) < 1e-9);
+            assert_eq!((cache.hits, cache.misses), (hits, misses));
+            // The same system solved without the kept factorisation agrees to rounding.
+            let fresh = ne.solve(&damping, &mut SymbolicCache::default()).unwrap();
+            assert!(d.iter().zip(&fresh).all(|(a, b)| (a - b).abs() < 1e-9));
+        }
     }
 
     #[test]
@@ -297,13 +436,9 @@ mod tests {
         let l = random_problem(12);
         let ne = l.normal_equations();
         let damping = vec![1e-3; ne.n];
-        let mut d = ne.solve(&damping, &mut None).unwrap();
+        let mut d = ne.solve(&damping, &mut SymbolicCache::default()).unwrap();
         d[3] += 1e-3;
-        let hd = ne.h_times(&d);
-        let worst = (0..ne.n)
-            .map(|i| (hd[i] + damping[i] * d[i] + ne.g[i]).abs())
-            .fold(0.0, f64::max);
-        assert!(worst > 1e-7);
+        assert!(worst_residual(&ne, &damping, &d) > 1e-7);
     }
 
     #[test]
@@ -312,7 +447,7 @@ mod tests {
         l.push_row(1.0, &[(0, &[1.0])]);
         l.push_row(1.0, &[(1, &[1.0])]);
         let ne = l.normal_equations();
-        let e = ne.solve(&[-5.0, -5.0], &mut None).unwrap_err();
+        let e = ne.solve(&[-5.0, -5.0], &mut SymbolicCache::default()).unwrap_err();
         assert!(
             matches!(e, LinearSolveError::NotPositiveDefinite { .. }),
             "{e:?}"
