@@ -66,6 +66,10 @@ pub struct ReconParams {
     pub limb_start: bool,
     /// Noise floor of the limb fit, mm at the object (default 0.5).
     pub limb_scale_mm: f64,
+    /// Stage B rounds both orientations get when stage A cannot choose between the start's and
+    /// the mirrored one (0: keep the start's; default 1; the ICP baselines' rounds are single
+    /// iterations).
+    pub orientation_rounds: usize,
     /// Similarity stage turns the template about its sphere centre only (default on with
     /// `limb_start`): the limb fit has fixed centre and size.
     pub similarity_rotation_only: bool,
@@ -110,6 +114,7 @@ impl Default for ReconParams {
             limb_scale_mm: 0.5,
             similarity_rotation_only: true,
             mirrored_start: true,
+            orientation_rounds: 1,
             sphere_prior: 0.3,
             sphere_prior_vertices: 600,
             similarity_srvf_samples: 100,
@@ -158,6 +163,9 @@ pub struct SolveLog {
     pub pose_corrections: Vec<[f64; 2]>,
     /// The sphere fitted to the outlines' limbs (centre x, y, z and radius, mm), when used.
     pub limb_sphere: Option<[f64; 4]>,
+    /// When stage B compared the start's orientation with the mirrored one: their reprojection
+    /// RMS (px) after `orientation_rounds`; the lower went on.
+    pub orientation_rms_px: Option<[f64; 2]>,
 }
 
 /// The result.
@@ -314,10 +322,10 @@ pub fn reconstruct_with(
     // Stage A: similarity, correspondences recomputed each round. When the sphere is known the
     // axis mirrored through the first view's image plane is probed too: an acetabulum opening
     // forwards and one opening backwards by as much cast nearly the same outline in a frontal
-    // view, and only the oblique views tell them apart. The given start is kept unless the
-    // mirrored one reprojects clearly better (by the factor MIRROR_SWITCH): where the two are
-    // close the outlines cannot tell them apart, and the start's own orientation is the better
-    // guess.
+    // view, and only the oblique views tell them apart. The mirrored one replaces the given
+    // start when it reprojects clearly better (by the factor MIRROR_SWITCH) and is dropped when
+    // clearly worse; in between, the rigid cap cannot tell them apart and both go on to stage B
+    // (see `orientation_rounds`).
     // The similarity stage fixes only a handful of parameters: coarser SRVF curves do.
     let mut coarse = prm.clone();
     let srvf = &mut coarse.correspond.srvf;
@@ -335,17 +343,24 @@ pub fn reconstruct_with(
         Ok::<_, ReconError>(r)
     };
     let mut best = stage(start.clone(), prm.similarity_rounds, &mut log)?;
+    // The mirrored orientation when the outlines leave it open: carried through stage B beside
+    // the start's (see `ORIENTATION_ROUNDS`).
+    let mut rival: Option<StageA> = None;
     if let Some(axis) = mirrored_axis(&start, cams).filter(|_| rotation_only && prm.mirrored_start)
     {
         let mirrored = Placement {
             axis,
             ..start.clone()
         };
-        // A few rounds tell a wrong orientation from a right one; only a clear winner is
-        // carried on to convergence.
+        // A few rounds tell a clearly wrong orientation from a right one; the mirrored start
+        // goes on to convergence unless it is clearly worse.
         let probe = stage(mirrored, MIRROR_PROBE_ROUNDS, &mut log)?;
-        if probe.score < best.score * MIRROR_SWITCH {
-            best = similarity_stage(
+        let clear = probe.score < best.score * MIRROR_SWITCH;
+        let open = !clear
+            && prm.orientation_rounds > 0
+            && probe.score < best.score / MIRROR_SWITCH;
+        if clear || open {
+            let settled = similarity_stage(
                 probe.mesh,
                 cams,
                 observed,
@@ -356,8 +371,13 @@ pub fn reconstruct_with(
                 prm.similarity_rounds,
                 probe.placement,
             )?;
-            log.similarity_rounds += best.rounds;
-            log.gn_iterations += best.iterations;
+            log.similarity_rounds += settled.rounds;
+            log.gn_iterations += settled.iterations;
+            if clear {
+                best = settled;
+            } else {
+                rival = Some(settled);
+            }
         }
     }
     let (mut mesh, mut placement) = (best.mesh, best.placement);
@@ -411,57 +431,34 @@ pub fn reconstruct_with(
     }
 
     // Stage B: embedded deformation (with the per-view pose corrections when asked for).
-    let (rounds, lm) = match prm.method {
-        Method::Srvf => (prm.correspondence_updates.max(1), prm.lm.clone()),
-        Method::Icp | Method::IcpNormvec => (
-            prm.icp_iterations.max(1),
-            LmParams {
-                max_iterations: 1,
-                ..prm.lm.clone()
-            },
-        ),
-    };
-    let mut obs = Vec::new();
-    let mut converged = true;
-    // The sphere prior's sphere starts as the template's and is carried from solve to solve.
-    let mut prior_sphere = Some((placement.center, placement.radius));
-    let mut symbolic = SymbolicCache::default();
-    for _ in 0..rounds {
-        obs = weighted_correspondences(&mesh, &cams_now, observed, prm, kernels, "deformation")?;
-        if let Some(pp) = &prm.pose {
-            // The views' corrections first, on these correspondences and the current shape;
-            // then the shape with the corrected views: both lower the one joint energy.
-            log.gn_iterations += refine_poses(
-                &mesh,
-                &pose_center,
-                cams,
-                &obs,
-                pp,
-                prm,
-                &mut pose_x,
-                &mut cams_now,
-            )?;
+    let ctx = StageB::new(cams, observed, prm, kernels, pose_center);
+    let mut run = Deformation::new(mesh, &placement, cams_now, pose_x);
+    if let Some(r) = rival {
+        // Both orientations deform for a few rounds; the one that then reprojects better goes
+        // on. Stage A's rigid cap cannot tell them apart where the acetabulum is not a cap, but
+        // the deformed surface of the wrong one cannot follow the oblique views' outlines.
+        let mut other = Deformation::new(r.mesh, &r.placement, cams.to_vec(), vec![0.0; 6 * cams.len()]);
+        let k = prm.orientation_rounds.min(ctx.rounds);
+        run.advance(&ctx, k)?;
+        other.advance(&ctx, k)?;
+        let (kept, mirrored) = (run.rms_px(), other.rms_px());
+        log.orientation_rms_px = Some([kept, mirrored]);
+        if mirrored < kept {
+            std::mem::swap(&mut run, &mut other);
         }
-        let (deformed, info) = ed_solve(
-            &mesh,
-            &cams_now,
-            &obs,
-            prm,
-            &lm,
-            kernels,
-            "deformation",
-            &mut prior_sphere,
-            &mut symbolic,
-        )?;
-        let moved = rms_motion(&mesh, &deformed);
-        mesh = deformed;
-        log.correspondence_updates += 1;
-        log.gn_iterations += info.iterations;
-        converged = info.converged || prm.method != Method::Srvf;
-        if prm.method != Method::Srvf && moved < prm.icp_tol_mm {
-            break;
-        }
+        log.gn_iterations += other.gn_iterations;
     }
+    run.advance(&ctx, ctx.rounds)?;
+    log.correspondence_updates += run.rounds;
+    log.gn_iterations += run.gn_iterations;
+    let Deformation {
+        mesh,
+        obs,
+        converged,
+        cams_now,
+        pose_x,
+        ..
+    } = run;
     log.pose_corrections = if prm.pose.is_some() {
         pose_x
             .chunks(6)
@@ -494,9 +491,140 @@ pub fn reconstruct_with(
     })
 }
 
-/// The mirrored start replaces the given one only when its score is below this fraction of the
-/// given one's. On the shared acetabula a wrong orientation scores about twice the right one,
-/// while the two mirror images of a good start score within about 15 % of each other.
+/// What every stage-B solve of one reconstruction shares.
+struct StageB<'a> {
+    cams: &'a [Camera],
+    observed: &'a [Vec<Curve>],
+    prm: &'a ReconParams,
+    kernels: Kernels<'a>,
+    pose_center: Point3<f64>,
+    /// Correspondence rounds in all, and the solver settings of each round's solve.
+    rounds: usize,
+    lm: LmParams,
+}
+
+impl<'a> StageB<'a> {
+    fn new(
+        cams: &'a [Camera],
+        observed: &'a [Vec<Curve>],
+        prm: &'a ReconParams,
+        kernels: Kernels<'a>,
+        pose_center: Point3<f64>,
+    ) -> Self {
+        let (rounds, lm) = match prm.method {
+            Method::Srvf => (prm.correspondence_updates.max(1), prm.lm.clone()),
+            Method::Icp | Method::IcpNormvec => (
+                prm.icp_iterations.max(1),
+                LmParams {
+                    max_iterations: 1,
+                    ..prm.lm.clone()
+                },
+            ),
+        };
+        StageB {
+            cams,
+            observed,
+            prm,
+            kernels,
+            pose_center,
+            rounds,
+            lm,
+        }
+    }
+}
+
+/// One surface going through stage B: its shape, views and what its solves carry over.
+struct Deformation {
+    mesh: Mesh,
+    /// The last round's correspondences.
+    obs: Vec<Observation>,
+    /// The sphere prior's sphere: starts as the template's, carried from solve to solve.
+    prior_sphere: Option<(Point3<f64>, f64)>,
+    symbolic: SymbolicCache,
+    converged: bool,
+    /// ICP stopped: an iteration moved the surface by less than `icp_tol_mm`.
+    settled: bool,
+    rounds: usize,
+    gn_iterations: usize,
+    cams_now: Vec<Camera>,
+    pose_x: Vec<f64>,
+}
+
+impl Deformation {
+    fn new(mesh: Mesh, placement: &Placement, cams_now: Vec<Camera>, pose_x: Vec<f64>) -> Self {
+        Deformation {
+            mesh,
+            obs: Vec::new(),
+            prior_sphere: Some((placement.center, placement.radius)),
+            symbolic: SymbolicCache::default(),
+            converged: true,
+            settled: false,
+            rounds: 0,
+            gn_iterations: 0,
+            cams_now,
+            pose_x,
+        }
+    }
+
+    /// Reprojection RMS (px) of the last round's correspondences.
+    fn rms_px(&self) -> f64 {
+        rms_px(&self.mesh, &self.cams_now, &self.obs)
+    }
+
+    /// Run rounds until `upto` have been run in all (or ICP has settled).
+    fn advance(&mut self, b: &StageB<'_>, upto: usize) -> Result<(), ReconError> {
+        let prm = b.prm;
+        while self.rounds < upto && !self.settled {
+            self.obs = weighted_correspondences(
+                &self.mesh,
+                &self.cams_now,
+                b.observed,
+                prm,
+                b.kernels,
+                "deformation",
+            )?;
+            if let Some(pp) = &prm.pose {
+                // The views' corrections first, on these correspondences and the current
+                // shape; then the shape with the corrected views: both lower the one joint
+                // energy.
+                self.gn_iterations += refine_poses(
+                    &self.mesh,
+                    &b.pose_center,
+                    b.cams,
+                    &self.obs,
+                    pp,
+                    prm,
+                    &mut self.pose_x,
+                    &mut self.cams_now,
+                )?;
+            }
+            let (deformed, info) = ed_solve(
+                &self.mesh,
+                &self.cams_now,
+                &self.obs,
+                prm,
+                &b.lm,
+                b.kernels,
+                "deformation",
+                &mut self.prior_sphere,
+                &mut self.symbolic,
+            )?;
+            let moved = rms_motion(&self.mesh, &deformed);
+            self.mesh = deformed;
+            self.rounds += 1;
+            self.gn_iterations += info.iterations;
+            self.converged = info.converged || prm.method != Method::Srvf;
+            self.settled = prm.method != Method::Srvf && moved < prm.icp_tol_mm;
+        }
+        Ok(())
+    }
+}
+
+/// The mirrored start replaces the given one when its score is below this fraction of the given
+/// one's, and is dropped when above its inverse; in between both go on to stage B. On the shared
+/// acetabula a wrong orientation scores about twice the right one where the cap fits the
+/// acetabulum, while on m1_rhip the two mirror images score within about 15 % of each other
+/// whichever is right.
 const MIRROR_SWITCH: f64 = 0.7;
 
 /// Similarity rounds the mirrored start gets before it is compared.

@@ -3,10 +3,11 @@
 //! and shifted by a fixed distance in a random direction), once with the per-view pose
 //! refinement and once without; the truth's observations come from the true poses.
 
-use crate::demo::accuracy;
+use crate::demo::{accuracy_from, accuracy_samples};
 use crate::mesh::Mesh;
 use crate::pipeline::{reconstruct, ReconParams};
-use crate::simulate::{perturb_poses, simulate_case, NoiseLevel};
+use crate::simulate::{perturb_poses, NoiseLevel, SimSetup};
+use nalgebra::Point3;
 use crate::solve::PoseParams;
 use crate::views::XrayGeometry;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -51,7 +52,14 @@ impl Default for PoseStudy {
     }
 }
 
-fn one(truth: &Mesh, cfg: &PoseStudy, run: usize) -> PoseRow {
+/// What every case shares: the simulation set-up (or why it failed) and the points accuracy is
+/// measured from.
+struct Shared {
+    setup: Result<SimSetup, String>,
+    samples: Vec<Point3<f64>>,
+}
+
+fn one(shared: &Shared, cfg: &PoseStudy, run: usize) -> PoseRow {
     let seed = crate::study::run_seed(cfg.seed, 1000 + cfg.level, run);
     let mut row = PoseRow {
         run,
@@ -67,10 +75,10 @@ fn one(truth: &Mesh, cfg: &PoseStudy, run: usize) -> PoseRow {
         row.error = format!("no noise level {}", cfg.level);
         return row;
     };
-    let sim = match simulate_case(truth, &XrayGeometry::default(), 2.0, &level, seed) {
-        Ok(s) => s,
+    let sim = match &shared.setup {
+        Ok(s) => s.case(2.0, &level, seed),
         Err(e) => {
-            row.error = e.to_string();
+            row.error = e.clone();
             return row;
         }
     };
@@ -90,7 +98,7 @@ fn one(truth: &Mesh, cfg: &PoseStudy, run: usize) -> PoseRow {
         };
         match reconstruct(&cams, &sim.observed, &sim.init, &prm) {
             Ok(rec) => {
-                let mae = accuracy(truth, &rec.mesh).mae_mm;
+                let mae = accuracy_from(&shared.samples, &rec.mesh).mae_mm;
                 let cup = rec.sphere.diameter() - gt;
                 if refine {
                     row.mae_with_mm = mae;
@@ -109,6 +117,10 @@ fn one(truth: &Mesh, cfg: &PoseStudy, run: usize) -> PoseRow {
 
 /// Run every case (threads do not change the results).
 pub fn run_pose_study(truth: &Mesh, cfg: &PoseStudy) -> Vec<PoseRow> {
+    let shared = Shared {
+        setup: SimSetup::new(truth, &XrayGeometry::default()).map_err(|e| e.to_string()),
+        samples: accuracy_samples(truth),
+    };
     let next = AtomicUsize::new(0);
     let rows: Mutex<Vec<Option<PoseRow>>> = Mutex::new(vec![None; cfg.runs]);
     std::thread::scope(|s| {
@@ -118,7 +130,7 @@ pub fn run_pose_study(truth: &Mesh, cfg: &PoseStudy) -> Vec<PoseRow> {
                 if k >= cfg.runs {
                     break;
                 }
-                let r = one(truth, cfg, k);
+                let r = one(&shared, cfg, k);
                 rows.lock().unwrap_or_else(|e| e.into_inner())[k] = Some(r);
             });
         }
