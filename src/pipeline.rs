@@ -163,9 +163,17 @@ pub struct SolveLog {
     pub pose_corrections: Vec<[f64; 2]>,
     /// The sphere fitted to the outlines' limbs (centre x, y, z and radius, mm), when used.
     pub limb_sphere: Option<[f64; 4]>,
-    /// When stage B compared the start's orientation with the mirrored one: their reprojection
-    /// RMS (px) after `orientation_rounds`; the lower went on.
-    pub orientation_rms_px: Option<[f64; 2]>,
+    /// The orientations stage B compared (none when stage A's was the only one), with their
+    /// reprojection RMS after `orientation_rounds`; the lowest went on.
+    pub orientations: Vec<OrientationTrial>,
+}
+
+/// One orientation stage B tried.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct OrientationTrial {
+    /// "stage A" (its result) or "mirrored" (the mirrored start, settled by stage A).
+    pub source: &'static str,
+    pub rms_px: f64,
 }
 
 /// The result.
@@ -345,7 +353,7 @@ pub fn reconstruct_with(
     let mut best = stage(start.clone(), prm.similarity_rounds, &mut log)?;
     // The mirrored orientation when the outlines leave it open: carried through stage B beside
     // the start's (see `ORIENTATION_ROUNDS`).
-    let mut rival: Option<StageA> = None;
+    let mut rivals: Vec<(&'static str, Mesh, Placement)> = Vec::new();
     if let Some(axis) = mirrored_axis(&start, cams).filter(|_| rotation_only && prm.mirrored_start)
     {
         let mirrored = Placement {
@@ -376,7 +384,7 @@ pub fn reconstruct_with(
             if clear {
                 best = settled;
             } else {
-                rival = Some(settled);
+                rivals.push(("mirrored", settled.mesh, settled.placement));
             }
         }
     }
@@ -433,20 +441,27 @@ pub fn reconstruct_with(
     // Stage B: embedded deformation (with the per-view pose corrections when asked for).
     let ctx = StageB::new(cams, observed, prm, kernels, pose_center);
     let mut run = Deformation::new(mesh, &placement, cams_now, pose_x);
-    if let Some(r) = rival {
-        // Both orientations deform for a few rounds; the one that then reprojects better goes
-        // on. Stage A's rigid cap cannot tell them apart where the acetabulum is not a cap, but
-        // the deformed surface of the wrong one cannot follow the oblique views' outlines.
-        let mut other = Deformation::new(r.mesh, &r.placement, cams.to_vec(), vec![0.0; 6 * cams.len()]);
+    if !rivals.is_empty() {
+        // Each candidate deforms for a few rounds; the one that then reprojects best goes on.
+        // Stage A's rigid cap cannot tell mirror-image orientations apart where the acetabulum
+        // is not a cap, but the deformed surface of a wrong one cannot follow the oblique views'
+        // outlines.
         let k = prm.orientation_rounds.min(ctx.rounds);
         run.advance(&ctx, k)?;
-        other.advance(&ctx, k)?;
-        let (kept, mirrored) = (run.rms_px(), other.rms_px());
-        log.orientation_rms_px = Some([kept, mirrored]);
-        if mirrored < kept {
-            std::mem::swap(&mut run, &mut other);
+        log.orientations.push(OrientationTrial {
+            source: "stage A",
+            rms_px: run.rms_px(),
+        });
+        for (source, m, p) in rivals {
+            let mut other = Deformation::new(m, &p, cams.to_vec(), vec![0.0; 6 * cams.len()]);
+            other.advance(&ctx, k)?;
+            let rms_px = other.rms_px();
+            log.orientations.push(OrientationTrial { source, rms_px });
+            if rms_px < run.rms_px() {
+                std::mem::swap(&mut run, &mut other);
+            }
+            log.gn_iterations += other.gn_iterations;
         }
-        log.gn_iterations += other.gn_iterations;
     }
     run.advance(&ctx, ctx.rounds)?;
     log.correspondence_updates += run.rounds;
