@@ -44,7 +44,9 @@ fn main() -> ExitCode {
             bands[b].0 += d.norm() - sphere.radius;
             bands[b].1 += 1;
         }
-        let name = Path::new(p).file_stem().map_or(p.clone(), |s| s.to_string_lossy().into());
+        let name = Path::new(p)
+            .file_stem()
+            .map_or(p.clone(), |s| s.to_string_lossy().into());
         let cells: Vec<String> = bands
             .iter()
             .map(|(s, n)| {

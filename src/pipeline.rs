@@ -11,10 +11,9 @@ use crate::correspond::{correspond, CorrespondParams, Method};
 use crate::mesh::Mesh;
 use crate::report::{fit_sphere_robust, CupCatalogue, CupSize, Sphere, SphereFitError};
 use crate::solve::{
-    apply_similarity, corrected_camera, levenberg_marquardt,
-    levenberg_marquardt_cached,
-    DeformationGraph, EdProblem, EdWeights, GraphParams, LmInfo, LmParams, Observation,
-    PoseParams, PoseProblem, SimilarityProblem, SolveError, SymbolicCache,
+    apply_similarity, corrected_camera, levenberg_marquardt, levenberg_marquardt_cached,
+    DeformationGraph, EdProblem, EdWeights, GraphParams, LmInfo, LmParams, Observation, PoseParams,
+    PoseProblem, SimilarityProblem, SolveError, SymbolicCache,
 };
 use crate::solve::{limb_sphere, Problem, SpherePrior};
 use crate::template::{spherical_cap, Placement};
@@ -364,9 +363,7 @@ pub fn reconstruct_with(
         // goes on to convergence unless it is clearly worse.
         let probe = stage(mirrored, MIRROR_PROBE_ROUNDS, &mut log)?;
         let clear = probe.score < best.score * MIRROR_SWITCH;
-        let open = !clear
-            && prm.orientation_rounds > 0
-            && probe.score < best.score / MIRROR_SWITCH;
+        let open = !clear && prm.orientation_rounds > 0 && probe.score < best.score / MIRROR_SWITCH;
         if clear || open {
             let settled = similarity_stage(
                 probe.mesh,

@@ -15,7 +15,9 @@ pub use energy::{EdProblem, EdWeights, Observation, SpherePrior};
 pub use graph::{farthest_point_sample, DeformationGraph, GraphParams, NODE_PARAMS};
 pub use knn::Knn3;
 pub use limb::{limb_sphere, LimbError, LimbSphere};
-pub use lm::{levenberg_marquardt, levenberg_marquardt_cached, LmInfo, LmParams, Problem, SolveError};
+pub use lm::{
+    levenberg_marquardt, levenberg_marquardt_cached, LmInfo, LmParams, Problem, SolveError,
+};
 pub use normal::{LinearSolveError, Linearization, NormalEquations, SymbolicCache};
 pub use pose::{corrected_camera, PoseParams, PoseProblem};
 pub use similarity::{apply_similarity, full_state, SimilarityProblem, SIM_PARAMS};

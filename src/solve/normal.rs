@@ -414,7 +414,10 @@ mod tests {
         let within = random_problem(22);
         let mut outside = Linearization::new(3, 6);
         for b in 0..6u32 {
-            outside.push_row(1.0, &[(b, &[1.0, 2.0, 3.0]), ((b + 1) % 6, &[0.5, 0.0, 1.0])]);
+            outside.push_row(
+                1.0,
+                &[(b, &[1.0, 2.0, 3.0]), ((b + 1) % 6, &[0.5, 0.0, 1.0])],
+            );
             outside.push_row(-1.0, &[(b, &[0.0, 1.0, 0.0])]);
             outside.push_row(2.0, &[(b, &[0.0, 0.0, 1.0])]);
         }
@@ -447,7 +450,9 @@ mod tests {
         l.push_row(1.0, &[(0, &[1.0])]);
         l.push_row(1.0, &[(1, &[1.0])]);
         let ne = l.normal_equations();
-        let e = ne.solve(&[-5.0, -5.0], &mut SymbolicCache::default()).unwrap_err();
+        let e = ne
+            .solve(&[-5.0, -5.0], &mut SymbolicCache::default())
+            .unwrap_err();
         assert!(
             matches!(e, LinearSolveError::NotPositiveDefinite { .. }),
             "{e:?}"

@@ -7,9 +7,9 @@ use crate::demo::{accuracy_from, accuracy_samples};
 use crate::mesh::Mesh;
 use crate::pipeline::{reconstruct, ReconParams};
 use crate::simulate::{perturb_poses, NoiseLevel, SimSetup};
-use nalgebra::Point3;
 use crate::solve::PoseParams;
 use crate::views::XrayGeometry;
+use nalgebra::Point3;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 

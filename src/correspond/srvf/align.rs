@@ -170,6 +170,50 @@ fn closed_grid(q: &[Vector2<f64>], shift: usize) -> Vec<Vector2<f64>> {
     (0..=t).map(|i| q[(i + shift) % t]).collect()
 }
 
+/// Both curves checked, resampled to `prm.samples` points and turned into SRVFs, with the DP's
+/// step set: what closed and open alignment start from.
+struct Resampled {
+    t: usize,
+    ra: Vec<Point2<f64>>,
+    rb: Vec<Point2<f64>>,
+    q1: Vec<Vector2<f64>>,
+    q2: Vec<Vector2<f64>>,
+    steps: Vec<(usize, usize)>,
+}
+
+impl Resampled {
+    fn new(
+        a: &[Point2<f64>],
+        b: &[Point2<f64>],
+        prm: &SrvfParams,
+        closed: bool,
+    ) -> Result<Resampled, SrvfError> {
+        check("A", a)?;
+        check("B", b)?;
+        if prm.samples < 8 {
+            return Err(SrvfError::TooFewSamples(prm.samples));
+        }
+        let t = prm.samples;
+        let resample = if closed {
+            resample_closed
+        } else {
+            resample_open
+        };
+        let (ra, _) = resample(a, t);
+        let (rb, _) = resample(b, t);
+        let q1 = srvf(&ra, closed);
+        let q2 = srvf(&rb, closed);
+        Ok(Resampled {
+            t,
+            ra,
+            rb,
+            q1,
+            q2,
+            steps: coprime_steps(prm.neighbourhood),
+        })
+    }
+}
+
 /// Align closed curve B onto closed curve A. With `exhaustive`, every seed is refined (the test
 /// oracle); otherwise the `seed_candidates` best by rotation-only energy.
 pub fn align_closed(
@@ -178,17 +222,14 @@ pub fn align_closed(
     prm: &SrvfParams,
     exhaustive: bool,
 ) -> Result<Alignment, SrvfError> {
-    check("A", a)?;
-    check("B", b)?;
-    if prm.samples < 8 {
-        return Err(SrvfError::TooFewSamples(prm.samples));
-    }
-    let t = prm.samples;
-    let (ra, _) = resample_closed(a, t);
-    let (rb, _) = resample_closed(b, t);
-    let q1 = srvf(&ra, true);
-    let q2 = srvf(&rb, true);
-    let steps = coprime_steps(prm.neighbourhood);
+    let Resampled {
+        t,
+        ra,
+        rb,
+        q1,
+        q2,
+        steps,
+    } = Resampled::new(a, b, prm, true)?;
     let energies = shift_energies(&q1, &q2);
     let mut order: Vec<usize> = (0..t).collect();
     order.sort_by(|&x, &y| energies[x].0.total_cmp(&energies[y].0));
@@ -314,17 +355,9 @@ pub fn align_open(
     b: &[Point2<f64>],
     prm: &SrvfParams,
 ) -> Result<Alignment, SrvfError> {
-    check("A", a)?;
-    check("B", b)?;
-    if prm.samples < 8 {
-        return Err(SrvfError::TooFewSamples(prm.samples));
-    }
-    let t = prm.samples;
-    let (ra, _) = resample_open(a, t);
-    let (rb, _) = resample_open(b, t);
-    let q1 = srvf(&ra, false);
-    let q2 = srvf(&rb, false);
-    let steps = coprime_steps(prm.neighbourhood);
+    let Resampled {
+        ra, q1, q2, steps, ..
+    } = Resampled::new(a, b, prm, false)?;
     let (theta, w) = rotate_and_warp(&q1, &q2, best_rotation(&q1, &q2), prm, &steps, None);
     let total = polyline_length(b, false);
     let mut out = Alignment {
