@@ -340,8 +340,8 @@ pub fn reconstruct_with(
     srvf.seed_candidates = srvf
         .seed_candidates
         .min(prm.similarity_seed_candidates.max(1));
-    let stage = |placement: Placement, max_rounds: usize, log: &mut SolveLog| {
-        let mesh = placement.place(&unit);
+    // Stage A from `mesh` (the template at `placement`), its work added to the log.
+    let stage = |mesh: Mesh, placement: Placement, max_rounds: usize, log: &mut SolveLog| {
         let r = similarity_stage(
             mesh, cams, observed, &coarse, kernels, &on_rim, about, max_rounds, placement,
         )?;
@@ -349,9 +349,14 @@ pub fn reconstruct_with(
         log.gn_iterations += r.iterations;
         Ok::<_, ReconError>(r)
     };
-    let mut best = stage(start.clone(), prm.similarity_rounds, &mut log)?;
+    let mut best = stage(
+        start.place(&unit),
+        start.clone(),
+        prm.similarity_rounds,
+        &mut log,
+    )?;
     // The mirrored orientation when the outlines leave it open: carried through stage B beside
-    // the start's (see `ORIENTATION_ROUNDS`).
+    // the start's (see `orientation_rounds`).
     let mut rivals: Vec<(&'static str, Mesh, Placement)> = Vec::new();
     if let Some(axis) = mirrored_axis(&start, cams).filter(|_| rotation_only && prm.mirrored_start)
     {
@@ -361,23 +366,16 @@ pub fn reconstruct_with(
         };
         // A few rounds tell a clearly wrong orientation from a right one; the mirrored start
         // goes on to convergence unless it is clearly worse.
-        let probe = stage(mirrored, MIRROR_PROBE_ROUNDS, &mut log)?;
+        let probe = stage(
+            mirrored.place(&unit),
+            mirrored,
+            MIRROR_PROBE_ROUNDS,
+            &mut log,
+        )?;
         let clear = probe.score < best.score * MIRROR_SWITCH;
         let open = !clear && prm.orientation_rounds > 0 && probe.score < best.score / MIRROR_SWITCH;
         if clear || open {
-            let settled = similarity_stage(
-                probe.mesh,
-                cams,
-                observed,
-                &coarse,
-                kernels,
-                &on_rim,
-                about,
-                prm.similarity_rounds,
-                probe.placement,
-            )?;
-            log.similarity_rounds += settled.rounds;
-            log.gn_iterations += settled.iterations;
+            let settled = stage(probe.mesh, probe.placement, prm.similarity_rounds, &mut log)?;
             if clear {
                 best = settled;
             } else {

@@ -189,19 +189,19 @@ impl NormalEquations {
         d
     }
 
-    /// Lower-triangle entries of H + diag(damping) laid out on `layout`, a sorted superset of
-    /// this system's block pattern: (row, column) pairs and their values, in an order fixed by
-    /// the layout alone. Layout blocks this system lacks are zeros (a diagonal one gets the
-    /// damping, at least 1, as a parameter no row touches does).
+    /// Lower-triangle values of H + diag(damping) laid out on `layout`, a sorted superset of
+    /// this system's block pattern, in an order fixed by the layout alone; their (row, column)
+    /// pairs go to `idx` when given (only a new symbolic factorisation needs them). Layout blocks
+    /// this system lacks are zeros (a diagonal one gets the damping, at least 1, as a parameter
+    /// no row touches does).
     fn lower_entries(
         &self,
         layout: &[(u32, u32)],
         damping: &[f64],
-        values: &mut Vec<f64>,
-    ) -> Vec<Pair<usize, usize>> {
+        mut idx: Option<&mut Vec<Pair<usize, usize>>>,
+    ) -> Vec<f64> {
         let bs = self.block_size;
-        let mut idx = Vec::with_capacity(layout.len() * bs * bs);
-        values.clear();
+        let mut values = Vec::with_capacity(layout.len() * bs * bs);
         let zeros = vec![0.0; bs * bs];
         let mut mine = self.keys.iter().peekable();
         for &(p, q) in layout {
@@ -226,7 +226,9 @@ impl NormalEquations {
                             damping[row].max(1.0)
                         };
                     }
-                    idx.push(Pair { row, col });
+                    if let Some(idx) = idx.as_deref_mut() {
+                        idx.push(Pair { row, col });
+                    }
                     values.push(v);
                 }
             }
@@ -242,36 +244,36 @@ impl NormalEquations {
         }
         for (i, s) in seen.iter().enumerate() {
             if !s {
-                idx.push(Pair { row: i, col: i });
+                if let Some(idx) = idx.as_deref_mut() {
+                    idx.push(Pair { row: i, col: i });
+                }
                 values.push(damping[i].max(1.0));
             }
         }
-        idx
+        values
     }
 
     /// Solve (H + diag(damping)) delta = -g. The symbolic factorisation (fill-reducing ordering,
     /// elimination tree) depends on the block pattern only. It is taken from `cache` when the
     /// pattern is part of the one kept there: the blocks this system lacks enter as zeros, which
-    /// changes the answer by rounding only. Otherwise the pattern joined with the kept one (when
-    /// that adds few blocks; else this pattern alone) is factorised and kept.
+    /// changes the answer by rounding only. Otherwise this pattern is factorised and kept.
     pub fn solve(
         &self,
         damping: &[f64],
         cache: &mut SymbolicCache,
     ) -> Result<Vec<f64>, LinearSolveError> {
         let faer_err = |e: &dyn std::fmt::Debug| LinearSolveError::Faer(format!("{e:?}"));
-        let mut values = Vec::new();
         let pattern = self.pattern();
-        let kept = cache
-            .entry
-            .as_ref()
-            .filter(|c| c.n == self.n && c.block_size == self.block_size);
-        let covered = kept.is_some_and(|c| is_sorted_subset(&pattern, &c.keys));
-        if covered {
+        let kept = cache.entry.as_ref().filter(|c| {
+            c.n == self.n && c.block_size == self.block_size && is_sorted_subset(&pattern, &c.keys)
+        });
+        let values = if let Some(c) = kept {
+            let values = self.lower_entries(&c.keys, damping, None);
             cache.hits += 1;
+            values
         } else {
-            let layout = pattern;
-            let idx = self.lower_entries(&layout, damping, &mut Vec::new());
+            let mut idx = Vec::new();
+            let values = self.lower_entries(&pattern, damping, Some(&mut idx));
             let (csc, argsort) = SymbolicSparseColMat::try_new_from_indices(self.n, self.n, &idx)
                 .map_err(|e| faer_err(&e))?;
             let chol = factorize_symbolic_cholesky(
@@ -284,16 +286,16 @@ impl NormalEquations {
             cache.entry = Some(CachedPattern {
                 n: self.n,
                 block_size: self.block_size,
-                keys: layout,
+                keys: pattern,
                 csc,
                 argsort,
                 chol,
             });
             cache.misses += 1;
-        }
+            values
+        };
         // Invariant: the entry was matched or filled just above.
         let c = cache.entry.as_ref().expect("cached pattern present");
-        let _ = self.lower_entries(&c.keys, damping, &mut values);
         let h = SparseColMat::new_from_argsort(c.csc.clone(), &c.argsort, &values)
             .map_err(|e| faer_err(&e))?;
         // Sequential on purpose: these systems have a few thousand unknowns, where faer's

@@ -3,13 +3,13 @@
 //! and shifted by a fixed distance in a random direction), once with the per-view pose
 //! refinement and once without; the truth's observations come from the true poses.
 
-use crate::demo::{accuracy_from, accuracy_samples};
+use super::runner::Prepared;
+use crate::demo::accuracy_from;
 use crate::mesh::Mesh;
 use crate::pipeline::{reconstruct, ReconParams};
-use crate::simulate::{perturb_poses, NoiseLevel, SimSetup};
+use crate::simulate::{perturb_poses, NoiseLevel};
 use crate::solve::PoseParams;
 use crate::views::XrayGeometry;
-use nalgebra::Point3;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
@@ -52,14 +52,7 @@ impl Default for PoseStudy {
     }
 }
 
-/// What every case shares: the simulation set-up (or why it failed) and the points accuracy is
-/// measured from.
-struct Shared {
-    setup: Result<SimSetup, String>,
-    samples: Vec<Point3<f64>>,
-}
-
-fn one(shared: &Shared, cfg: &PoseStudy, run: usize) -> PoseRow {
+fn one(shared: &Prepared, cfg: &PoseStudy, run: usize) -> PoseRow {
     let seed = crate::study::run_seed(cfg.seed, 1000 + cfg.level, run);
     let mut row = PoseRow {
         run,
@@ -117,10 +110,7 @@ fn one(shared: &Shared, cfg: &PoseStudy, run: usize) -> PoseRow {
 
 /// Run every case (threads do not change the results).
 pub fn run_pose_study(truth: &Mesh, cfg: &PoseStudy) -> Vec<PoseRow> {
-    let shared = Shared {
-        setup: SimSetup::new(truth, &XrayGeometry::default()).map_err(|e| e.to_string()),
-        samples: accuracy_samples(truth),
-    };
+    let shared = Prepared::new(truth, &XrayGeometry::default());
     let next = AtomicUsize::new(0);
     let rows: Mutex<Vec<Option<PoseRow>>> = Mutex::new(vec![None; cfg.runs]);
     std::thread::scope(|s| {

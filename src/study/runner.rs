@@ -104,21 +104,21 @@ pub fn run_one_with(
     cfg: &StudyConfig,
     kernels: Kernels,
 ) -> (Row, Option<ExampleRun>) {
-    run_prepared(&Prepared::new(truth, cfg), task, cfg, kernels)
+    run_prepared(&Prepared::new(truth, &cfg.geometry), task, cfg, kernels)
 }
 
 /// What every run of a study shares, computed once: the simulation set-up (its error as text),
 /// the accuracy samples on the truth and the truth prepared for `recon_mae_mm`.
-struct Prepared {
-    setup: Result<SimSetup, String>,
-    samples: Vec<nalgebra::Point3<f64>>,
+pub(super) struct Prepared {
+    pub(super) setup: Result<SimSetup, String>,
+    pub(super) samples: Vec<nalgebra::Point3<f64>>,
     interior: Option<InteriorQuery>,
 }
 
 impl Prepared {
-    fn new(truth: &Mesh, cfg: &StudyConfig) -> Prepared {
+    pub(super) fn new(truth: &Mesh, geometry: &XrayGeometry) -> Prepared {
         Prepared {
-            setup: SimSetup::new(truth, &cfg.geometry).map_err(|e| e.to_string()),
+            setup: SimSetup::new(truth, geometry).map_err(|e| e.to_string()),
             samples: accuracy_samples(truth),
             interior: InteriorQuery::new(truth),
         }
@@ -203,7 +203,7 @@ pub fn run_study_with(
     kernels: Kernels,
 ) -> (Vec<Row>, Vec<ExampleRun>) {
     let list = tasks(cfg);
-    let prep = Prepared::new(truth, cfg);
+    let prep = Prepared::new(truth, &cfg.geometry);
     let next = AtomicUsize::new(0);
     let rows: Mutex<Vec<Option<Row>>> = Mutex::new(vec![None; list.len()]);
     let examples: Mutex<Vec<ExampleRun>> = Mutex::new(Vec::new());
