@@ -5,11 +5,10 @@
 
 use crate::backend::Kernels;
 use crate::correspond::srvf::{coprime_steps, srvf};
-use crate::correspond::Method;
 use crate::cpu::{deform as cdeform, project as cproject, silhouette as csil, srvf_dp as cdp};
 use crate::gpu::{Gpu, GpuError};
 use crate::solve::{DeformationGraph, GraphParams};
-use crate::study::{run_study_with, StudyConfig};
+use crate::study::{run_study_with, StudyConfig, StudyMethod};
 use crate::template::{hemisphere, phantom, PhantomParams};
 use crate::views::{simulated_views, XrayGeometry};
 use nalgebra::{Point2, Point3};
@@ -199,7 +198,7 @@ pub fn run_bench(
         let cfg = StudyConfig {
             levels: vec![3],
             runs: p.study_runs,
-            methods: vec![Method::Srvf],
+            methods: vec![StudyMethod::Srvf],
             threads: p.threads.max(1),
             ..Default::default()
         };

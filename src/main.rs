@@ -15,10 +15,11 @@ use acetab::report::CupCatalogue;
 use acetab::simulate::ground_truth_surface;
 use acetab::study::{
     merge_dirs, run_study_with, summarize, tasks, write_examples, write_tables, StudyConfig,
+    StudyMethod,
 };
 use acetab::template::{phantom, PhantomParams};
 use acetab::uncertainty::UncertaintyParams;
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -69,6 +70,9 @@ enum Command {
         levels: String,
         #[arg(long, default_value_t = 10)]
         runs: usize,
+        /// Methods: srvf, icp, icp-normvec (every stage of ours, each on its own
+        /// correspondences), and srvf-paper, icp-paper, icp-normvec-paper (the seed paper's
+        /// protocol: the deformation alone, from the perturbed template).
         #[arg(long, default_value = "srvf,icp,icp-normvec")]
         methods: String,
         /// Study seed; each run's seed is derived from it, the level and the run number.
@@ -298,7 +302,9 @@ fn run(cli: Cli) -> Result<(), String> {
                     x.parse::<u32>().ok().filter(|l| (1..=5).contains(l))
                 })?,
                 runs,
-                methods: parse_list(&methods, "--methods", |x| Method::from_str(x, true).ok())?,
+                methods: parse_list(&methods, "--methods", |x| {
+                    StudyMethod::from_name(&x.to_ascii_lowercase())
+                })?,
                 seed,
                 threads: threads_or_all(threads),
                 shard: parse_shard(&shard)?,
@@ -649,7 +655,7 @@ fn parse_shard(s: &str) -> Result<(usize, usize), String> {
 
 fn print_summary(rows: &[acetab::study::Row]) {
     println!(
-        "{:<12} {:>5} {:>5} {:>9} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9}",
+        "{:<17} {:>5} {:>5} {:>9} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9}",
         "method",
         "level",
         "runs",
@@ -663,7 +669,7 @@ fn print_summary(rows: &[acetab::study::Row]) {
     );
     for s in summarize(rows) {
         println!(
-            "{:<12} {:>5} {:>5} {:>9.3} {:>9.3} {:>+11.2} {:>6}/{:<2} {:>6}/{:<2} {:>6}/{:<2} {:>9.2}",
+            "{:<17} {:>5} {:>5} {:>9.3} {:>9.3} {:>+11.2} {:>6}/{:<2} {:>6}/{:<2} {:>6}/{:<2} {:>9.2}",
             s.method.name(),
             s.level,
             s.runs,

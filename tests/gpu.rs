@@ -315,7 +315,6 @@ fn whole_reconstruction_on_the_gpu_matches_the_cpu() {
 fn study_runs_batched_on_the_gpu_match_the_cpu() {
     with_gpu(|gpu| {
         use acetab::backend::Kernels;
-        use acetab::correspond::Method;
         use acetab::gpu::GpuBatcher;
         use acetab::study::{run_study_with, StudyConfig};
         use acetab::template::{phantom, PhantomParams};
@@ -323,7 +322,7 @@ fn study_runs_batched_on_the_gpu_match_the_cpu() {
         let cfg = StudyConfig {
             levels: vec![1],
             runs: 3,
-            methods: vec![Method::Srvf],
+            methods: vec![acetab::study::StudyMethod::Srvf],
             threads: 2,
             ..Default::default()
         };

@@ -1,8 +1,8 @@
 //! The study runner: results do not depend on the thread count, shards merge to the unsharded
 //! table, and the output folder holds what the README promises.
 
-use acetab::correspond::Method;
 use acetab::pipeline::ReconParams;
+use acetab::study::StudyMethod;
 use acetab::study::{
     merge_dirs, run_study, write_csv, write_examples, write_tables, Row, StudyConfig,
 };
@@ -20,7 +20,7 @@ fn quick() -> StudyConfig {
     StudyConfig {
         levels: vec![1, 4],
         runs: 2,
-        methods: vec![Method::Srvf, Method::Icp],
+        methods: vec![StudyMethod::Srvf, StudyMethod::Icp],
         seed: 11,
         threads: 1,
         params,
@@ -105,4 +105,55 @@ fn threads_and_shards_give_the_same_table() {
         serde_json::from_str(&std::fs::read_to_string(d.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["summary"].as_array().unwrap().len(), 4);
     std::fs::remove_dir_all(&base).unwrap();
+}
+
+#[test]
+fn paper_protocol_runs_only_the_deformation_and_keeps_its_name() {
+    let truth = phantom(&PhantomParams {
+        vertices: 1200,
+        ..Default::default()
+    })
+    .mesh;
+    let cfg = StudyConfig {
+        levels: vec![1],
+        runs: 1,
+        methods: vec![StudyMethod::Icp, StudyMethod::IcpPaper],
+        ..quick()
+    };
+    let (rows, examples) = run_study(&truth, &cfg, &|| {});
+    let [ours, paper] = [&rows[0], &rows[1]];
+    assert_eq!(
+        (ours.method, paper.method),
+        (StudyMethod::Icp, StudyMethod::IcpPaper)
+    );
+    assert!(ours.error.is_empty() && paper.error.is_empty());
+    // Ours placed the template on the limb sphere and ran the similarity stage (several
+    // solver iterations per round) before the deformation's one iteration per round.
+    assert!(ours.limb_diameter_mm.is_finite());
+    assert!(ours.iterations > cfg.params.icp_iterations);
+    // The paper's protocol: no limb sphere, no similarity stage.
+    assert!(
+        paper.limb_diameter_mm.is_nan(),
+        "{}",
+        paper.limb_diameter_mm
+    );
+    assert!(paper.iterations <= cfg.params.icp_iterations);
+    let ex = examples
+        .iter()
+        .find(|e| e.task.method == StudyMethod::IcpPaper)
+        .unwrap();
+    assert_eq!(ex.recon.log.similarity_rounds, 0);
+    assert!(ex.recon.log.limb_sphere.is_none());
+
+    let d = std::env::temp_dir().join(format!("acetab-paper-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    write_tables(&rows, &d, &serde_json::json!({})).unwrap();
+    write_examples(&examples, &truth, &d).unwrap();
+    let back = merge_dirs(&[d.clone()]).unwrap();
+    assert_eq!(back[1].method, StudyMethod::IcpPaper);
+    assert!(d.join("example-icp-paper/view1.png").is_file());
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["summary"][1]["method"], "icp-paper");
+    std::fs::remove_dir_all(&d).unwrap();
 }

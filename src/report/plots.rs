@@ -112,6 +112,8 @@ pub fn box_plots(
             RGBColor(214, 39, 40),
             RGBColor(44, 160, 44),
             RGBColor(148, 103, 189),
+            RGBColor(255, 127, 14),
+            RGBColor(140, 86, 75),
         ];
         for ((title, series), area) in panels.iter().zip(areas.iter()) {
             // The axis spans the whiskers (not far outliers, which are drawn at the edge).
@@ -199,6 +201,7 @@ pub fn box_plots(
             }
             chart
                 .configure_series_labels()
+                .position(SeriesLabelPosition::UpperLeft)
                 .background_style(WHITE.mix(0.8))
                 .border_style(BLACK)
                 .label_font(("sans-serif", 14))

@@ -1,9 +1,9 @@
 //! Writing a study's folder: runs.csv, summary.json, errors.png, and one example run per method
 //! (the reconstruction coloured by error and one overlay per view).
 
+use super::method::StudyMethod;
 use super::runner::ExampleRun;
 use super::table::{summarize, write_csv, Row, StudyError};
-use crate::correspond::Method;
 use crate::demo::write_error_ply;
 use crate::fsutil::write_atomic;
 use crate::mesh::Mesh;
@@ -28,7 +28,7 @@ pub fn write_tables(rows: &[Row], dir: &Path, meta: &serde_json::Value) -> Resul
     let mut levels: Vec<u32> = rows.iter().map(|r| r.level).collect();
     levels.sort();
     levels.dedup();
-    let mut methods: Vec<Method> = rows.iter().map(|r| r.method).collect();
+    let mut methods: Vec<StudyMethod> = rows.iter().map(|r| r.method).collect();
     methods.sort();
     methods.dedup();
     let series = |f: &dyn Fn(&Row) -> f64| -> Vec<Vec<Vec<f64>>> {

@@ -1,8 +1,8 @@
 //! Running the study's runs, in parallel, in a fixed order.
 
+use super::method::StudyMethod;
 use super::table::Row;
 use crate::backend::Kernels;
-use crate::correspond::Method;
 use crate::demo::{accuracy_from, accuracy_samples};
 use crate::mesh::Mesh;
 use crate::pipeline::{reconstruct_with, ReconParams, Reconstruction};
@@ -17,7 +17,7 @@ use std::sync::Mutex;
 pub struct StudyConfig {
     pub levels: Vec<u32>,
     pub runs: usize,
-    pub methods: Vec<Method>,
+    pub methods: Vec<StudyMethod>,
     pub seed: u64,
     pub threads: usize,
     /// (index, count): this process runs the tasks whose position modulo count is index.
@@ -32,7 +32,7 @@ impl Default for StudyConfig {
         StudyConfig {
             levels: vec![1, 2, 3, 4, 5],
             runs: 10,
-            methods: vec![Method::Srvf, Method::Icp, Method::IcpNormvec],
+            methods: vec![StudyMethod::Srvf, StudyMethod::Icp, StudyMethod::IcpNormvec],
             seed: 1,
             threads: 1,
             shard: (0, 1),
@@ -46,7 +46,7 @@ impl Default for StudyConfig {
 /// One run to do.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Task {
-    pub method: Method,
+    pub method: StudyMethod,
     pub level: u32,
     pub run: usize,
     pub seed: u64,
@@ -144,10 +144,7 @@ fn run_prepared(
         }
     };
     row.gt_cup_diameter_mm = sim.truth_sphere.diameter();
-    let prm = ReconParams {
-        method: task.method,
-        ..cfg.params.clone()
-    };
+    let prm: ReconParams = task.method.params(&cfg.params);
     let start = std::time::Instant::now();
     let rec = match reconstruct_with(&sim.cameras, &sim.observed, &sim.init, &prm, kernels) {
         Ok(r) => r,
@@ -261,11 +258,11 @@ mod tests {
         assert_eq!(joined, all);
         let srvf = all
             .iter()
-            .find(|t| t.method == Method::Srvf && t.level == 4 && t.run == 2)
+            .find(|t| t.method == StudyMethod::Srvf && t.level == 4 && t.run == 2)
             .unwrap();
         let icp = all
             .iter()
-            .find(|t| t.method == Method::Icp && t.level == 4 && t.run == 2)
+            .find(|t| t.method == StudyMethod::Icp && t.level == 4 && t.run == 2)
             .unwrap();
         assert_eq!(srvf.seed, icp.seed);
         assert_ne!(run_seed(1, 4, 2), run_seed(1, 4, 1));

@@ -1,8 +1,8 @@
 //! The study's tables: one row per run (runs.csv), the per-method-and-level summary
 //! (summary.json), and merging shards.
 
+use super::method::StudyMethod;
 use super::runner::Task;
-use crate::correspond::Method;
 use crate::fsutil::write_atomic;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 /// One run's result. Metrics are NaN for a run that failed (`error` says why).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Row {
-    pub method: Method,
+    pub method: StudyMethod,
     pub level: u32,
     pub run: usize,
     pub seed: u64,
@@ -59,7 +59,7 @@ impl Row {
     }
 
     /// Canonical order: method, level, run.
-    pub fn key(&self) -> (Method, u32, usize) {
+    pub fn key(&self) -> (StudyMethod, u32, usize) {
         (self.method, self.level, self.run)
     }
 }
@@ -168,12 +168,8 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
                 )
             })
         };
-        let method = match f[0] {
-            "srvf" => Method::Srvf,
-            "icp" => Method::Icp,
-            "icp-normvec" => Method::IcpNormvec,
-            m => return Err(perr(i + 1, format!("unknown method {m:?}"))),
-        };
+        let method = StudyMethod::from_name(f[0])
+            .ok_or_else(|| perr(i + 1, format!("unknown method {:?}", f[0])))?;
         rows.push(Row {
             method,
             level: int(1)? as u32,
@@ -200,7 +196,7 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
 /// Per method and level.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Summary {
-    pub method: Method,
+    pub method: StudyMethod,
     pub level: u32,
     pub runs: usize,
     pub converged: usize,
@@ -237,7 +233,7 @@ fn within(rows: &[&Row], diameter: impl Fn(&Row) -> f64) -> usize {
 
 /// Summaries in canonical order. Failed runs count in `runs` and `failed`, not in the means.
 pub fn summarize(rows: &[Row]) -> Vec<Summary> {
-    let mut keys: Vec<(Method, u32)> = rows.iter().map(|r| (r.method, r.level)).collect();
+    let mut keys: Vec<(StudyMethod, u32)> = rows.iter().map(|r| (r.method, r.level)).collect();
     keys.sort();
     keys.dedup();
     keys.into_iter()
@@ -303,7 +299,7 @@ pub fn merge_dirs(dirs: &[PathBuf]) -> Result<Vec<Row>, StudyError> {
 mod tests {
     use super::*;
 
-    fn row(method: Method, level: u32, run: usize, mae: f64) -> Row {
+    fn row(method: StudyMethod, level: u32, run: usize, mae: f64) -> Row {
         let t = Task {
             method,
             level,
@@ -326,11 +322,14 @@ mod tests {
         let (a, b) = (dir.join("a"), dir.join("b"));
         std::fs::create_dir_all(&a).unwrap();
         std::fs::create_dir_all(&b).unwrap();
-        let mut r1 = vec![row(Method::Srvf, 1, 0, 0.5), row(Method::Icp, 1, 0, 2.0)];
+        let mut r1 = vec![
+            row(StudyMethod::Srvf, 1, 0, 0.5),
+            row(StudyMethod::Icp, 1, 0, 2.0),
+        ];
         r1[1].error = "solver: boom, twice".into();
         r1[1].mae_mm = f64::NAN;
         write_csv(&r1, &a.join("runs.csv")).unwrap();
-        write_csv(&[row(Method::Srvf, 1, 1, 0.7)], &b.join("runs.csv")).unwrap();
+        write_csv(&[row(StudyMethod::Srvf, 1, 1, 0.7)], &b.join("runs.csv")).unwrap();
         let back = read_csv(&a.join("runs.csv")).unwrap();
         assert_eq!(format!("{:?}", back[0]), format!("{:?}", r1[0]));
         assert!(back[1].mae_mm.is_nan() && back[1].error == "solver: boom; twice");
@@ -338,9 +337,9 @@ mod tests {
         assert_eq!(
             merged.iter().map(|r| r.key()).collect::<Vec<_>>(),
             vec![
-                (Method::Srvf, 1, 0),
-                (Method::Srvf, 1, 1),
-                (Method::Icp, 1, 0)
+                (StudyMethod::Srvf, 1, 0),
+                (StudyMethod::Srvf, 1, 1),
+                (StudyMethod::Icp, 1, 0)
             ]
         );
         assert!(matches!(
@@ -358,9 +357,9 @@ mod tests {
     #[test]
     fn summary_counts_and_means() {
         let mut rows = vec![
-            row(Method::Srvf, 2, 0, 0.4),
-            row(Method::Srvf, 2, 1, 0.6),
-            row(Method::Srvf, 2, 2, 9.0),
+            row(StudyMethod::Srvf, 2, 0, 0.4),
+            row(StudyMethod::Srvf, 2, 1, 0.6),
+            row(StudyMethod::Srvf, 2, 2, 9.0),
         ];
         rows[2].error = "failed".into();
         rows[2].converged = false;
