@@ -297,12 +297,13 @@ fn run(cli: Cli) -> Result<(), String> {
                     return Err(format!("{flag} {w}: must be a finite non-negative weight"));
                 }
             }
+            let method_names = StudyMethod::ALL.map(StudyMethod::name).join(", ");
             let cfg = StudyConfig {
-                levels: parse_list(&levels, "--levels", |x| {
+                levels: parse_list(&levels, "--levels", "levels 1 to 5", |x| {
                     x.parse::<u32>().ok().filter(|l| (1..=5).contains(l))
                 })?,
                 runs,
-                methods: parse_list(&methods, "--methods", |x| {
+                methods: parse_list(&methods, "--methods", &method_names, |x| {
                     StudyMethod::from_name(&x.to_ascii_lowercase())
                 })?,
                 seed,
@@ -632,12 +633,24 @@ fn threads_or_all(threads: Option<usize>) -> usize {
         .max(1)
 }
 
-fn parse_list<T>(s: &str, flag: &str, f: impl Fn(&str) -> Option<T>) -> Result<Vec<T>, String> {
-    let v: Option<Vec<T>> = s.split(',').map(|x| f(x.trim())).collect();
-    match v {
-        Some(v) if !v.is_empty() => Ok(v),
-        _ => Err(format!("{flag}: cannot read {s:?}")),
-    }
+/// A comma-separated list; `allowed` (what the flag takes) goes into the error naming the entry
+/// that cannot be read.
+fn parse_list<T>(
+    s: &str,
+    flag: &str,
+    allowed: &str,
+    f: impl Fn(&str) -> Option<T>,
+) -> Result<Vec<T>, String> {
+    s.split(',')
+        .map(|x| {
+            f(x.trim()).ok_or_else(|| {
+                format!(
+                    "{flag} {s:?}: cannot read {:?} (expected {allowed})",
+                    x.trim()
+                )
+            })
+        })
+        .collect()
 }
 
 fn parse_shard(s: &str) -> Result<(usize, usize), String> {

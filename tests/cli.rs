@@ -178,6 +178,35 @@ fn a_bad_case_fails_cleanly_and_writes_nothing() {
 }
 
 #[test]
+fn simulate_names_a_bad_list_entry_and_writes_nothing() {
+    let dir = tmp("list");
+    let out = dir.join("study");
+    for (flag, value, needle) in [
+        (
+            "--methods",
+            "srvf,icp-papr",
+            "\"icp-papr\" (expected srvf, icp",
+        ),
+        ("--levels", "1,6", "\"6\" (expected levels 1 to 5)"),
+        ("--levels", "1,,2", "cannot read \"\""),
+    ] {
+        let o = bin()
+            .args(["simulate", "--gt", "phantom", flag, value, "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{flag} {value}: {err}");
+        assert!(
+            err.contains(flag) && err.contains(needle),
+            "{flag} {value}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!out.exists(), "{flag} {value}: output folder written");
+    }
+}
+
+#[test]
 fn align_reports_a_rotation_and_rejects_a_bad_file() {
     let dir = tmp("align");
     let blob = |n: usize, rot: f64, shift: usize| -> String {
