@@ -159,22 +159,23 @@ fn a_bad_case_fails_cleanly_and_writes_nothing() {
         let path = dir.join("bad.json");
         std::fs::write(&path, text).unwrap();
         let out = dir.join("bad-out");
-        let o = bin()
-            .arg("reconstruct")
-            .arg(&path)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(1), "{needle}: {err}");
-        assert!(
-            err.contains(needle) && err.contains("bad.json"),
-            "{needle}: {err}"
-        );
-        assert!(!err.contains("panicked"), "{err}");
-        assert!(!out.exists(), "{needle}: output folder written");
+        let mut cmd = bin();
+        cmd.arg("reconstruct").arg(&path);
+        fails_cleanly(cmd, &out, &[needle, "bad.json"]);
     }
+}
+
+/// `cmd --out out` exits with 1, its error holds every needle, and `out` is not written.
+fn fails_cleanly(mut cmd: Command, out: &Path, needles: &[&str]) {
+    let o = cmd.arg("--out").arg(out).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{needles:?}: {err}");
+    assert!(
+        needles.iter().all(|n| err.contains(n)),
+        "{needles:?}: {err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!out.exists(), "{needles:?}: output folder written");
 }
 
 #[test]
@@ -190,19 +191,9 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
         ("--levels", "1,6", "\"6\" (expected levels 1 to 5)"),
         ("--levels", "1,,2", "cannot read \"\""),
     ] {
-        let o = bin()
-            .args(["simulate", "--gt", "phantom", flag, value, "--out"])
-            .arg(&out)
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(1), "{flag} {value}: {err}");
-        assert!(
-            err.contains(flag) && err.contains(needle),
-            "{flag} {value}: {err}"
-        );
-        assert!(!err.contains("panicked"), "{err}");
-        assert!(!out.exists(), "{flag} {value}: output folder written");
+        let mut cmd = bin();
+        cmd.args(["simulate", "--gt", "phantom", flag, value]);
+        fails_cleanly(cmd, &out, &[flag, needle]);
     }
 }
 

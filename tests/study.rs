@@ -28,6 +28,14 @@ fn quick() -> StudyConfig {
     }
 }
 
+fn small_phantom() -> acetab::mesh::Mesh {
+    phantom(&PhantomParams {
+        vertices: 1200,
+        ..Default::default()
+    })
+    .mesh
+}
+
 /// Everything but the wall-clock time, as text (so NaN of failed runs compares equal).
 fn strip(rows: &[Row]) -> String {
     format!(
@@ -43,11 +51,7 @@ fn strip(rows: &[Row]) -> String {
 
 #[test]
 fn threads_and_shards_give_the_same_table() {
-    let truth = phantom(&PhantomParams {
-        vertices: 1200,
-        ..Default::default()
-    })
-    .mesh;
+    let truth = small_phantom();
     let cfg = quick();
     let (one, examples) = run_study(&truth, &cfg, &|| {});
     assert_eq!(one.len(), 8);
@@ -109,11 +113,7 @@ fn threads_and_shards_give_the_same_table() {
 
 #[test]
 fn paper_protocol_runs_only_the_deformation_and_keeps_its_name() {
-    let truth = phantom(&PhantomParams {
-        vertices: 1200,
-        ..Default::default()
-    })
-    .mesh;
+    let truth = small_phantom();
     let cfg = StudyConfig {
         levels: vec![1],
         runs: 1,
