@@ -633,24 +633,24 @@ fn threads_or_all(threads: Option<usize>) -> usize {
         .max(1)
 }
 
-/// A comma-separated list; `allowed` (what the flag takes) goes into the error naming the entry
-/// that cannot be read.
-fn parse_list<T>(
+/// A comma-separated list without repeats; `allowed` (what the flag takes) goes into the error
+/// naming an entry that cannot be read.
+fn parse_list<T: PartialEq>(
     s: &str,
     flag: &str,
     allowed: &str,
     f: impl Fn(&str) -> Option<T>,
 ) -> Result<Vec<T>, String> {
-    s.split(',')
-        .map(|x| {
-            f(x.trim()).ok_or_else(|| {
-                format!(
-                    "{flag} {s:?}: cannot read {:?} (expected {allowed})",
-                    x.trim()
-                )
-            })
-        })
-        .collect()
+    let mut list: Vec<T> = Vec::new();
+    for x in s.split(',').map(str::trim) {
+        let v =
+            f(x).ok_or_else(|| format!("{flag} {s:?}: cannot read {x:?} (expected {allowed})"))?;
+        if list.contains(&v) {
+            return Err(format!("{flag} {s:?}: {x:?} is listed twice"));
+        }
+        list.push(v);
+    }
+    Ok(list)
 }
 
 fn parse_shard(s: &str) -> Result<(usize, usize), String> {

@@ -190,6 +190,7 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
         ),
         ("--levels", "1,6", "\"6\" (expected levels 1 to 5)"),
         ("--levels", "1,,2", "cannot read \"\""),
+        ("--methods", "srvf,icp,SRVF", "\"SRVF\" is listed twice"),
     ] {
         let mut cmd = bin();
         cmd.args(["simulate", "--gt", "phantom", flag, value]);
