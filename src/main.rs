@@ -682,7 +682,7 @@ fn print_summary(rows: &[acetab::study::Row]) {
     );
     for s in summarize(rows) {
         println!(
-            "{:<17} {:>5} {:>5} {:>9.3} {:>9.3} {:>+11.2} {:>6}/{:<2} {:>6}/{:<2} {:>6}/{:<2} {:>9.2}",
+            "{:<17} {:>5} {:>5} {:>9.3} {:>9.3} {:>+11.2} {:>6}/{:<2} {:>6}/{:<2} {:>9} {:>9.2}",
             s.method.name(),
             s.level,
             s.runs,
@@ -693,8 +693,8 @@ fn print_summary(rows: &[acetab::study::Row]) {
             s.runs,
             s.surface_fit_within_1mm,
             s.runs,
-            s.limb_within_1mm,
-            s.runs,
+            s.limb_within_1mm
+                .map_or_else(|| "-".to_string(), |k| format!("{k:>6}/{:<2}", s.runs)),
             s.median_seconds
         );
     }

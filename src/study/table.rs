@@ -207,9 +207,10 @@ pub struct Summary {
     pub cup_error_sd: f64,
     /// Runs with |cup diameter - truth| <= 1 mm.
     pub cup_within_1mm: usize,
-    /// The same for the whole-surface sphere fit and for the limb sphere.
+    /// The same for the whole-surface sphere fit and for the limb sphere (None, null in JSON,
+    /// when no run had a limb sphere: the paper's protocol and pose refinement skip stage 0).
     pub surface_fit_within_1mm: usize,
-    pub limb_within_1mm: usize,
+    pub limb_within_1mm: Option<usize>,
     pub median_seconds: f64,
 }
 
@@ -264,7 +265,10 @@ pub fn summarize(rows: &[Row]) -> Vec<Summary> {
                 cup_error_sd,
                 cup_within_1mm: ce.iter().filter(|e| e.abs() <= 1.0).count(),
                 surface_fit_within_1mm: within(&ok, |r| r.surface_fit_diameter_mm),
-                limb_within_1mm: within(&ok, |r| r.limb_diameter_mm),
+                limb_within_1mm: ok
+                    .iter()
+                    .any(|r| r.limb_diameter_mm.is_finite())
+                    .then(|| within(&ok, |r| r.limb_diameter_mm)),
                 median_seconds: secs.get(secs.len() / 2).copied().unwrap_or(f64::NAN),
             }
         })
@@ -371,6 +375,12 @@ mod tests {
         assert_eq!((s[0].runs, s[0].converged, s[0].failed), (3, 2, 1));
         assert!((s[0].mae_mean - 0.5).abs() < 1e-12 && (s[0].mae_sd - 0.1).abs() < 1e-12);
         assert_eq!(s[0].cup_within_1mm, 1);
-        assert_eq!((s[0].limb_within_1mm, s[0].surface_fit_within_1mm), (1, 0));
+        assert_eq!(
+            (s[0].limb_within_1mm, s[0].surface_fit_within_1mm),
+            (Some(1), 0)
+        );
+        rows[0].limb_diameter_mm = f64::NAN;
+        rows[1].limb_diameter_mm = f64::NAN;
+        assert_eq!(summarize(&rows)[0].limb_within_1mm, None);
     }
 }
