@@ -97,6 +97,10 @@ enum Command {
         w_reg: f64,
         #[arg(long, default_value_t = 100.0)]
         w_obs: f64,
+        /// Coarse-to-fine deformation: a graph of this many nodes in every correspondence round
+        /// but the last (default: the full graph throughout; see README).
+        #[arg(long)]
+        coarse_nodes: Option<usize>,
         #[arg(long)]
         out: PathBuf,
     },
@@ -290,8 +294,12 @@ fn run(cli: Cli) -> Result<(), String> {
             w_rot,
             w_reg,
             w_obs,
+            coarse_nodes,
             out,
         } => {
+            if let Some(n @ 0..=1) = coarse_nodes {
+                return Err(format!("--coarse-nodes {n}: must be at least 2"));
+            }
             for (flag, w) in [("--w-rot", w_rot), ("--w-reg", w_reg), ("--w-obs", w_obs)] {
                 if !(w.is_finite() && w >= 0.0) {
                     return Err(format!("{flag} {w}: must be a finite non-negative weight"));
@@ -317,6 +325,7 @@ fn run(cli: Cli) -> Result<(), String> {
                         obs: w_obs,
                         ..Default::default()
                     },
+                    coarse_graph_nodes: coarse_nodes,
                     ..Default::default()
                 },
                 ..Default::default()
@@ -358,6 +367,9 @@ fn run(cli: Cli) -> Result<(), String> {
             let meta = serde_json::json!({
                 "gt": gt, "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
                 "shard": shard, "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),
+                "contours": format!("{:?}", cfg.params.contour_source),
+                "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
+                "w_obs": cfg.params.weights.obs, "coarse_nodes": cfg.params.coarse_graph_nodes,
             });
             fill_dir_atomically(
                 &out,

@@ -44,6 +44,26 @@ fn the_accuracy_measure_rejects_an_unfitted_template() {
     assert!(r.initial_mae_mm > 5.0, "start MAE {}", r.initial_mae_mm);
 }
 
+#[test]
+fn a_coarse_graph_changes_only_the_rounds_before_the_last() {
+    let mae = |updates: usize, coarse: Option<usize>| {
+        let prm = ReconParams {
+            correspondence_updates: updates,
+            coarse_graph_nodes: coarse,
+            ..Default::default()
+        };
+        let (r, _, _) = run_demo(2, 1, &prm).unwrap();
+        (r.mae_mm, r.cup_error_mm)
+    };
+    // One round is the last round: the full graph either way, so the same numbers exactly.
+    assert_eq!(mae(1, Some(40)), mae(1, None));
+    // Three rounds: the first two on 40 nodes, a different result, still sub-millimetre.
+    let (coarse, fine) = (mae(3, Some(40)), mae(3, None));
+    println!("coarse-to-fine {coarse:?}, full graph {fine:?}");
+    assert_ne!(coarse, fine);
+    assert!(coarse.0 < 1.0, "MAE {}", coarse.0);
+}
+
 /// The phantom's level-1 case with the start moved 292 mm and scaled by 2.5: the limb sphere
 /// uses only the start's axis. Returns the MAE of the result and of the start itself.
 fn far_start_mae() -> (f64, f64) {
