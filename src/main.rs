@@ -14,8 +14,8 @@ use acetab::pipeline::ReconParams;
 use acetab::report::CupCatalogue;
 use acetab::simulate::ground_truth_surface;
 use acetab::study::{
-    merge_dirs, run_study_with, summarize, tasks, write_examples, write_tables, StudyConfig,
-    StudyMethod,
+    merge_dirs, merge_meta, run_study_with, summarize, tasks, write_examples, write_tables,
+    StudyConfig, StudyMethod,
 };
 use acetab::template::{phantom, PhantomParams};
 use acetab::uncertainty::UncertaintyParams;
@@ -440,7 +440,7 @@ fn run(cli: Cli) -> Result<(), String> {
         }
         Command::Merge { dirs, out } => {
             let rows = merge_dirs(&dirs).map_err(|e| e.to_string())?;
-            let meta = serde_json::json!({ "merged": dirs });
+            let meta = merge_meta(&dirs).map_err(|e| e.to_string())?;
             fill_dir_atomically(
                 &out,
                 |d| write_tables(&rows, d, &meta).map_err(|e| e.to_string()),

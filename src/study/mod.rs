@@ -15,4 +15,4 @@ pub use runner::{
     run_one, run_one_with, run_seed, run_study, run_study_with, tasks, ExampleRun, StudyConfig,
     Task,
 };
-pub use table::{merge_dirs, read_csv, summarize, write_csv, Row, StudyError, Summary};
+pub use table::{merge_dirs, merge_meta, read_csv, summarize, write_csv, Row, StudyError, Summary};

@@ -87,6 +87,14 @@ pub enum StudyError {
         line: usize,
         reason: String,
     },
+    #[error("{path}: study field {field:?} is {value}, but {first} has {expected}: not shards of one study")]
+    Mismatch {
+        path: PathBuf,
+        field: String,
+        value: String,
+        first: PathBuf,
+        expected: String,
+    },
     #[error("run {method} level {level} run {run} appears in more than one shard ({path})")]
     Duplicate {
         method: String,
@@ -275,6 +283,59 @@ pub fn summarize(rows: &[Row]) -> Vec<Summary> {
         .collect()
 }
 
+/// The study settings shards share, from their summary.json files (folders without one are
+/// skipped): every field but `shard` and `seconds` must agree, or the shards are not of one
+/// study. The result also lists the folders under `merged`.
+pub fn merge_meta(dirs: &[PathBuf]) -> Result<serde_json::Value, StudyError> {
+    let mut common: Option<(PathBuf, serde_json::Map<String, serde_json::Value>)> = None;
+    for d in dirs {
+        let path = d.join("summary.json");
+        let text = match std::fs::read_to_string(&path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
+            Err(source) => return Err(StudyError::Read { path, source }),
+        };
+        let bad = |reason: String| StudyError::Parse {
+            path: path.clone(),
+            line: 1,
+            reason,
+        };
+        let v: serde_json::Value =
+            serde_json::from_str(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
+        let mut study = match v.get("study") {
+            Some(serde_json::Value::Object(m)) => m.clone(),
+            _ => return Err(bad("no \"study\" object".into())),
+        };
+        study.remove("shard");
+        study.remove("seconds");
+        match &common {
+            None => common = Some((path.clone(), study)),
+            Some((first, c)) => {
+                let keys: std::collections::BTreeSet<&String> =
+                    c.keys().chain(study.keys()).collect();
+                for k in keys {
+                    let (a, b) = (c.get(k), study.get(k));
+                    if a != b {
+                        let show = |x: Option<&serde_json::Value>| {
+                            x.map_or_else(|| "missing".to_string(), |v| v.to_string())
+                        };
+                        return Err(StudyError::Mismatch {
+                            path: path.clone(),
+                            field: k.clone(),
+                            value: show(b),
+                            first: first.clone(),
+                            expected: show(a),
+                        });
+                    }
+                }
+            }
+        }
+    }
+    let mut meta = common.map(|(_, c)| c).unwrap_or_default();
+    meta.insert("merged".into(), serde_json::json!(dirs));
+    Ok(serde_json::Value::Object(meta))
+}
+
 /// Join the runs.csv of several shard folders, in canonical order; a run present twice is an error.
 pub fn merge_dirs(dirs: &[PathBuf]) -> Result<Vec<Row>, StudyError> {
     let mut rows: Vec<(Row, PathBuf)> = Vec::new();
@@ -318,6 +379,40 @@ mod tests {
             error: String::new(),
             ..Row::failed(&t, "")
         }
+    }
+
+    #[test]
+    fn merge_meta_keeps_the_shared_settings_and_rejects_another_study() {
+        let dir = std::env::temp_dir().join(format!("acetab-meta-{}", std::process::id()));
+        let write = |name: &str, seed: u64, shard: &str| {
+            let d = dir.join(name);
+            std::fs::create_dir_all(&d).unwrap();
+            let v = serde_json::json!({"study": {"gt": "phantom", "seed": seed, "shard": shard,
+                "seconds": 1.5, "w_reg": 10.0}, "summary": []});
+            std::fs::write(d.join("summary.json"), v.to_string()).unwrap();
+            d
+        };
+        let (a, b, c) = (
+            write("a", 1, "0/2"),
+            write("b", 1, "1/2"),
+            write("c", 2, "1/2"),
+        );
+        let plain = dir.join("plain");
+        std::fs::create_dir_all(&plain).unwrap();
+        let m = merge_meta(&[a.clone(), b.clone(), plain.clone()]).unwrap();
+        assert_eq!(m["seed"], 1);
+        assert_eq!(m["w_reg"], 10.0);
+        assert!(m.get("shard").is_none() && m.get("seconds").is_none());
+        assert_eq!(m["merged"].as_array().unwrap().len(), 3);
+        // The companion: a shard of another study (seed 2) is refused, naming the field.
+        let e = merge_meta(&[a, c]).unwrap_err().to_string();
+        assert!(e.contains("\"seed\" is 2") && e.contains("has 1"), "{e}");
+        std::fs::write(plain.join("summary.json"), "{").unwrap();
+        assert!(merge_meta(&[plain])
+            .unwrap_err()
+            .to_string()
+            .contains("not JSON"));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
