@@ -149,7 +149,7 @@ fn paper_protocol_runs_only_the_deformation_and_keeps_its_name() {
     std::fs::create_dir_all(&d).unwrap();
     write_tables(&rows, &d, &serde_json::json!({})).unwrap();
     write_examples(&examples, &truth, &d).unwrap();
-    let back = merge_dirs(&[d.clone()]).unwrap();
+    let back = merge_dirs(std::slice::from_ref(&d)).unwrap();
     assert_eq!(back[1].method, StudyMethod::IcpPaper);
     assert!(d.join("example-icp-paper/view1.png").is_file());
     let summary: serde_json::Value =
