@@ -617,21 +617,19 @@ impl Deformation {
                     &mut self.cams_now,
                 )?;
             }
-            let coarse = prm
-                .coarse_graph_nodes
-                .filter(|_| self.rounds + 1 < b.rounds)
-                .map(|nodes| ReconParams {
-                    graph: GraphParams {
-                        nodes,
-                        ..prm.graph.clone()
-                    },
-                    ..prm.clone()
-                });
+            let graph = match prm.coarse_graph_nodes {
+                Some(nodes) if self.rounds + 1 < b.rounds => GraphParams {
+                    nodes,
+                    ..prm.graph.clone()
+                },
+                _ => prm.graph.clone(),
+            };
             let (deformed, info) = ed_solve(
                 &self.mesh,
+                &graph,
                 &self.cams_now,
                 &self.obs,
-                coarse.as_ref().unwrap_or(prm),
+                prm,
                 &b.lm,
                 b.kernels,
                 "deformation",
@@ -791,10 +789,12 @@ fn weighted_correspondences(
     Ok(obs)
 }
 
-/// One ED solve on fixed correspondences, the graph built on `mesh`: the deformed mesh.
+/// One ED solve on fixed correspondences, a graph with `graph`'s settings built on `mesh`: the
+/// deformed mesh.
 #[allow(clippy::too_many_arguments)]
 fn ed_solve(
     mesh: &Mesh,
+    graph: &GraphParams,
     cams: &[Camera],
     obs: &[Observation],
     prm: &ReconParams,
@@ -804,7 +804,7 @@ fn ed_solve(
     sphere: &mut Option<(Point3<f64>, f64)>,
     symbolic: &mut SymbolicCache,
 ) -> Result<(Mesh, LmInfo), ReconError> {
-    let graph = DeformationGraph::new(mesh, &prm.graph);
+    let graph = DeformationGraph::new(mesh, graph);
     let mut problem = EdProblem::new(&graph, cams, obs, prm.weights.clone());
     if prm.sphere_prior > 0.0 && sphere.is_none() {
         *sphere = fit_sphere_robust(&mesh.vertices)
@@ -941,6 +941,7 @@ pub fn resolve_from(
     let mut sphere = None;
     Ok(ed_solve(
         mesh,
+        &prm.graph,
         cams,
         &obs,
         prm,

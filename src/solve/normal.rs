@@ -161,7 +161,15 @@ struct CachedPattern {
     csc: SymbolicSparseColMat<usize>,
     argsort: Argsort<usize>,
     chol: SymbolicCholesky<usize>,
+    /// The factor's values and the factorisation's scratch, sized by `chol`, reused by every
+    /// solve on this pattern.
+    l_values: Vec<f64>,
+    mem: MemBuffer,
 }
+
+/// Sequential on purpose: these systems have a few thousand unknowns, where faer's threads cost
+/// more than they save, and a study already runs one case per core.
+const PAR: Par = Par::Seq;
 
 /// Whether sorted `a` is contained in sorted `b`.
 fn is_sorted_subset(a: &[(u32, u32)], b: &[(u32, u32)]) -> bool {
@@ -283,40 +291,37 @@ impl NormalEquations {
                 Default::default(),
             )
             .map_err(|e| faer_err(&e))?;
+            let mem = MemBuffer::try_new(
+                chol.factorize_numeric_llt_scratch::<f64>(PAR, Default::default())
+                    .or(chol.solve_in_place_scratch::<f64>(1, PAR)),
+            )
+            .map_err(|e| faer_err(&e))?;
             cache.entry = Some(CachedPattern {
                 n: self.n,
                 block_size: self.block_size,
                 keys: pattern,
                 csc,
                 argsort,
+                l_values: vec![0.0; chol.len_val()],
                 chol,
+                mem,
             });
             cache.misses += 1;
             values
         };
         // Invariant: the entry was matched or filled just above.
-        let c = cache.entry.as_ref().expect("cached pattern present");
+        let c = cache.entry.as_mut().expect("cached pattern present");
         let h = SparseColMat::new_from_argsort(c.csc.clone(), &c.argsort, &values)
             .map_err(|e| faer_err(&e))?;
-        // Sequential on purpose: these systems have a few thousand unknowns, where faer's
-        // threads cost more than they save, and a study already runs one case per core.
-        let par = Par::Seq;
-        let mut l_values = vec![0.0; c.chol.len_val()];
-        let mut mem = MemBuffer::try_new(
-            c.chol
-                .factorize_numeric_llt_scratch::<f64>(par, Default::default())
-                .or(c.chol.solve_in_place_scratch::<f64>(1, par)),
-        )
-        .map_err(|e| faer_err(&e))?;
         let llt = c
             .chol
             .factorize_numeric_llt(
-                &mut l_values,
+                &mut c.l_values,
                 h.as_ref(),
                 Side::Lower,
                 Default::default(),
-                par,
-                MemStack::new(&mut mem),
+                PAR,
+                MemStack::new(&mut c.mem),
                 Default::default(),
             )
             .map_err(|e| match e {
@@ -325,7 +330,7 @@ impl NormalEquations {
                 }
             })?;
         let mut rhs = Mat::<f64>::from_fn(self.n, 1, |i, _| -self.g[i]);
-        llt.solve_in_place_with_conj(Conj::No, rhs.as_mut(), par, MemStack::new(&mut mem));
+        llt.solve_in_place_with_conj(Conj::No, rhs.as_mut(), PAR, MemStack::new(&mut c.mem));
         Ok((0..self.n).map(|i| rhs[(i, 0)]).collect())
     }
 

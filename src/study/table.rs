@@ -290,50 +290,72 @@ pub fn merge_meta(dirs: &[PathBuf]) -> Result<serde_json::Value, StudyError> {
     let mut common: Option<(PathBuf, serde_json::Map<String, serde_json::Value>)> = None;
     for d in dirs {
         let path = d.join("summary.json");
-        let text = match std::fs::read_to_string(&path) {
-            Ok(t) => t,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
-            Err(source) => return Err(StudyError::Read { path, source }),
+        let Some(study) = study_settings(&path)? else {
+            continue;
         };
-        let bad = |reason: String| StudyError::Parse {
-            path: path.clone(),
-            line: 1,
-            reason,
+        let Some((first, c)) = &common else {
+            common = Some((path, study));
+            continue;
         };
-        let v: serde_json::Value =
-            serde_json::from_str(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
-        let mut study = match v.get("study") {
-            Some(serde_json::Value::Object(m)) => m.clone(),
-            _ => return Err(bad("no \"study\" object".into())),
-        };
-        study.remove("shard");
-        study.remove("seconds");
-        match &common {
-            None => common = Some((path.clone(), study)),
-            Some((first, c)) => {
-                let keys: std::collections::BTreeSet<&String> =
-                    c.keys().chain(study.keys()).collect();
-                for k in keys {
-                    let (a, b) = (c.get(k), study.get(k));
-                    if a != b {
-                        let show = |x: Option<&serde_json::Value>| {
-                            x.map_or_else(|| "missing".to_string(), |v| v.to_string())
-                        };
-                        return Err(StudyError::Mismatch {
-                            path: path.clone(),
-                            field: k.clone(),
-                            value: show(b),
-                            first: first.clone(),
-                            expected: show(a),
-                        });
-                    }
-                }
-            }
+        if let Some((field, expected, value)) = first_difference(c, &study) {
+            return Err(StudyError::Mismatch {
+                path,
+                field,
+                value,
+                first: first.clone(),
+                expected,
+            });
         }
     }
     let mut meta = common.map(|(_, c)| c).unwrap_or_default();
     meta.insert("merged".into(), serde_json::json!(dirs));
     Ok(serde_json::Value::Object(meta))
+}
+
+/// The `study` object of a summary.json without the fields that differ between shards; None
+/// when the file does not exist.
+fn study_settings(
+    path: &Path,
+) -> Result<Option<serde_json::Map<String, serde_json::Value>>, StudyError> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(source) => {
+            return Err(StudyError::Read {
+                path: path.to_path_buf(),
+                source,
+            })
+        }
+    };
+    let bad = |reason: String| StudyError::Parse {
+        path: path.to_path_buf(),
+        line: 1,
+        reason,
+    };
+    let v: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
+    let Some(serde_json::Value::Object(study)) = v.get("study") else {
+        return Err(bad("no \"study\" object".into()));
+    };
+    let mut study = study.clone();
+    for k in ["shard", "seconds"] {
+        study.remove(k);
+    }
+    Ok(Some(study))
+}
+
+/// The first field (in name order) whose value differs between `a` and `b`, with both values
+/// as JSON text ("missing" where absent).
+fn first_difference(
+    a: &serde_json::Map<String, serde_json::Value>,
+    b: &serde_json::Map<String, serde_json::Value>,
+) -> Option<(String, String, String)> {
+    let show =
+        |x: Option<&serde_json::Value>| x.map_or_else(|| "missing".into(), |v| v.to_string());
+    let keys: std::collections::BTreeSet<&String> = a.keys().chain(b.keys()).collect();
+    keys.into_iter()
+        .find(|k| a.get(*k) != b.get(*k))
+        .map(|k| (k.clone(), show(a.get(k)), show(b.get(k))))
 }
 
 /// Join the runs.csv of several shard folders, in canonical order; a run present twice is an error.
