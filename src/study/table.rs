@@ -284,8 +284,9 @@ pub fn summarize(rows: &[Row]) -> Vec<Summary> {
 }
 
 /// The study settings shards share, from their summary.json files (folders without one are
-/// skipped): every field but `shard` and `seconds` must agree, or the shards are not of one
-/// study. The result also lists the folders under `merged`.
+/// skipped): every field but `shard`, `seconds` and `merged` must agree, or the shards are not of
+/// one study (so merged folders can be merged again). The result lists the folders under
+/// `merged`.
 pub fn merge_meta(dirs: &[PathBuf]) -> Result<serde_json::Value, StudyError> {
     let mut common: Option<(PathBuf, serde_json::Map<String, serde_json::Value>)> = None;
     for d in dirs {
@@ -338,7 +339,7 @@ fn study_settings(
         return Err(bad("no \"study\" object".into()));
     };
     let mut study = study.clone();
-    for k in ["shard", "seconds"] {
+    for k in ["shard", "seconds", "merged"] {
         study.remove(k);
     }
     Ok(Some(study))
@@ -426,6 +427,12 @@ mod tests {
         assert_eq!(m["w_reg"], 10.0);
         assert!(m.get("shard").is_none() && m.get("seconds").is_none());
         assert_eq!(m["merged"].as_array().unwrap().len(), 3);
+        // A merged folder (its own `merged` list, no `shard`) merges with a shard of its study.
+        let joined = dir.join("joined");
+        std::fs::create_dir_all(&joined).unwrap();
+        let v = serde_json::json!({"study": m.clone(), "summary": []});
+        std::fs::write(joined.join("summary.json"), v.to_string()).unwrap();
+        assert_eq!(merge_meta(&[joined, a.clone()]).unwrap()["seed"], 1);
         // The companion: a shard of another study (seed 2) is refused, naming the field.
         let e = merge_meta(&[a, c]).unwrap_err().to_string();
         assert!(e.contains("\"seed\" is 2") && e.contains("has 1"), "{e}");
