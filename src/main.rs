@@ -12,13 +12,14 @@ use acetab::mesh::io::read_mesh;
 use acetab::mesh::io::write_ply;
 use acetab::pipeline::ReconParams;
 use acetab::report::CupCatalogue;
-use acetab::simulate::ground_truth_surface;
+use acetab::simulate::{ground_truth_surface, SimSetup};
 use acetab::study::{
     merge_dirs, merge_meta, run_study_with, summarize, tasks, write_examples, write_tables,
     StudyConfig, StudyMethod,
 };
 use acetab::template::{phantom, PhantomParams};
 use acetab::uncertainty::UncertaintyParams;
+use acetab::views::XrayGeometry;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -333,12 +334,7 @@ fn run(cli: Cli) -> Result<(), String> {
             if runs == 0 {
                 return Err("--runs: must be at least 1".into());
             }
-            let truth = if gt == "phantom" {
-                phantom(&PhantomParams::default()).mesh
-            } else {
-                let mesh = read_mesh(Path::new(&gt)).map_err(|e| format!("--gt: {e}"))?;
-                ground_truth_surface(&mesh).map_err(|e| format!("--gt {gt}: {e}"))?
-            };
+            let truth = load_truth(&gt)?;
             let total = tasks(&cfg).len();
             let bar = ProgressBar::new(total as u64);
             bar.set_style(
@@ -514,12 +510,7 @@ fn run(cli: Cli) -> Result<(), String> {
                     "--deg {deg} / --mm {mm}: must be finite and non-negative"
                 ));
             }
-            let truth = if gt == "phantom" {
-                phantom(&PhantomParams::default()).mesh
-            } else {
-                let mesh = read_mesh(Path::new(&gt)).map_err(|e| format!("--gt: {e}"))?;
-                ground_truth_surface(&mesh).map_err(|e| format!("--gt {gt}: {e}"))?
-            };
+            let truth = load_truth(&gt)?;
             let cfg = acetab::study::pose::PoseStudy {
                 runs,
                 seed,
@@ -627,6 +618,20 @@ fn run(cli: Cli) -> Result<(), String> {
 }
 
 /// The engine on the device, if any (its pipelines compile here).
+/// The study's ground truth from `--gt` (a mesh file or `phantom`), checked up front: a surface no
+/// sphere fits, or one the simulated views cannot see, is refused before any output is made
+/// (otherwise every run would fail alike and the study would still write its folder).
+fn load_truth(gt: &str) -> Result<acetab::mesh::Mesh, String> {
+    let truth = if gt == "phantom" {
+        phantom(&PhantomParams::default()).mesh
+    } else {
+        let mesh = read_mesh(Path::new(gt)).map_err(|e| format!("--gt: {e}"))?;
+        ground_truth_surface(&mesh).map_err(|e| format!("--gt {gt}: {e}"))?
+    };
+    SimSetup::new(&truth, &XrayGeometry::default()).map_err(|e| format!("--gt {gt}: {e}"))?;
+    Ok(truth)
+}
+
 fn engine_on(dev: &Option<GpuDevice>) -> Result<Option<acetab::gpu::Gpu<'_>>, String> {
     dev.as_ref()
         .map(|d| d.engine())
