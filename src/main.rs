@@ -618,6 +618,10 @@ fn run(cli: Cli) -> Result<(), String> {
 }
 
 /// The engine on the device, if any (its pipelines compile here).
+/// Sphere diameters (mm) an acetabulum can have; outside them `--gt` is warned about (a mesh in
+/// metres or centimetres still runs, but the solver's tolerances are in millimetres).
+const PLAUSIBLE_CUP_MM: (f64, f64) = (20.0, 100.0);
+
 /// The study's ground truth from `--gt` (a mesh file or `phantom`), checked up front: a surface no
 /// sphere fits, or one the simulated views cannot see, is refused before any output is made
 /// (otherwise every run would fail alike and the study would still write its folder).
@@ -628,7 +632,16 @@ fn load_truth(gt: &str) -> Result<acetab::mesh::Mesh, String> {
         let mesh = read_mesh(Path::new(gt)).map_err(|e| format!("--gt: {e}"))?;
         ground_truth_surface(&mesh).map_err(|e| format!("--gt {gt}: {e}"))?
     };
-    SimSetup::new(&truth, &XrayGeometry::default()).map_err(|e| format!("--gt {gt}: {e}"))?;
+    let setup =
+        SimSetup::new(&truth, &XrayGeometry::default()).map_err(|e| format!("--gt {gt}: {e}"))?;
+    let d = setup.sphere.diameter();
+    if !(PLAUSIBLE_CUP_MM.0..=PLAUSIBLE_CUP_MM.1).contains(&d) {
+        eprintln!(
+            "acetab: warning: --gt {gt}: the fitted sphere is {d:.3} mm across, outside the {}-{} mm \
+             of an acetabulum; is the mesh in millimetres? (the solver's tolerances are in mm)",
+            PLAUSIBLE_CUP_MM.0, PLAUSIBLE_CUP_MM.1
+        );
+    }
     Ok(truth)
 }
 

@@ -245,3 +245,31 @@ fn align_reports_a_rotation_and_rejects_a_bad_file() {
     assert_eq!(o.status.code(), Some(1));
     assert!(err.contains("bad.csv") && err.contains("line 3"), "{err}");
 }
+
+/// A ground truth in the wrong units (the phantom in centimetres) runs but is warned about; the
+/// same phantom in millimetres is not (the companion that keeps the warning from firing always).
+#[test]
+fn simulate_warns_about_a_ground_truth_in_the_wrong_units() {
+    let dir = tmp("units");
+    let mut mesh = phantom(&PhantomParams::default()).mesh;
+    acetab::mesh::io::write_obj(&mesh, &dir.join("mm.obj")).unwrap();
+    for v in &mut mesh.vertices {
+        *v = nalgebra::Point3::from(v.coords * 0.1);
+    }
+    acetab::mesh::io::write_obj(&mesh, &dir.join("cm.obj")).unwrap();
+    let warned = |name: &str| {
+        let o = bin()
+            .args(["simulate", "--levels", "1", "--runs", "1", "--methods", "srvf"])
+            .args(["--threads", "1", "--gt"])
+            .arg(dir.join(name))
+            .arg("--out")
+            .arg(dir.join(format!("out-{name}")))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        err.contains("warning") && err.contains("is the mesh in millimetres")
+    };
+    assert!(warned("cm.obj"), "no warning for a phantom 5 mm across");
+    assert!(!warned("mm.obj"), "a warning for the phantom in millimetres");
+}
