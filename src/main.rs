@@ -435,6 +435,18 @@ fn run(cli: Cli) -> Result<(), String> {
             Ok(())
         }
         Command::Merge { dirs, out } => {
+            // Merging into one of the shards would overwrite the shard's own tables.
+            let same = |d: &PathBuf| match (d.canonicalize(), out.canonicalize()) {
+                (Ok(a), Ok(b)) => a == b,
+                _ => false,
+            };
+            if let Some(d) = dirs.iter().find(|d| same(d)) {
+                return Err(format!(
+                    "--out {}: is the shard folder {} being merged; choose another folder",
+                    out.display(),
+                    d.display()
+                ));
+            }
             let rows = merge_dirs(&dirs).map_err(|e| e.to_string())?;
             let meta = merge_meta(&dirs).map_err(|e| e.to_string())?;
             fill_dir_atomically(

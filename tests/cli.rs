@@ -273,3 +273,52 @@ fn simulate_warns_about_a_ground_truth_in_the_wrong_units() {
     assert!(warned("cm.obj"), "no warning for a phantom 5 mm across");
     assert!(!warned("mm.obj"), "a warning for the phantom in millimetres");
 }
+
+/// `acetab merge` through the CLI: two shards merge into a new folder; merging into one of the
+/// shards (which would overwrite its tables) and a shard with an unreadable cell are refused,
+/// naming the folder or the column, and leave the shard as it was.
+#[test]
+fn merge_joins_shards_and_refuses_to_overwrite_one_or_read_a_bad_cell() {
+    let dir = tmp("merge");
+    for i in 0..2 {
+        let o = bin()
+            .args(["simulate", "--gt", "phantom", "--levels", "1", "--runs", "2"])
+            .args(["--methods", "srvf", "--threads", "1", "--shard"])
+            .arg(format!("{i}/2"))
+            .arg("--out")
+            .arg(dir.join(format!("s{i}")))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let merge = |shards: &[&str], out: &Path| {
+        let mut c = bin();
+        c.arg("merge");
+        for s in shards {
+            c.arg(dir.join(s));
+        }
+        c.arg("--out").arg(out).output().unwrap()
+    };
+    let o = merge(&["s0", "s1"], &dir.join("all"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let all = std::fs::read_to_string(dir.join("all/runs.csv")).unwrap();
+    assert_eq!(all.lines().count(), 3, "header and two runs: {all}");
+
+    let before = std::fs::read_to_string(dir.join("s0/runs.csv")).unwrap();
+    let o = merge(&["s0", "s1"], &dir.join("s0"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("is the shard folder"), "{err}");
+    let after = std::fs::read_to_string(dir.join("s0/runs.csv")).unwrap();
+    assert_eq!(before, after, "the shard was overwritten");
+
+    let bad = std::fs::read_to_string(dir.join("s1/runs.csv"))
+        .unwrap()
+        .replace(",true,", ",yes,");
+    std::fs::write(dir.join("s1/runs.csv"), bad).unwrap();
+    let o = merge(&["s0", "s1"], &dir.join("bad"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("column \"converged\": \"yes\""), "{err}");
+    assert!(!dir.join("bad").exists(), "output written for a bad shard");
+}

@@ -164,17 +164,32 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
                 format!("{} fields, expected {FIELDS}", f.len()),
             ));
         }
+        let column = |k: usize| HEADER.split(',').nth(k).unwrap_or("?");
         let num = |k: usize| {
-            f[k].parse::<f64>()
-                .map_err(|_| perr(i + 1, format!("column {k}: {:?} is not a number", f[k])))
+            f[k].parse::<f64>().map_err(|_| {
+                perr(
+                    i + 1,
+                    format!("column {:?}: {:?} is not a number", column(k), f[k]),
+                )
+            })
         };
         let int = |k: usize| {
             f[k].parse::<u64>().map_err(|_| {
                 perr(
                     i + 1,
-                    format!("column {k}: {:?} is not a whole number", f[k]),
+                    format!("column {:?}: {:?} is not a whole number", column(k), f[k]),
                 )
             })
+        };
+        let converged = match f[12] {
+            "true" => true,
+            "false" => false,
+            other => {
+                return Err(perr(
+                    i + 1,
+                    format!("column \"converged\": {other:?} is not true or false"),
+                ))
+            }
         };
         let method = StudyMethod::from_name(f[0])
             .ok_or_else(|| perr(i + 1, format!("unknown method {:?}", f[0])))?;
@@ -191,7 +206,7 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
             gt_cup_diameter_mm: num(9)?,
             surface_fit_diameter_mm: num(10)?,
             limb_diameter_mm: num(11)?,
-            converged: f[12] == "true",
+            converged,
             iterations: int(13)? as usize,
             correspondence_updates: int(14)? as usize,
             seconds: num(15)?,
