@@ -3,7 +3,7 @@
 use acetab::backend::{BackendChoice, ContourSource, Kernels};
 use acetab::case_run::run_case;
 use acetab::contours::read_curve_csv;
-use acetab::correspond::srvf::{align, aligned_b, CurveKind, SrvfParams};
+use acetab::correspond::srvf::{align, aligned_b, CurveKind, SrvfParams, MAX_SAMPLES, MIN_SAMPLES};
 use acetab::correspond::Method;
 use acetab::demo::{run_demo_with, write_error_ply};
 use acetab::fsutil::fill_dir_atomically;
@@ -400,6 +400,11 @@ fn run(cli: Cli) -> Result<(), String> {
             } else {
                 CurveKind::Closed
             };
+            if !(MIN_SAMPLES..=MAX_SAMPLES).contains(&samples) {
+                return Err(format!(
+                    "--samples {samples}: must be {MIN_SAMPLES} to {MAX_SAMPLES}"
+                ));
+            }
             let ca = read_curve_csv(&a).map_err(|e| e.to_string())?;
             let cb = read_curve_csv(&b).map_err(|e| e.to_string())?;
             let prm = SrvfParams {

@@ -244,6 +244,17 @@ fn align_reports_a_rotation_and_rejects_a_bad_file() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1));
     assert!(err.contains("bad.csv") && err.contains("line 3"), "{err}");
+    // A sample count whose seed search would not finish is refused at once.
+    let o = bin()
+        .arg("align")
+        .arg(dir.join("a.csv"))
+        .arg(dir.join("b.csv"))
+        .args(["--samples", "100000000"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("--samples 100000000: must be 8 to 50000"), "{err}");
 }
 
 /// A ground truth in the wrong units (the phantom in centimetres) runs but is warned about; the
@@ -259,7 +270,15 @@ fn simulate_warns_about_a_ground_truth_in_the_wrong_units() {
     acetab::mesh::io::write_obj(&mesh, &dir.join("cm.obj")).unwrap();
     let warned = |name: &str| {
         let o = bin()
-            .args(["simulate", "--levels", "1", "--runs", "1", "--methods", "srvf"])
+            .args([
+                "simulate",
+                "--levels",
+                "1",
+                "--runs",
+                "1",
+                "--methods",
+                "srvf",
+            ])
             .args(["--threads", "1", "--gt"])
             .arg(dir.join(name))
             .arg("--out")
@@ -271,7 +290,10 @@ fn simulate_warns_about_a_ground_truth_in_the_wrong_units() {
         err.contains("warning") && err.contains("is the mesh in millimetres")
     };
     assert!(warned("cm.obj"), "no warning for a phantom 5 mm across");
-    assert!(!warned("mm.obj"), "a warning for the phantom in millimetres");
+    assert!(
+        !warned("mm.obj"),
+        "a warning for the phantom in millimetres"
+    );
 }
 
 /// `acetab merge` through the CLI: two shards merge into a new folder; merging into one of the
@@ -282,7 +304,9 @@ fn merge_joins_shards_and_refuses_to_overwrite_one_or_read_a_bad_cell() {
     let dir = tmp("merge");
     for i in 0..2 {
         let o = bin()
-            .args(["simulate", "--gt", "phantom", "--levels", "1", "--runs", "2"])
+            .args([
+                "simulate", "--gt", "phantom", "--levels", "1", "--runs", "2",
+            ])
             .args(["--methods", "srvf", "--threads", "1", "--shard"])
             .arg(format!("{i}/2"))
             .arg("--out")

@@ -36,7 +36,7 @@ pub fn align_batch(
     out.into_inner()
         .unwrap_or_else(|e| e.into_inner())
         .into_iter()
-        .map(|r| r.unwrap_or(Err(SrvfError::TooFewSamples(0))))
+        .map(|r| r.unwrap_or(Err(SrvfError::SampleCount(0))))
         .collect()
 }
 

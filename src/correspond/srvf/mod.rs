@@ -7,6 +7,7 @@ mod dp;
 
 pub use align::{
     align, align_closed, align_open, align_partial, Alignment, CurveKind, SrvfError, SrvfParams,
+    MAX_SAMPLES, MIN_SAMPLES,
 };
 pub use batch::{align_batch, aligned_b, AlignProblem};
 pub use curve::{best_rotation, dist2, inner, rotate, srvf};
@@ -352,7 +353,12 @@ mod tests {
         ));
         assert!(matches!(
             align_closed(&ok, &ok, &prm(3), false),
-            Err(SrvfError::TooFewSamples(3))
+            Err(SrvfError::SampleCount(3))
         ));
+        assert!(matches!(
+            align_closed(&ok, &ok, &prm(MAX_SAMPLES + 1), false),
+            Err(SrvfError::SampleCount(50_001))
+        ));
+        assert!(align_closed(&ok, &ok, &prm(MIN_SAMPLES), false).is_ok());
     }
 }
