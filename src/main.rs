@@ -298,9 +298,11 @@ fn run(cli: Cli) -> Result<(), String> {
             coarse_nodes,
             out,
         } => {
-            if let Some(n @ 0..=1) = coarse_nodes {
-                return Err(format!("--coarse-nodes {n}: must be at least 2"));
+            let full_graph = acetab::solve::GraphParams::default().nodes;
+            if let Some(n) = coarse_nodes {
+                within("--coarse-nodes", n, 2, full_graph)?;
             }
+            within("--runs", runs, 1, MAX_RUNS)?;
             for (flag, w) in [("--w-rot", w_rot), ("--w-reg", w_reg), ("--w-obs", w_obs)] {
                 if !(w.is_finite() && w >= 0.0) {
                     return Err(format!("{flag} {w}: must be a finite non-negative weight"));
@@ -316,7 +318,7 @@ fn run(cli: Cli) -> Result<(), String> {
                     StudyMethod::from_name(&x.to_ascii_lowercase())
                 })?,
                 seed,
-                threads: threads_or_all(threads),
+                threads: threads_or_all(threads)?,
                 shard: parse_shard(&shard)?,
                 params: ReconParams {
                     contour_source: contours,
@@ -331,9 +333,6 @@ fn run(cli: Cli) -> Result<(), String> {
                 },
                 ..Default::default()
             };
-            if runs == 0 {
-                return Err("--runs: must be at least 1".into());
-            }
             let truth = load_truth(&gt)?;
             let total = tasks(&cfg).len();
             let bar = ProgressBar::new(total as u64);
@@ -469,6 +468,8 @@ fn run(cli: Cli) -> Result<(), String> {
             repeats,
             quick,
         } => {
+            within("--study-runs", study_runs, 0, MAX_RUNS)?;
+            within("--repeats", repeats, 1, 1000)?;
             let dev = GpuDevice::from_env().map_err(|e| format!("acetab bench: {e}"))?;
             let gpu = dev.engine().map_err(|e| e.to_string())?;
             let mut prm = acetab::bench::BenchParams {
@@ -527,6 +528,8 @@ fn run(cli: Cli) -> Result<(), String> {
                     "--deg {deg} / --mm {mm}: must be finite and non-negative"
                 ));
             }
+            within("--runs", runs, 1, MAX_RUNS)?;
+            within("--level", level as usize, 1, 5)?;
             let truth = load_truth(&gt)?;
             let cfg = acetab::study::pose::PoseStudy {
                 runs,
@@ -534,7 +537,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 level,
                 deg,
                 mm,
-                threads: threads_or_all(threads),
+                threads: threads_or_all(threads)?,
                 ..Default::default()
             };
             let t = std::time::Instant::now();
@@ -669,15 +672,28 @@ fn engine_on(dev: &Option<GpuDevice>) -> Result<Option<acetab::gpu::Gpu<'_>>, St
         .map_err(|e| e.to_string())
 }
 
-/// `--threads`, or every core.
-fn threads_or_all(threads: Option<usize>) -> usize {
-    threads
-        .unwrap_or_else(|| {
-            std::thread::available_parallelism()
-                .map(|n| n.get())
-                .unwrap_or(1)
-        })
-        .max(1)
+/// `--threads` (1 to `MAX_THREADS`), or every core.
+fn threads_or_all(threads: Option<usize>) -> Result<usize, String> {
+    match threads {
+        Some(n) => within("--threads", n, 1, MAX_THREADS),
+        None => Ok(std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)),
+    }
+}
+
+/// Most worker threads a study takes.
+const MAX_THREADS: usize = 1024;
+/// Most runs per level a study takes (a study's tasks are listed up front).
+const MAX_RUNS: usize = 100_000;
+
+/// `value` when `lo <= value <= hi`, else an error naming the flag and its range.
+fn within(flag: &str, value: usize, lo: usize, hi: usize) -> Result<usize, String> {
+    if (lo..=hi).contains(&value) {
+        Ok(value)
+    } else {
+        Err(format!("{flag} {value}: must be {lo} to {hi}"))
+    }
 }
 
 /// A comma-separated list without repeats; `allowed` (what the flag takes) goes into the error

@@ -191,6 +191,9 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
         ("--levels", "1,6", "\"6\" (expected levels 1 to 5)"),
         ("--levels", "1,,2", "cannot read \"\""),
         ("--methods", "srvf,icp,SRVF", "\"SRVF\" is listed twice"),
+        ("--runs", "4000000000", "must be 1 to 100000"),
+        ("--threads", "0", "must be 1 to 1024"),
+        ("--coarse-nodes", "1", "must be 2 to 150"),
     ] {
         let mut cmd = bin();
         cmd.args(["simulate", "--gt", "phantom", flag, value]);
