@@ -15,7 +15,7 @@ pub struct PhantomParams {
     /// Polar angle of the rim, < 90 makes it shallower than a hemisphere.
     pub depth_deg: f64,
     /// Acetabular notch: azimuthal width (centred on the inferior rim) and the polar angle where
-    /// the cut starts.
+    /// the cut starts. A notch that would remove every triangle is not cut.
     pub notch_width_deg: f64,
     pub notch_start_deg: f64,
     /// Fossa: a depression of this depth (mm, away from the centre) with this angular radius,
@@ -112,10 +112,9 @@ pub fn phantom(p: &PhantomParams) -> Phantom {
             !(polar > start && off.abs() < half)
         })
         .collect();
-    let local = cap
-        .with_vertices(vertices)
-        .submesh(&keep)
-        .expect("the phantom keeps most of a valid cap");
+    // A notch so wide and deep that it would take the whole cap is not cut.
+    let whole = cap.with_vertices(vertices);
+    let local = whole.submesh(&keep).unwrap_or(whole);
     let axis = radiographic_axis(p.anteversion_deg, p.inclination_deg);
     let superior = Vector3::z() - axis.into_inner() * axis.z;
     let ey = superior.try_normalize(1e-9).unwrap_or_else(Vector3::y);
@@ -173,6 +172,28 @@ mod tests {
             })
             .count();
         assert!(dips > 3, "notch edges {dips}");
+    }
+
+    /// A notch that would take every triangle leaves the cap whole instead of panicking; a wide
+    /// notch that leaves some keeps fewer triangles than the default (the companion).
+    #[test]
+    fn a_notch_over_the_whole_cap_is_not_cut() {
+        let base = phantom(&PhantomParams::default()).mesh.triangles.len();
+        let all = phantom(&PhantomParams {
+            notch_width_deg: 400.0,
+            notch_start_deg: -1.0,
+            ..Default::default()
+        });
+        let uncut = phantom(&PhantomParams {
+            notch_width_deg: 0.0,
+            ..Default::default()
+        });
+        assert_eq!(all.mesh.triangles.len(), uncut.mesh.triangles.len());
+        let wide = phantom(&PhantomParams {
+            notch_width_deg: 120.0,
+            ..Default::default()
+        });
+        assert!(wide.mesh.triangles.len() < base && base < uncut.mesh.triangles.len());
     }
 
     #[test]
