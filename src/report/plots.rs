@@ -126,6 +126,10 @@ pub fn box_plots(
             let lo = whiskers.iter().map(|b| b[0]).fold(0.0f64, f64::min);
             let pad = 0.08 * (hi - lo).max(1e-3);
             let (ymin, ymax) = (lo - if lo < 0.0 { pad } else { 0.0 }, hi + pad);
+            // Headroom for the legend (upper left, about 18 px per method in a plot about 390
+            // px high), so that it never covers a box.
+            let legend = ((groups.len() as f64 * 18.0 + 24.0) / 390.0).min(0.6);
+            let ymax = ymin + (ymax - ymin) / (1.0 - legend);
             let mut chart = ChartBuilder::on(area)
                 .caption(*title, ("sans-serif", 20))
                 .margin(12)
