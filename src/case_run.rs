@@ -84,14 +84,12 @@ pub fn run_case(
             write_ply(&rec.mesh, None, &stage.join("reconstruction.ply"))?;
             for (k, cam) in case.cameras.iter().enumerate() {
                 let name = format!("overlay-{k}-{}.png", file_safe(&case.names[k]));
-                let observed: Vec<&[nalgebra::Point2<f64>]> =
-                    case.observed[k].iter().map(|c| &c.points[..]).collect();
                 overlay(
                     (cam.width, cam.height),
                     case.images[k].as_deref(),
                     &rec.initial_contours[k].points,
                     &rec.final_contours[k].points,
-                    &observed,
+                    &case.observed[k],
                     &stage.join(&name),
                 )?;
                 files.push(name);

@@ -2,6 +2,7 @@
 //! an RGB buffer and saved as PNG with `image`. Text needs a TrueType font: DejaVu Sans
 //! (Debian's fonts-dejavu-core, which ci/install-deps.sh installs) or the file in ACETAB_FONT.
 
+use crate::contours::Curve;
 use crate::fsutil::write_atomic;
 use nalgebra::Point2;
 use plotters::prelude::*;
@@ -217,20 +218,25 @@ pub fn box_plots(
     save_png(buf, w, h, path)
 }
 
+const INITIAL: RGBColor = RGBColor(40, 200, 60);
+const RESULT: RGBColor = RGBColor(60, 120, 255);
+const OBSERVED: RGBColor = RGBColor(230, 40, 40);
+
 /// A view's contours over its X-ray (or a dark canvas), cropped around them: initial model
-/// contour green, result blue, observation red, as in the paper's Fig. 3.
+/// contour green, result blue, observation red (closed where the curve is), as in the paper's
+/// Fig. 3, with a legend in the upper left when a font is found.
 pub fn overlay(
     size: (u32, u32),
     background: Option<&Path>,
     initial: &[Point2<f64>],
     result: &[Point2<f64>],
-    observed: &[&[Point2<f64>]],
+    observed: &[Curve],
     path: &Path,
 ) -> Result<(), PlotError> {
     let all: Vec<&Point2<f64>> = initial
         .iter()
         .chain(result)
-        .chain(observed.iter().flat_map(|c| c.iter()))
+        .chain(observed.iter().flat_map(|c| c.points.iter()))
         .collect();
     if all.is_empty() {
         return Err(PlotError::Draw("no contours to draw".into()));
@@ -239,7 +245,8 @@ pub fn overlay(
     let x0 = (all.iter().map(|p| p.x).fold(f64::INFINITY, f64::min) - margin)
         .max(0.0)
         .floor();
-    let y0 = (all.iter().map(|p| p.y).fold(f64::INFINITY, f64::min) - margin)
+    // Room above the contours for the legend.
+    let y0 = (all.iter().map(|p| p.y).fold(f64::INFINITY, f64::min) - margin - 70.0)
         .max(0.0)
         .floor();
     let x1 = (all.iter().map(|p| p.x).fold(f64::NEG_INFINITY, f64::max) + margin)
@@ -285,21 +292,43 @@ pub fn overlay(
         };
         root.draw(&PathElement::new(
             to_px(initial, true),
-            RGBColor(40, 200, 60).stroke_width(2),
+            INITIAL.stroke_width(2),
         ))
         .map_err(draw_err)?;
         for c in observed {
             root.draw(&PathElement::new(
-                to_px(c, false),
-                RGBColor(230, 40, 40).stroke_width(2),
+                to_px(&c.points, c.closed),
+                OBSERVED.stroke_width(2),
             ))
             .map_err(draw_err)?;
         }
         root.draw(&PathElement::new(
             to_px(result, true),
-            RGBColor(60, 120, 255).stroke_width(2),
+            RESULT.stroke_width(2),
         ))
         .map_err(draw_err)?;
+        if ensure_font().is_ok() && w >= 140 && h >= 70 {
+            let entries = [("initial", INITIAL), ("result", RESULT), ("observed", OBSERVED)];
+            root.draw(&Rectangle::new(
+                [(4, 4), (112, 10 + 18 * entries.len() as i32)],
+                RGBColor(0, 0, 0).mix(0.6).filled(),
+            ))
+            .map_err(draw_err)?;
+            for (i, (label, colour)) in entries.into_iter().enumerate() {
+                let y = 16 + 18 * i as i32;
+                root.draw(&PathElement::new(
+                    vec![(10, y), (34, y)],
+                    colour.stroke_width(3),
+                ))
+                .map_err(draw_err)?;
+                root.draw(&Text::new(
+                    label,
+                    (40, y - 7),
+                    ("sans-serif", 14).into_font().color(&WHITE),
+                ))
+                .map_err(draw_err)?;
+            }
+        }
         root.present().map_err(draw_err)?;
     }
     save_png(buf, w, h, path)

@@ -75,17 +75,13 @@ pub fn write_examples(examples: &[ExampleRun], truth: &Mesh, dir: &Path) -> Resu
             source: std::io::Error::other(e.to_string()),
         })?;
         for (k, cam) in ex.sim.cameras.iter().enumerate() {
-            let obs: Vec<&[nalgebra::Point2<f64>]> = ex.sim.observed[k]
-                .iter()
-                .map(|c| c.points.as_slice())
-                .collect();
             let p = d.join(format!("view{k}.png"));
             overlay(
                 (cam.width, cam.height),
                 None,
                 &ex.recon.initial_contours[k].points,
                 &ex.recon.final_contours[k].points,
-                &obs,
+                &ex.sim.observed[k],
                 &p,
             )
             .map_err(|e| StudyError::Write {
