@@ -257,7 +257,10 @@ fn align_reports_a_rotation_and_rejects_a_bad_file() {
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
-    assert!(err.contains("--samples 100000000: must be 8 to 50000"), "{err}");
+    assert!(
+        err.contains("--samples 100000000: must be 8 to 50000"),
+        "{err}"
+    );
 }
 
 /// A ground truth in the wrong units (the phantom in centimetres) runs but is warned about; the

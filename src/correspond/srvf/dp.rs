@@ -140,7 +140,30 @@ fn dp_in_band(
     let mut back = vec![u32::MAX; cells];
     cost[0] = 0.0;
     let (x1, y1): (Vec<f64>, Vec<f64>) = q1.iter().map(|v| (v.x, v.y)).unzip();
-    let (x2, y2): (Vec<f64>, Vec<f64>) = q2.iter().map(|v| (v.x, v.y)).unzip();
+    // q2 at every tap of every step, times the step's sqrt slope, for each start column l
+    // (0 <= l < n - b): it does not depend on the row, so it is computed once, not per cell.
+    let warped: Vec<Vec<(f64, f64)>> = prepared
+        .iter()
+        .map(|st| {
+            let cols = n.saturating_sub(st.b);
+            let mut v = Vec::with_capacity(st.taps.len() * cols);
+            for &(off, u) in &st.taps {
+                for l in 0..cols {
+                    let p = l + off;
+                    let (qx, qy) = if u == 0.0 {
+                        (q2[p].x, q2[p].y)
+                    } else {
+                        (
+                            q2[p].x + (q2[p + 1].x - q2[p].x) * u,
+                            q2[p].y + (q2[p + 1].y - q2[p].y) * u,
+                        )
+                    };
+                    v.push((qx * st.sqrt_slope, qy * st.sqrt_slope));
+                }
+            }
+            v
+        })
+        .collect();
     for i in 1..n {
         for j in lo[i]..=hi[i] {
             let mut best = f64::INFINITY;
@@ -158,18 +181,12 @@ fn dp_in_band(
                     continue; // edge costs are non-negative
                 }
                 let mut c = 0.0;
-                for (r, &(off, u)) in st.taps.iter().enumerate() {
-                    let p = l + off;
-                    let (qx, qy) = if u == 0.0 {
-                        (x2[p], y2[p])
-                    } else {
-                        (
-                            x2[p] + (x2[p + 1] - x2[p]) * u,
-                            y2[p] + (y2[p + 1] - y2[p]) * u,
-                        )
-                    };
-                    let dx = x1[k + r] - qx * st.sqrt_slope;
-                    let dy = y1[k + r] - qy * st.sqrt_slope;
+                let cols = n - st.b;
+                let w = &warped[si];
+                for r in 0..st.a {
+                    let (qx, qy) = w[r * cols + l];
+                    let dx = x1[k + r] - qx;
+                    let dy = y1[k + r] - qy;
                     c += dx * dx + dy * dy;
                 }
                 let c = prev + c;
