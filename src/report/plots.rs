@@ -308,7 +308,11 @@ pub fn overlay(
         ))
         .map_err(draw_err)?;
         if ensure_font().is_ok() && w >= 140 && h >= 70 {
-            let entries = [("initial", INITIAL), ("result", RESULT), ("observed", OBSERVED)];
+            let entries = [
+                ("initial", INITIAL),
+                ("result", RESULT),
+                ("observed", OBSERVED),
+            ];
             root.draw(&Rectangle::new(
                 [(4, 4), (112, 10 + 18 * entries.len() as i32)],
                 RGBColor(0, 0, 0).mix(0.6).filled(),

@@ -77,7 +77,7 @@ impl Linearization {
     /// Assemble J^T J (lower block triangle) and J^T r.
     pub fn normal_equations(&self) -> NormalEquations {
         let bs = self.block_size;
-        let mut index: HashMap<(u32, u32), usize> = HashMap::new();
+        let mut index = BlockIndex::new(self.n_blocks);
         let mut blocks: Vec<f64> = Vec::new();
         let mut g = vec![0.0; self.n_params()];
         for row in 0..self.r.len() {
@@ -95,7 +95,7 @@ impl Linearization {
                         continue;
                     }
                     let vq = &self.vals[q * bs..(q + 1) * bs];
-                    let at = *index.entry((bp, bq)).or_insert_with(|| {
+                    let at = index.slot(bp, bq, || {
                         blocks.resize(blocks.len() + bs * bs, 0.0);
                         blocks.len() / (bs * bs) - 1
                     });
@@ -112,7 +112,7 @@ impl Linearization {
                 }
             }
         }
-        let mut keys: Vec<((u32, u32), usize)> = index.into_iter().collect();
+        let mut keys = index.into_keys();
         keys.sort_unstable();
         NormalEquations {
             block_size: bs,
@@ -120,6 +120,59 @@ impl Linearization {
             keys,
             blocks,
             g,
+        }
+    }
+}
+
+/// Where each (row block, column block) pair's values live in `normal_equations`' block list: a
+/// dense table for the usual few hundred blocks (a lookup per Jacobian entry pair is the
+/// assembly's inner loop), a hash map beyond.
+enum BlockIndex {
+    Dense {
+        n: usize,
+        table: Vec<u32>,
+        keys: Vec<((u32, u32), usize)>,
+    },
+    Hashed(HashMap<(u32, u32), usize>),
+}
+
+/// Most blocks the dense table serves (512^2 slots, 1 MiB).
+const DENSE_BLOCKS: usize = 512;
+
+impl BlockIndex {
+    fn new(n_blocks: usize) -> Self {
+        if n_blocks <= DENSE_BLOCKS {
+            BlockIndex::Dense {
+                n: n_blocks,
+                table: vec![u32::MAX; n_blocks * n_blocks],
+                keys: Vec::new(),
+            }
+        } else {
+            BlockIndex::Hashed(HashMap::new())
+        }
+    }
+
+    /// The slot of (p, q), made by `new_slot` the first time the pair is seen.
+    #[inline]
+    fn slot(&mut self, p: u32, q: u32, new_slot: impl FnOnce() -> usize) -> usize {
+        match self {
+            BlockIndex::Dense { n, table, keys } => {
+                let t = &mut table[p as usize * *n + q as usize];
+                if *t == u32::MAX {
+                    let at = new_slot();
+                    *t = at as u32;
+                    keys.push(((p, q), at));
+                }
+                *t as usize
+            }
+            BlockIndex::Hashed(map) => *map.entry((p, q)).or_insert_with(new_slot),
+        }
+    }
+
+    fn into_keys(self) -> Vec<((u32, u32), usize)> {
+        match self {
+            BlockIndex::Dense { keys, .. } => keys,
+            BlockIndex::Hashed(map) => map.into_iter().collect(),
         }
     }
 }
@@ -397,6 +450,29 @@ mod tests {
         let d2 = ne.solve(&damping, &mut sym).unwrap();
         assert_eq!(d, d2);
         assert_eq!((sym.hits, sym.misses), (1, 1));
+    }
+
+    /// The dense block table and the hash map index the same blocks in the same slots; a
+    /// changed Jacobian value shows in the blocks (the companion: the comparison can fail).
+    #[test]
+    fn dense_and_hashed_block_indices_assemble_the_same_system() {
+        let small = random_problem(5);
+        let mut large = Linearization::new(3, DENSE_BLOCKS + 100);
+        large.r = small.r.clone();
+        large.row_start = small.row_start.clone();
+        large.block_ids = small.block_ids.clone();
+        large.vals = small.vals.clone();
+        let (a, b) = (small.normal_equations(), large.normal_equations());
+        assert!(matches!(BlockIndex::new(5), BlockIndex::Dense { .. }));
+        assert!(matches!(
+            BlockIndex::new(DENSE_BLOCKS + 100),
+            BlockIndex::Hashed(_)
+        ));
+        assert_eq!(a.keys, b.keys);
+        assert_eq!(a.blocks, b.blocks);
+        assert_eq!(a.g[..], b.g[..a.n]);
+        large.vals[0] += 0.5;
+        assert_ne!(large.normal_equations().blocks, a.blocks);
     }
 
     /// Largest |(H + D) d + g| entry.
