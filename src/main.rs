@@ -637,7 +637,6 @@ fn run(cli: Cli) -> Result<(), String> {
     }
 }
 
-/// The engine on the device, if any (its pipelines compile here).
 /// Sphere diameters (mm) an acetabulum can have; outside them `--gt` is warned about (a mesh in
 /// metres or centimetres still runs, but the solver's tolerances are in millimetres).
 const PLAUSIBLE_CUP_MM: (f64, f64) = (20.0, 100.0);
@@ -665,6 +664,7 @@ fn load_truth(gt: &str) -> Result<acetab::mesh::Mesh, String> {
     Ok(truth)
 }
 
+/// The engine on the device, if any (its pipelines compile here).
 fn engine_on(dev: &Option<GpuDevice>) -> Result<Option<acetab::gpu::Gpu<'_>>, String> {
     dev.as_ref()
         .map(|d| d.engine())
