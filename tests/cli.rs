@@ -7,6 +7,9 @@ use acetab::views::XrayGeometry;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+/// A study of one srvf run at level 1 on one thread.
+const ONE_RUN: &str = "--levels 1 --runs 1 --methods srvf --threads 1";
+
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_acetab"))
 }
@@ -276,16 +279,9 @@ fn simulate_warns_about_a_ground_truth_in_the_wrong_units() {
     acetab::mesh::io::write_obj(&mesh, &dir.join("cm.obj")).unwrap();
     let warned = |name: &str| {
         let o = bin()
-            .args([
-                "simulate",
-                "--levels",
-                "1",
-                "--runs",
-                "1",
-                "--methods",
-                "srvf",
-            ])
-            .args(["--threads", "1", "--gt"])
+            .arg("simulate")
+            .args(ONE_RUN.split(' '))
+            .arg("--gt")
             .arg(dir.join(name))
             .arg("--out")
             .arg(dir.join(format!("out-{name}")))
