@@ -543,8 +543,15 @@ fn run(cli: Cli) -> Result<(), String> {
             let t = std::time::Instant::now();
             let rows = acetab::study::pose::run_pose_study(&truth, &cfg);
             let ok: Vec<_> = rows.iter().filter(|r| r.error.is_empty()).collect();
+            if ok.is_empty() {
+                return Err(format!(
+                    "pose-study: all {} runs failed (run 0: {})",
+                    rows.len(),
+                    rows.first().map_or("", |r| r.error.as_str())
+                ));
+            }
             let mean = |f: &dyn Fn(&acetab::study::pose::PoseRow) -> f64| {
-                ok.iter().map(|r| f(r)).sum::<f64>() / ok.len().max(1) as f64
+                ok.iter().map(|r| f(r)).sum::<f64>() / ok.len() as f64
             };
             let (without, with) = (mean(&|r| r.mae_without_mm), mean(&|r| r.mae_with_mm));
             let summary = serde_json::json!({

@@ -348,3 +348,21 @@ fn merge_joins_shards_and_refuses_to_overwrite_one_or_read_a_bad_cell() {
     assert!(err.contains("column \"converged\": \"yes\""), "{err}");
     assert!(!dir.join("bad").exists(), "output written for a bad shard");
 }
+
+/// A pose study whose every run fails (views shifted a kilometre) is an error, not a table of
+/// nothing with exit 0; the same study with the default shift succeeds (the companion).
+#[test]
+fn pose_study_with_every_run_failed_is_an_error() {
+    let run = |mm: &str| {
+        bin()
+            .args(["pose-study", "--runs", "1", "--threads", "1", "--mm", mm])
+            .output()
+            .unwrap()
+    };
+    let o = run("1000000");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("pose-study: all 1 runs failed"), "{err}");
+    let o = run("5");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
