@@ -359,6 +359,18 @@ fn run(cli: Cli) -> Result<(), String> {
                 );
             }
             bar.finish_and_clear();
+            // A study in which every run failed (a solver diverging for want of regularisation,
+            // say) has no result to write: it is an error, not a folder of NaN with exit 0.
+            if !rows.is_empty() && rows.iter().all(|r| !r.error.is_empty()) {
+                return Err(format!(
+                    "simulate: all {} runs failed, nothing written (the first, {} level {} run {}: {})",
+                    rows.len(),
+                    rows[0].method.name(),
+                    rows[0].level,
+                    rows[0].run,
+                    rows[0].error
+                ));
+            }
             let meta = serde_json::json!({
                 "gt": gt, "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
                 "shard": shard, "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),

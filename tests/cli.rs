@@ -366,3 +366,29 @@ fn pose_study_with_every_run_failed_is_an_error() {
     let o = run("5");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// A study in which every run fails (no regularisation, so the deformation flies off) is an
+/// error with no output folder; the same study with the default weights writes its tables (the
+/// companion).
+#[test]
+fn simulate_with_every_run_failed_writes_nothing() {
+    let dir = tmp("allfail");
+    let mut cmd = bin();
+    cmd.args(["simulate", "--gt", "phantom"])
+        .args(ONE_RUN.split(' '))
+        .args(["--w-reg", "0", "--w-rot", "0"]);
+    fails_cleanly(
+        cmd,
+        &dir.join("study"),
+        &["all 1 runs failed, nothing written"],
+    );
+    let o = bin()
+        .args(["simulate", "--gt", "phantom"])
+        .args(ONE_RUN.split(' '))
+        .arg("--out")
+        .arg(dir.join("ok"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(dir.join("ok/runs.csv").exists());
+}
