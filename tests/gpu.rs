@@ -206,7 +206,8 @@ fn wave(n: usize, f: f64, ph: f64) -> Vec<Vector2<f64>> {
 fn srvf_dp_back_pointers_equal_the_twin_exactly() {
     with_gpu(|gpu| {
         let steps = acetab::correspond::srvf::coprime_steps(5);
-        let curves: Vec<(Vec<Vector2<f64>>, Vec<Vector2<f64>>)> = (0..17)
+        type Owned = (Vec<Vector2<f64>>, Vec<Vector2<f64>>);
+        let curves: Vec<Owned> = (0..17)
             .map(|k| {
                 (
                     wave(64, 1.0 + 0.1 * k as f64, 0.0),
@@ -214,7 +215,7 @@ fn srvf_dp_back_pointers_equal_the_twin_exactly() {
                 )
             })
             .collect();
-        let pairs: Vec<(&[Vector2<f64>], &[Vector2<f64>])> =
+        let pairs: Vec<acetab::correspond::srvf::CurvePair<'_>> =
             curves.iter().map(|(a, b)| (&a[..], &b[..])).collect();
         let batch = cdp::DpBatch::new(&pairs, &steps).unwrap();
         let (cpu_cost, cpu_back) = cdp::dp_tables(&batch);

@@ -37,11 +37,7 @@ fn dot3(a: &[f32; 4], p: &[f32; 4]) -> f32 {
 
 /// `vertices`: B * V positions; output index (mesh * C + view) * V + vertex.
 pub fn project(vertices: &[[f32; 4]], vertex_count: usize, views: &[ViewRows]) -> Vec<[f32; 4]> {
-    let meshes = if vertex_count == 0 {
-        0
-    } else {
-        vertices.len() / vertex_count
-    };
+    let meshes = vertices.len().checked_div(vertex_count).unwrap_or(0);
     let mut out = vec![[0.0f32; 4]; meshes * views.len() * vertex_count];
     for b in 0..meshes {
         for (c, view) in views.iter().enumerate() {

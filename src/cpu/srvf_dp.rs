@@ -2,8 +2,7 @@
 //! with the kernel's loop structure and operation order, so that the back-pointers agree with
 //! the GPU's exactly. The traceback (shared with the f64 engine) turns them into warps.
 
-use crate::correspond::srvf::{prepare_steps, traceback, warp_from_path, Warp};
-use nalgebra::Vector2;
+use crate::correspond::srvf::{prepare_steps, traceback, warp_from_path, CurvePair, Warp};
 
 /// Cost of a cell no path reaches (the kernel's UNREACHED).
 pub const UNREACHED: f32 = 1e30;
@@ -59,10 +58,7 @@ pub enum DpBatchError {
 }
 
 impl DpBatch {
-    pub fn new(
-        pairs: &[(&[Vector2<f64>], &[Vector2<f64>])],
-        steps: &[(usize, usize)],
-    ) -> Result<Self, DpBatchError> {
+    pub fn new(pairs: &[CurvePair<'_>], steps: &[(usize, usize)]) -> Result<Self, DpBatchError> {
         let n = pairs.first().ok_or(DpBatchError::Empty)?.0.len();
         if steps.is_empty() {
             return Err(DpBatchError::NoSteps);
@@ -180,11 +176,7 @@ pub fn dp_tables(b: &DpBatch) -> (Vec<f32>, Vec<u32>) {
 }
 
 /// Warps (in f64, from the f32 paths) of every problem, given its back-pointer table.
-pub fn warps_from_tables(
-    pairs: &[(&[Vector2<f64>], &[Vector2<f64>])],
-    b: &DpBatch,
-    back: &[u32],
-) -> Vec<Warp> {
+pub fn warps_from_tables(pairs: &[CurvePair<'_>], b: &DpBatch, back: &[u32]) -> Vec<Warp> {
     let n = b.samples as usize;
     pairs
         .iter()
@@ -200,6 +192,7 @@ pub fn warps_from_tables(
 mod tests {
     use super::*;
     use crate::correspond::srvf::{coprime_steps, dp_warp};
+    use nalgebra::Vector2;
 
     fn wave(n: usize, f: f64, ph: f64) -> Vec<Vector2<f64>> {
         (0..n)

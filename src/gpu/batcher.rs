@@ -79,6 +79,9 @@ impl<T> Lane<T> {
 }
 
 /// Merges concurrent kernel requests from up to `lanes` runs.
+/// One projection request: the vertices, the vertex count per mesh and the views.
+type ProjectJob = (Vec<[f32; 4]>, usize, Vec<ViewRows>);
+
 pub struct GpuBatcher<'g> {
     gpu: &'g Gpu<'g>,
     lanes: usize,
@@ -169,7 +172,7 @@ impl<'g> GpuBatcher<'g> {
             self.wait,
             |jobs| {
                 let mut out = Vec::new();
-                let mut groups: Vec<Vec<(u64, (Vec<[f32; 4]>, usize, Vec<ViewRows>))>> = Vec::new();
+                let mut groups: Vec<Vec<(u64, ProjectJob)>> = Vec::new();
                 for j in jobs {
                     match groups
                         .iter_mut()

@@ -5,9 +5,8 @@ use super::buffers::{
     bind, bytes_of, compute_pipeline, fill, kernel_entries, uniform, SENTINEL_F32, SENTINEL_U32,
 };
 use super::{Gpu, GpuError};
-use crate::correspond::srvf::Warp;
+use crate::correspond::srvf::{CurvePair, Warp};
 use crate::cpu::srvf_dp::{warps_from_tables, DpBatch, StepEntry, TapEntry};
-use nalgebra::Vector2;
 
 /// Keep in sync with `Params` in shaders/srvf_dp.wgsl.
 #[repr(C)]
@@ -138,7 +137,7 @@ impl Gpu<'_> {
     /// Optimal warps of a batch of SRVF pairs (full-grid DP on the GPU, traceback on the host).
     pub fn srvf_warps(
         &self,
-        pairs: &[(&[Vector2<f64>], &[Vector2<f64>])],
+        pairs: &[CurvePair<'_>],
         steps: &[(usize, usize)],
     ) -> Result<Vec<Warp>, GpuError> {
         if pairs.is_empty() {

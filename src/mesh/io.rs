@@ -115,7 +115,10 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, MeshIoError> {
     })
 }
 
-fn read_ply(path: &Path) -> Result<(Vec<Point3<f64>>, Vec<[u32; 3]>), MeshIoError> {
+/// Vertices and triangles as read, before the mesh is checked and welded.
+type RawMesh = (Vec<Point3<f64>>, Vec<[u32; 3]>);
+
+fn read_ply(path: &Path) -> Result<RawMesh, MeshIoError> {
     use ply_rs::ply::Property;
     let parse = |reason: String| MeshIoError::Parse {
         path: path.to_path_buf(),

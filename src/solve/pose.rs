@@ -4,8 +4,12 @@
 //!
 //! A correction of view k is a rotation omega_k (rotation vector) about the object centre c and
 //! a translation tau_k: the view sees P as c + tau_k + Exp(omega_k) (P - c). Energy:
-//!   sum_obs w |F (pi_k(corrected P) - target)|^2 / (px_per_mm sigma_data)^2
-//!   + sum_k |omega_k|^2 / sigma_rot^2 + |tau_k|^2 / sigma_t^2,
+//!
+//! ```text
+//! sum_obs w |F (pi_k(corrected P) - target)|^2 / (px_per_mm sigma_data)^2
+//!   + sum_k |omega_k|^2 / sigma_rot^2 + |tau_k|^2 / sigma_t^2
+//! ```
+//!
 //! over the views being refined (the reference view, by default the first, fixes the frame: a
 //! common motion of every view and the inverse motion of the shape would look the same).
 

@@ -491,7 +491,7 @@ mod tests {
         ));
         std::fs::write(b.join("runs.csv"), "nonsense\n").unwrap();
         assert!(matches!(
-            merge_dirs(&[b.clone()]),
+            merge_dirs(std::slice::from_ref(&b)),
             Err(StudyError::Parse { line: 1, .. })
         ));
         std::fs::remove_dir_all(&dir).unwrap();

@@ -5,6 +5,9 @@
 
 use nalgebra::Vector2;
 
+/// Two SRVFs to align, sampled alike: (q1, q2).
+pub type CurvePair<'a> = (&'a [Vector2<f64>], &'a [Vector2<f64>]);
+
 /// The coprime step set for neighbourhood size `n` (n = 1 gives only the diagonal).
 pub fn coprime_steps(n: usize) -> Vec<(usize, usize)> {
     fn gcd(a: usize, b: usize) -> usize {
@@ -53,9 +56,9 @@ pub fn edge_cost(
     let m = (j - l) as f64 / (i - k) as f64;
     let sm = m.sqrt();
     let mut c = 0.0;
-    for s in k..i {
-        let y = l as f64 + (s - k) as f64 * m;
-        c += (q1[s] - interp(q2, y) * sm).norm_squared();
+    for (t, q) in q1[k..i].iter().enumerate() {
+        let y = l as f64 + t as f64 * m;
+        c += (q - interp(q2, y) * sm).norm_squared();
     }
     c / q1.len() as f64
 }
@@ -240,7 +243,7 @@ fn band_around(
     let mut band = vec![(usize::MAX, 0usize); n];
     for w in path.windows(2) {
         let ((i0, j0), (i1, j1)) = ((fine(w[0].0), fine(w[0].1)), (fine(w[1].0), fine(w[1].1)));
-        for i in i0..=i1 {
+        for (i, cell) in band.iter_mut().enumerate().take(i1 + 1).skip(i0) {
             let t = if i1 > i0 {
                 (i - i0) as f64 / (i1 - i0) as f64
             } else {
@@ -249,7 +252,7 @@ fn band_around(
             let j = j0 as f64 + t * (j1 as f64 - j0 as f64);
             let lo = (j.floor() as usize).saturating_sub(halfwidth);
             let hi = ((j.ceil() as usize) + halfwidth).min(n - 1);
-            band[i] = (band[i].0.min(lo), band[i].1.max(hi));
+            *cell = (cell.0.min(lo), cell.1.max(hi));
         }
     }
     band[n - 1].1 = n - 1;

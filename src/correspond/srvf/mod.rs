@@ -12,7 +12,7 @@ pub use align::{
 pub use batch::{align_batch, aligned_b, AlignProblem};
 pub use curve::{best_rotation, dist2, inner, rotate, srvf};
 pub(crate) use dp::prepare as prepare_steps;
-pub use dp::{coprime_steps, dp_warp, edge_cost, traceback, warp_from_path, Warp};
+pub use dp::{coprime_steps, dp_warp, edge_cost, traceback, warp_from_path, CurvePair, Warp};
 
 #[cfg(test)]
 mod tests {
