@@ -4,14 +4,16 @@
 //! is what the deformation graph and its sphere prior make of it.
 //!
 //! For each mesh, seeded `srvf` study runs (seed 1, the study's cases) are reconstructed and
-//! 20,000 points spread evenly over the truth are matched to their closest points on the result.
+//! the points `mae_mm` is measured from (20,000 spread evenly over the truth) are matched to their
+//! closest points on the result.
 //! Per band: the mean signed offset (positive: the truth lies outside the result, away from the
 //! truth's sphere centre) and the band's share of the mean absolute distance (`mae_mm`).
 //!
 //! Run: cargo run --release --example error_zones -- [--levels 1,3,5] [--runs 4] MESH...
 
+use acetab::demo::accuracy_samples;
 use acetab::mesh::io::read_mesh;
-use acetab::report::{surface_samples, SurfaceQuery};
+use acetab::report::SurfaceQuery;
 use acetab::simulate::{fit_placement, ground_truth_surface};
 use acetab::study::{run_one, tasks, StudyConfig, StudyMethod};
 use std::path::Path;
@@ -72,7 +74,7 @@ fn zones(path: &str, levels: &[u32], runs: usize) -> Result<String, String> {
         .map_err(|e| format!("sphere fit: {e}"))?
         .1
         .center_point();
-    let samples = surface_samples(&truth, 20_000, 1);
+    let samples = accuracy_samples(&truth);
     let band_of: Vec<usize> = samples
         .iter()
         .map(|s| (((s - centre).normalize().y.abs() / 0.2) as usize).min(BANDS - 1))

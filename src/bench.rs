@@ -206,7 +206,11 @@ pub fn run_bench(
             crate::gpu::GpuBatcher::new(gpu, cfg.threads, std::time::Duration::from_millis(2));
         for kernels in [Kernels::Cpu, Kernels::Gpu(gpu), Kernels::Batched(&batcher)] {
             let s = Instant::now();
-            let (rows, _) = run_study_with(&truth, &cfg, &|| {}, kernels);
+            let (rows, _) =
+                run_study_with(&truth, &cfg, &|| {}, kernels).map_err(|e| GpuError::Input {
+                    kernel: "study",
+                    message: format!("the phantom cannot be simulated: {e}"),
+                })?;
             let seconds = s.elapsed().as_secs_f64();
             study.push(Throughput {
                 backend: match kernels {

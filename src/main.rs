@@ -11,15 +11,14 @@ use acetab::gpu::{GpuBatcher, GpuDevice};
 use acetab::mesh::io::read_mesh;
 use acetab::mesh::io::write_ply;
 use acetab::pipeline::ReconParams;
-use acetab::report::CupCatalogue;
-use acetab::simulate::{ground_truth_surface, SimSetup};
+use acetab::report::{fit_sphere, CupCatalogue};
+use acetab::simulate::ground_truth_surface;
 use acetab::study::{
     merge_dirs, merge_meta, run_study_with, summarize, tasks, write_examples, write_tables,
     StudyConfig, StudyMethod,
 };
 use acetab::template::{phantom, PhantomParams};
 use acetab::uncertainty::UncertaintyParams;
-use acetab::views::XrayGeometry;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -350,7 +349,8 @@ fn run(cli: Cli) -> Result<(), String> {
                 .as_ref()
                 .map(|g| GpuBatcher::new(g, cfg.threads, std::time::Duration::from_millis(2)));
             let kernels = batcher.as_ref().map_or(Kernels::Cpu, Kernels::Batched);
-            let (rows, examples) = run_study_with(&truth, &cfg, &|| bar.inc(1), kernels);
+            let (rows, examples) = run_study_with(&truth, &cfg, &|| bar.inc(1), kernels)
+                .map_err(|e| format!("--gt {gt}: {e}"))?;
             if let Some(b) = &batcher {
                 let (req, disp) = b.counts();
                 eprintln!(
@@ -553,7 +553,8 @@ fn run(cli: Cli) -> Result<(), String> {
                 ..Default::default()
             };
             let t = std::time::Instant::now();
-            let rows = acetab::study::pose::run_pose_study(&truth, &cfg);
+            let rows = acetab::study::pose::run_pose_study(&truth, &cfg)
+                .map_err(|e| format!("--gt {gt}: {e}"))?;
             let ok: Vec<_> = rows.iter().filter(|r| r.error.is_empty()).collect();
             if ok.is_empty() {
                 return Err(format!(
@@ -660,9 +661,8 @@ fn run(cli: Cli) -> Result<(), String> {
 /// metres or centimetres still runs, but the solver's tolerances are in millimetres).
 const PLAUSIBLE_CUP_MM: (f64, f64) = (20.0, 100.0);
 
-/// The study's ground truth from `--gt` (a mesh file or `phantom`), checked up front: a surface no
-/// sphere fits, or one the simulated views cannot see, is refused before any output is made
-/// (otherwise every run would fail alike and the study would still write its folder).
+/// The study's ground truth from `--gt` (a mesh file or `phantom`). A surface no sphere fits, or
+/// one the simulated views cannot see, is refused by the study itself before any run.
 fn load_truth(gt: &str) -> Result<acetab::mesh::Mesh, String> {
     let truth = if gt == "phantom" {
         phantom(&PhantomParams::default()).mesh
@@ -670,9 +670,9 @@ fn load_truth(gt: &str) -> Result<acetab::mesh::Mesh, String> {
         let mesh = read_mesh(Path::new(gt)).map_err(|e| format!("--gt: {e}"))?;
         ground_truth_surface(&mesh).map_err(|e| format!("--gt {gt}: {e}"))?
     };
-    let setup =
-        SimSetup::new(&truth, &XrayGeometry::default()).map_err(|e| format!("--gt {gt}: {e}"))?;
-    let d = setup.sphere.diameter();
+    let d = fit_sphere(&truth.vertices)
+        .map_err(|e| format!("--gt {gt}: ground truth sphere fit: {e}"))?
+        .diameter();
     if !(PLAUSIBLE_CUP_MM.0..=PLAUSIBLE_CUP_MM.1).contains(&d) {
         eprintln!(
             "acetab: warning: --gt {gt}: the fitted sphere is {d:.3} mm across, outside the {}-{} mm \

@@ -617,16 +617,20 @@ impl Deformation {
                     &mut self.cams_now,
                 )?;
             }
+            let coarse;
             let graph = match prm.coarse_graph_nodes {
-                Some(nodes) if self.rounds + 1 < b.rounds => GraphParams {
-                    nodes,
-                    ..prm.graph.clone()
-                },
-                _ => prm.graph.clone(),
+                Some(nodes) if self.rounds + 1 < b.rounds => {
+                    coarse = GraphParams {
+                        nodes,
+                        ..prm.graph.clone()
+                    };
+                    &coarse
+                }
+                _ => &prm.graph,
             };
             let (deformed, info) = ed_solve(
                 &self.mesh,
-                &graph,
+                graph,
                 &self.cams_now,
                 &self.obs,
                 prm,

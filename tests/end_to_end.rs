@@ -203,7 +203,7 @@ fn pose_reduction(pose: Option<acetab::solve::PoseParams>) -> f64 {
         pose: pose.unwrap_or_default(),
         ..Default::default()
     };
-    let rows = run_pose_study(&truth, &cfg);
+    let rows = run_pose_study(&truth, &cfg).unwrap();
     assert!(rows.iter().all(|r| r.error.is_empty()), "{rows:?}");
     let without: f64 = rows.iter().map(|r| r.mae_without_mm).sum();
     let with: f64 = rows.iter().map(|r| r.mae_with_mm).sum();

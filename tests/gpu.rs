@@ -328,9 +328,10 @@ fn study_runs_batched_on_the_gpu_match_the_cpu() {
             ..Default::default()
         };
         let batcher = GpuBatcher::new(gpu, 2, std::time::Duration::from_millis(5));
-        let (cpu, _) = run_study_with(&truth, &cfg, &|| {}, Kernels::Cpu);
-        let (single, _) = run_study_with(&truth, &cfg, &|| {}, Kernels::Gpu(gpu));
-        let (batched, _) = run_study_with(&truth, &cfg, &|| {}, Kernels::Batched(&batcher));
+        let (cpu, _) = run_study_with(&truth, &cfg, &|| {}, Kernels::Cpu).unwrap();
+        let (single, _) = run_study_with(&truth, &cfg, &|| {}, Kernels::Gpu(gpu)).unwrap();
+        let (batched, _) =
+            run_study_with(&truth, &cfg, &|| {}, Kernels::Batched(&batcher)).unwrap();
         let (req, disp) = batcher.counts();
         eprintln!("{req} requests in {disp} dispatches");
         for ((c, s), b) in cpu.iter().zip(&single).zip(&batched) {

@@ -53,7 +53,7 @@ fn strip(rows: &[Row]) -> String {
 fn threads_and_shards_give_the_same_table() {
     let truth = small_phantom();
     let cfg = quick();
-    let (one, examples) = run_study(&truth, &cfg, &|| {});
+    let (one, examples) = run_study(&truth, &cfg, &|| {}).unwrap();
     assert_eq!(one.len(), 8);
     let (two, _) = run_study(
         &truth,
@@ -62,7 +62,8 @@ fn threads_and_shards_give_the_same_table() {
             ..cfg.clone()
         },
         &|| {},
-    );
+    )
+    .unwrap();
     assert_eq!(strip(&one), strip(&two));
     let base = std::env::temp_dir().join(format!("acetab-study-{}", std::process::id()));
     let mut dirs = Vec::new();
@@ -75,7 +76,8 @@ fn threads_and_shards_give_the_same_table() {
                 ..cfg.clone()
             },
             &|| {},
-        );
+        )
+        .unwrap();
         let d = base.join(format!("shard{i}"));
         std::fs::create_dir_all(&d).unwrap();
         write_csv(&rows, &d.join("runs.csv")).unwrap();
@@ -120,7 +122,7 @@ fn paper_protocol_runs_only_the_deformation_and_keeps_its_name() {
         methods: vec![StudyMethod::Icp, StudyMethod::IcpPaper],
         ..quick()
     };
-    let (rows, examples) = run_study(&truth, &cfg, &|| {});
+    let (rows, examples) = run_study(&truth, &cfg, &|| {}).unwrap();
     let [ours, paper] = [&rows[0], &rows[1]];
     assert_eq!(
         (ours.method, paper.method),

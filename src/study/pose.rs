@@ -7,7 +7,7 @@ use super::runner::Prepared;
 use crate::demo::accuracy_from;
 use crate::mesh::Mesh;
 use crate::pipeline::{reconstruct, ReconParams};
-use crate::simulate::{perturb_poses, NoiseLevel};
+use crate::simulate::{perturb_poses, NoiseLevel, SimError};
 use crate::solve::PoseParams;
 use crate::views::XrayGeometry;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -68,13 +68,7 @@ fn one(shared: &Prepared, cfg: &PoseStudy, run: usize) -> PoseRow {
         row.error = format!("no noise level {}", cfg.level);
         return row;
     };
-    let sim = match &shared.setup {
-        Ok(s) => s.case(2.0, &level, seed),
-        Err(e) => {
-            row.error = e.clone();
-            return row;
-        }
-    };
+    let sim = shared.setup.case(2.0, &level, seed);
     let cams = perturb_poses(
         &sim.cameras,
         &sim.truth_placement.center,
@@ -108,9 +102,10 @@ fn one(shared: &Prepared, cfg: &PoseStudy, run: usize) -> PoseRow {
     row
 }
 
-/// Run every case (threads do not change the results).
-pub fn run_pose_study(truth: &Mesh, cfg: &PoseStudy) -> Vec<PoseRow> {
-    let shared = Prepared::new(truth, &XrayGeometry::default());
+/// Run every case (threads do not change the results). A truth that cannot be simulated at all
+/// is an error before any run.
+pub fn run_pose_study(truth: &Mesh, cfg: &PoseStudy) -> Result<Vec<PoseRow>, SimError> {
+    let shared = Prepared::new(truth, &XrayGeometry::default())?;
     let next = AtomicUsize::new(0);
     let rows: Mutex<Vec<Option<PoseRow>>> = Mutex::new(vec![None; cfg.runs]);
     std::thread::scope(|s| {
@@ -125,9 +120,10 @@ pub fn run_pose_study(truth: &Mesh, cfg: &PoseStudy) -> Vec<PoseRow> {
             });
         }
     });
-    rows.into_inner()
+    Ok(rows
+        .into_inner()
         .unwrap_or_else(|e| e.into_inner())
         .into_iter()
         .flatten()
-        .collect()
+        .collect())
 }

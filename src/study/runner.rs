@@ -7,7 +7,7 @@ use crate::demo::{accuracy_from, accuracy_samples};
 use crate::mesh::Mesh;
 use crate::pipeline::{reconstruct_with, ReconParams, Reconstruction};
 use crate::report::{DistanceStats, InteriorQuery};
-use crate::simulate::{NoiseLevel, SimCase, SimSetup};
+use crate::simulate::{NoiseLevel, SimCase, SimError, SimSetup};
 use crate::views::XrayGeometry;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -104,24 +104,29 @@ pub fn run_one_with(
     cfg: &StudyConfig,
     kernels: Kernels,
 ) -> (Row, Option<ExampleRun>) {
-    run_prepared(&Prepared::new(truth, &cfg.geometry), task, cfg, kernels)
+    match Prepared::new(truth, &cfg.geometry) {
+        Ok(prep) => run_prepared(&prep, task, cfg, kernels),
+        Err(e) => (Row::failed(task, &e.to_string()), None),
+    }
 }
 
-/// What every run of a study shares, computed once: the simulation set-up (its error as text),
-/// the accuracy samples on the truth and the truth prepared for `recon_mae_mm`.
+/// What every run of a study shares, computed once: the simulation set-up, the accuracy samples
+/// on the truth and the truth prepared for `recon_mae_mm`.
 pub(super) struct Prepared {
-    pub(super) setup: Result<SimSetup, String>,
+    pub(super) setup: SimSetup,
     pub(super) samples: Vec<nalgebra::Point3<f64>>,
     interior: Option<InteriorQuery>,
 }
 
 impl Prepared {
-    pub(super) fn new(truth: &Mesh, geometry: &XrayGeometry) -> Prepared {
-        Prepared {
-            setup: SimSetup::new(truth, geometry).map_err(|e| e.to_string()),
+    /// Fails when the truth cannot be simulated at all (no sphere fits it, the views cannot
+    /// project it): every run would fail alike.
+    pub(super) fn new(truth: &Mesh, geometry: &XrayGeometry) -> Result<Prepared, SimError> {
+        Ok(Prepared {
+            setup: SimSetup::new(truth, geometry)?,
             samples: accuracy_samples(truth),
             interior: InteriorQuery::new(truth),
-        }
+        })
     }
 }
 
@@ -136,15 +141,9 @@ fn run_prepared(
         row.error = format!("no noise level {}", task.level);
         return (row, None);
     };
-    let sim = match &prep.setup {
-        Ok(s) => s.case(cfg.noise_px, &level, task.seed),
-        Err(e) => {
-            row.error = e.clone();
-            return (row, None);
-        }
-    };
+    let sim = prep.setup.case(cfg.noise_px, &level, task.seed);
     row.gt_cup_diameter_mm = sim.truth_sphere.diameter();
-    let prm: ReconParams = task.method.params(&cfg.params);
+    let prm = task.method.params(&cfg.params);
     let start = std::time::Instant::now();
     let rec = match reconstruct_with(&sim.cameras, &sim.observed, &sim.init, &prm, kernels) {
         Ok(r) => r,
@@ -182,12 +181,12 @@ fn run_prepared(
 
 /// Run the tasks on `cfg.threads` threads. Rows come back in task order; `examples` receives the
 /// first run of each method (the lowest level's run 0 in this shard). `tick` is called after
-/// each run (progress).
+/// each run (progress). A truth that cannot be simulated at all is an error before any run.
 pub fn run_study(
     truth: &Mesh,
     cfg: &StudyConfig,
     tick: &(dyn Fn() + Sync),
-) -> (Vec<Row>, Vec<ExampleRun>) {
+) -> Result<(Vec<Row>, Vec<ExampleRun>), SimError> {
     run_study_with(truth, cfg, tick, Kernels::Cpu)
 }
 
@@ -198,9 +197,9 @@ pub fn run_study_with(
     cfg: &StudyConfig,
     tick: &(dyn Fn() + Sync),
     kernels: Kernels,
-) -> (Vec<Row>, Vec<ExampleRun>) {
+) -> Result<(Vec<Row>, Vec<ExampleRun>), SimError> {
     let list = tasks(cfg);
-    let prep = Prepared::new(truth, &cfg.geometry);
+    let prep = Prepared::new(truth, &cfg.geometry)?;
     let next = AtomicUsize::new(0);
     let rows: Mutex<Vec<Option<Row>>> = Mutex::new(vec![None; list.len()]);
     let examples: Mutex<Vec<ExampleRun>> = Mutex::new(Vec::new());
@@ -230,7 +229,7 @@ pub fn run_study_with(
         .collect();
     let mut ex = examples.into_inner().unwrap_or_else(|e| e.into_inner());
     ex.sort_by_key(|e| e.task.method);
-    (rows, ex)
+    Ok((rows, ex))
 }
 
 #[cfg(test)]
