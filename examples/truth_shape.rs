@@ -3,11 +3,15 @@
 //! study all turn about z, so the parts facing them (the front and back walls, |d.y| near 1)
 //! never form an outline, and a sphere from the outlines sees only the belt near |d.y| = 0.
 //!
-//! Run: cargo run --release --example truth_shape -- MESH...   (STL/PLY/OBJ; closed shells are
-//! reduced to their outer side as in `acetab simulate`)
+//! Run: cargo run --release --example truth_shape -- MESH...   (STL/PLY/OBJ, or `phantom` for the
+//! built-in phantom; closed shells are reduced to their outer side as in `acetab simulate`)
 
 use acetab::mesh::io::read_mesh;
-use acetab::simulate::{fit_placement, ground_truth_surface};
+use acetab::contours::model_contour;
+use acetab::report::fit_sphere_robust;
+use acetab::simulate::{fit_placement, ground_truth_surface, observed_alpha, SimSetup};
+use acetab::views::XrayGeometry;
+use acetab::template::{phantom, PhantomParams};
 use std::path::Path;
 use std::process::ExitCode;
 
@@ -19,10 +23,12 @@ fn main() -> ExitCode {
     }
     println!("mesh: sphere diameter | mean radial deviation (mm) by |d.y| in [0,0.2) .. [0.8,1]");
     for p in &paths {
-        let truth = match read_mesh(Path::new(p))
-            .map_err(|e| e.to_string())
-            .and_then(|m| ground_truth_surface(&m).map_err(|e| e.to_string()))
-        {
+        let raw = if p == "phantom" {
+            Ok(phantom(&PhantomParams::default()).mesh)
+        } else {
+            read_mesh(Path::new(p)).map_err(|e| e.to_string())
+        };
+        let truth = match raw.and_then(|m| ground_truth_surface(&m).map_err(|e| e.to_string())) {
             Ok(t) => t,
             Err(e) => {
                 eprintln!("{p}: {e}");
@@ -57,7 +63,34 @@ fn main() -> ExitCode {
                 }
             })
             .collect();
-        println!("{name}: {:.2} mm | {}", sphere.diameter(), cells.join("  "));
+        // The oracle: the sphere through the truth's own vertices that form the three views'
+        // outlines (as the study's annotation traces them), which is the most a sphere read from
+        // the outlines can know.
+        let oracle = SimSetup::new(&truth, &XrayGeometry::default())
+            .map_err(|e| e.to_string())
+            .and_then(|setup| {
+                let mut ids = Vec::new();
+                for cam in &setup.cameras {
+                    let alpha = observed_alpha(&truth, cam, &setup.placement);
+                    let c = model_contour(&truth, cam, Some(alpha)).map_err(|e| e.to_string())?;
+                    ids.extend(c.vertex_ids);
+                }
+                ids.sort_unstable();
+                ids.dedup();
+                let pts: Vec<_> = ids.iter().map(|&i| truth.vertices[i as usize]).collect();
+                fit_sphere_robust(&pts)
+                    .map(|s| (s.diameter(), pts.len()))
+                    .map_err(|e| e.to_string())
+            });
+        let oracle = match oracle {
+            Ok((d, n)) => format!("{:+.2} mm ({n} vertices)", d - sphere.diameter()),
+            Err(e) => format!("- ({e})"),
+        };
+        println!(
+            "{name}: {:.2} mm | {} | outline-vertex sphere {oracle}",
+            sphere.diameter(),
+            cells.join("  ")
+        );
     }
     ExitCode::SUCCESS
 }
