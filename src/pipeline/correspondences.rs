@@ -1,0 +1,127 @@
+//! Model contours, correspondences with their robust weights, and reprojection residuals: what
+//! every stage's solves work on.
+
+use super::{ReconError, ReconParams};
+use crate::backend::Kernels;
+use crate::contours::{Curve, ModelContour};
+use crate::correspond::correspond;
+use crate::mesh::Mesh;
+use crate::solve::Observation;
+use crate::views::Camera;
+
+pub(super) fn contours(
+    mesh: &Mesh,
+    cams: &[Camera],
+    prm: &ReconParams,
+    kernels: Kernels,
+) -> Result<Vec<ModelContour>, ReconError> {
+    Ok(kernels.contours(mesh, cams, prm.contour_source)?)
+}
+
+pub(super) fn all_correspondences(
+    mesh: &Mesh,
+    cams: &[Camera],
+    observed: &[Vec<Curve>],
+    prm: &ReconParams,
+    kernels: Kernels,
+) -> Result<Vec<Observation>, ReconError> {
+    let model = contours(mesh, cams, prm, kernels)?;
+    let mut out = Vec::new();
+    for (view, curves) in observed.iter().enumerate() {
+        for (ci, curve) in curves.iter().enumerate() {
+            let o = correspond(prm.method, view, &model[view], curve, &prm.correspond).map_err(
+                |source| ReconError::Correspond {
+                    view,
+                    contour: ci,
+                    source,
+                },
+            )?;
+            out.extend(o);
+        }
+    }
+    Ok(out)
+}
+
+/// Cauchy weights w = 1 / (1 + (r / c)^2) on the current reprojection residuals, c = 2 robust SDs
+/// (1.4826 * median), so that contour parts the template cannot follow (a notch, a shallow rim)
+/// pull less than the parts it can.
+pub(super) fn robust_weights(mesh: &Mesh, cams: &[Camera], obs: &mut [Observation]) {
+    let r = residuals_px(mesh, cams, obs);
+    let mut s = r.clone();
+    s.sort_by(f64::total_cmp);
+    let c = 2.0 * 1.4826 * s.get(s.len() / 2).copied().unwrap_or(1.0).max(0.5);
+    for (o, r) in obs.iter_mut().zip(r) {
+        o.weight = if r.is_finite() {
+            1.0 / (1.0 + (r / c).powi(2))
+        } else {
+            0.0
+        };
+    }
+}
+
+/// Reprojection residual of each correspondence in pixels (infinite behind the source).
+pub(super) fn residuals_px(mesh: &Mesh, cams: &[Camera], obs: &[Observation]) -> Vec<f64> {
+    obs.iter()
+        .map(|o| {
+            cams[o.view]
+                .project(&mesh.vertices[o.vertex as usize])
+                .map(|p| (p - o.target).norm())
+                .unwrap_or(f64::INFINITY)
+        })
+        .collect()
+}
+
+pub(super) fn rms_px(mesh: &Mesh, cams: &[Camera], obs: &[Observation]) -> f64 {
+    let s: f64 = residuals_px(mesh, cams, obs).iter().map(|r| r * r).sum();
+    (s / obs.len().max(1) as f64).sqrt()
+}
+
+pub(super) fn check_finite(mesh: &Mesh) -> Result<(), ReconError> {
+    if let Some(i) = mesh
+        .vertices
+        .iter()
+        .position(|v| !v.coords.iter().all(|c| c.is_finite()))
+    {
+        return Err(ReconError::Diverged {
+            what: format!("vertex {i} is not finite"),
+        });
+    }
+    Ok(())
+}
+
+/// RMS distance between two poses of the same mesh's vertices.
+pub(super) fn rms_motion(a: &Mesh, b: &Mesh) -> f64 {
+    let n = a.vertex_count().max(1) as f64;
+    (a.vertices
+        .iter()
+        .zip(&b.vertices)
+        .map(|(p, q)| (p - q).norm_squared())
+        .sum::<f64>()
+        / n)
+        .sqrt()
+}
+
+/// Fewest correspondences a solve accepts.
+pub(super) const MIN_CORRESPONDENCES: usize = 12;
+
+/// Correspondences in every view with their robust weights; too few is an error of `stage`.
+pub(super) fn weighted_correspondences(
+    mesh: &Mesh,
+    cams: &[Camera],
+    observed: &[Vec<Curve>],
+    prm: &ReconParams,
+    kernels: Kernels,
+    stage: &'static str,
+) -> Result<Vec<Observation>, ReconError> {
+    let mut obs = all_correspondences(mesh, cams, observed, prm, kernels)?;
+    if prm.robust {
+        robust_weights(mesh, cams, &mut obs);
+    }
+    if obs.len() < MIN_CORRESPONDENCES {
+        return Err(ReconError::TooFewCorrespondences {
+            stage,
+            count: obs.len(),
+        });
+    }
+    Ok(obs)
+}
