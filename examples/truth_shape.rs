@@ -6,12 +6,12 @@
 //! Run: cargo run --release --example truth_shape -- MESH...   (STL/PLY/OBJ, or `phantom` for the
 //! built-in phantom; closed shells are reduced to their outer side as in `acetab simulate`)
 
-use acetab::mesh::io::read_mesh;
 use acetab::contours::model_contour;
+use acetab::mesh::io::read_mesh;
 use acetab::report::fit_sphere_robust;
 use acetab::simulate::{fit_placement, ground_truth_surface, observed_alpha, SimSetup};
-use acetab::views::XrayGeometry;
 use acetab::template::{phantom, PhantomParams};
+use acetab::views::XrayGeometry;
 use std::path::Path;
 use std::process::ExitCode;
 
