@@ -1,0 +1,73 @@
+//! `acetab bench`: each GPU kernel against its CPU twin at several sizes, and the study's
+//! throughput on both backends (needs a GPU adapter; lavapipe counts).
+
+use crate::common::{within, MAX_RUNS};
+use acetab::gpu::GpuDevice;
+
+#[derive(clap::Args)]
+pub struct BenchArgs {
+    #[arg(long)]
+    pub json: bool,
+    /// Study runs per backend (0 skips the study).
+    #[arg(long, default_value_t = 6)]
+    pub study_runs: usize,
+    /// Repetitions per timing (the median is reported).
+    #[arg(long, default_value_t = 5)]
+    pub repeats: usize,
+    /// A quick pass (one small mesh, DP batches of 1 and 4): checks the bench runs, not speed.
+    #[arg(long)]
+    pub quick: bool,
+}
+
+pub fn run(args: BenchArgs) -> Result<(), String> {
+    let BenchArgs {
+        json,
+        study_runs,
+        repeats,
+        quick,
+    } = args;
+    within("--study-runs", study_runs, 0, MAX_RUNS)?;
+    within("--repeats", repeats, 1, 1000)?;
+    let dev = GpuDevice::from_env().map_err(|e| format!("acetab bench: {e}"))?;
+    let gpu = dev.engine().map_err(|e| e.to_string())?;
+    let mut prm = acetab::bench::BenchParams {
+        study_runs,
+        repeats,
+        ..Default::default()
+    };
+    if quick {
+        prm.mesh_sizes = vec![500];
+        prm.dp_batches = vec![1, 4];
+    }
+    let report = acetab::bench::run_bench(&gpu, &dev.describe(), &prm, &|s| {
+        if !json {
+            eprintln!("  measured {s}")
+        }
+    })
+    .map_err(|e| e.to_string())?;
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string(&report).map_err(|e| e.to_string())?
+        );
+    } else {
+        println!("adapter: {}", report.adapter);
+        println!(
+            "{:<11} {:<30} {:>10} {:>10} {:>8}",
+            "kernel", "size", "cpu ms", "gpu ms", "cpu/gpu"
+        );
+        for r in &report.kernels {
+            println!(
+                "{:<11} {:<30} {:>10.3} {:>10.3} {:>8.2}",
+                r.kernel, r.size, r.cpu_ms, r.gpu_ms, r.ratio
+            );
+        }
+        for s in &report.study {
+            println!(
+                "study ({} runs, phantom, srvf, level 3) on {}: {:.2} runs/s ({:.1} s)",
+                s.runs, s.backend, s.runs_per_second, s.seconds
+            );
+        }
+    }
+    Ok(())
+}

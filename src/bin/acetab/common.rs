@@ -1,0 +1,159 @@
+//! What the subcommands share: the GPU device, output-folder errors, the ground truth, and the
+//! checks of numeric flags.
+
+use acetab::backend::BackendChoice;
+use acetab::gpu::GpuDevice;
+use acetab::mesh::io::read_mesh;
+use acetab::report::fit_sphere;
+use acetab::simulate::ground_truth_surface;
+use acetab::study::summarize;
+use acetab::template::{phantom, PhantomParams};
+use std::path::Path;
+
+/// The device for `--backend`: none for cpu; for auto, none (with one line saying so) when no
+/// adapter can be had.
+pub fn open_device(choice: BackendChoice) -> Result<Option<GpuDevice>, String> {
+    match choice {
+        BackendChoice::Cpu => Ok(None),
+        BackendChoice::Gpu => GpuDevice::from_env()
+            .map(Some)
+            .map_err(|e| format!("--backend gpu: {e}")),
+        BackendChoice::Auto => match GpuDevice::from_env() {
+            Ok(d) => Ok(Some(d)),
+            Err(e) => {
+                eprintln!("--backend auto: {e}; running on the CPU");
+                Ok(None)
+            }
+        },
+    }
+}
+
+/// An I/O error on an output path, for `fill_dir_atomically`.
+pub fn io_msg(p: &Path, e: std::io::Error) -> String {
+    format!("{}: cannot write: {e}", p.display())
+}
+
+/// Sphere diameters (mm) an acetabulum can have; outside them `--gt` is warned about (a mesh in
+/// metres or centimetres still runs, but the solver's tolerances are in millimetres).
+pub const PLAUSIBLE_CUP_MM: (f64, f64) = (20.0, 100.0);
+
+/// The study's ground truth from `--gt` (a mesh file or `phantom`). A surface no sphere fits, or
+/// one the simulated views cannot see, is refused by the study itself before any run.
+pub fn load_truth(gt: &str) -> Result<acetab::mesh::Mesh, String> {
+    let truth = if gt == "phantom" {
+        phantom(&PhantomParams::default()).mesh
+    } else {
+        let mesh = read_mesh(Path::new(gt)).map_err(|e| format!("--gt: {e}"))?;
+        ground_truth_surface(&mesh).map_err(|e| format!("--gt {gt}: {e}"))?
+    };
+    let d = fit_sphere(&truth.vertices)
+        .map_err(|e| format!("--gt {gt}: ground truth sphere fit: {e}"))?
+        .diameter();
+    if !(PLAUSIBLE_CUP_MM.0..=PLAUSIBLE_CUP_MM.1).contains(&d) {
+        eprintln!(
+            "acetab: warning: --gt {gt}: the fitted sphere is {d:.3} mm across, outside the {}-{} mm \
+             of an acetabulum; is the mesh in millimetres? (the solver's tolerances are in mm)",
+            PLAUSIBLE_CUP_MM.0, PLAUSIBLE_CUP_MM.1
+        );
+    }
+    Ok(truth)
+}
+
+/// The engine on the device, if any (its pipelines compile here).
+pub fn engine_on(dev: &Option<GpuDevice>) -> Result<Option<acetab::gpu::Gpu<'_>>, String> {
+    dev.as_ref()
+        .map(|d| d.engine())
+        .transpose()
+        .map_err(|e| e.to_string())
+}
+
+/// `--threads` (1 to `MAX_THREADS`), or every core.
+pub fn threads_or_all(threads: Option<usize>) -> Result<usize, String> {
+    match threads {
+        Some(n) => within("--threads", n, 1, MAX_THREADS),
+        None => Ok(std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)),
+    }
+}
+
+/// Most worker threads a study takes.
+pub const MAX_THREADS: usize = 1024;
+/// Most runs per level a study takes (a study's tasks are listed up front).
+pub const MAX_RUNS: usize = 100_000;
+
+/// `value` when `lo <= value <= hi`, else an error naming the flag and its range.
+pub fn within(flag: &str, value: usize, lo: usize, hi: usize) -> Result<usize, String> {
+    if (lo..=hi).contains(&value) {
+        Ok(value)
+    } else {
+        Err(format!("{flag} {value}: must be {lo} to {hi}"))
+    }
+}
+
+/// A comma-separated list without repeats; `allowed` (what the flag takes) goes into the error
+/// naming an entry that cannot be read.
+pub fn parse_list<T: PartialEq>(
+    s: &str,
+    flag: &str,
+    allowed: &str,
+    f: impl Fn(&str) -> Option<T>,
+) -> Result<Vec<T>, String> {
+    let mut list: Vec<T> = Vec::new();
+    for x in s.split(',').map(str::trim) {
+        let v =
+            f(x).ok_or_else(|| format!("{flag} {s:?}: cannot read {x:?} (expected {allowed})"))?;
+        if list.contains(&v) {
+            return Err(format!("{flag} {s:?}: {x:?} is listed twice"));
+        }
+        list.push(v);
+    }
+    Ok(list)
+}
+
+pub fn parse_shard(s: &str) -> Result<(usize, usize), String> {
+    let bad = || format!("--shard: expected I/N with 0 <= I < N, got {s:?}");
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    let (i, n): (usize, usize) = (
+        i.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if n == 0 || i >= n {
+        return Err(bad());
+    }
+    Ok((i, n))
+}
+
+pub fn print_summary(rows: &[acetab::study::Row]) {
+    println!(
+        "{:<17} {:>5} {:>5} {:>9} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9}",
+        "method",
+        "level",
+        "runs",
+        "MAE mm",
+        "SD",
+        "cup err mm",
+        "|cup|<=1",
+        "surface",
+        "limb",
+        "median s"
+    );
+    for s in summarize(rows) {
+        println!(
+            "{:<17} {:>5} {:>5} {:>9.3} {:>9.3} {:>+11.2} {:>6}/{:<2} {:>6}/{:<2} {:>9} {:>9.2}",
+            s.method.name(),
+            s.level,
+            s.runs,
+            s.mae_mean,
+            s.mae_sd,
+            s.cup_error_mean,
+            s.cup_within_1mm,
+            s.runs,
+            s.surface_fit_within_1mm,
+            s.runs,
+            s.limb_within_1mm
+                .map_or_else(|| "-".to_string(), |k| format!("{k:>6}/{:<2}", s.runs)),
+            s.median_seconds
+        );
+    }
+}

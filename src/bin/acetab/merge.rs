@@ -1,0 +1,40 @@
+//! `acetab merge`: join the runs of several `acetab simulate --shard` folders.
+
+use crate::common::{io_msg, print_summary};
+use acetab::fsutil::fill_dir_atomically;
+use acetab::study::{merge_dirs, merge_meta, write_tables};
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct MergeArgs {
+    #[arg(required = true)]
+    pub dirs: Vec<PathBuf>,
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+pub fn run(args: MergeArgs) -> Result<(), String> {
+    let MergeArgs { dirs, out } = args;
+    // Merging into one of the shards would overwrite the shard's own tables.
+    let same = |d: &PathBuf| match (d.canonicalize(), out.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if let Some(d) = dirs.iter().find(|d| same(d)) {
+        return Err(format!(
+            "--out {}: is the shard folder {} being merged; choose another folder",
+            out.display(),
+            d.display()
+        ));
+    }
+    let rows = merge_dirs(&dirs).map_err(|e| e.to_string())?;
+    let meta = merge_meta(&dirs).map_err(|e| e.to_string())?;
+    fill_dir_atomically(
+        &out,
+        |d| write_tables(&rows, d, &meta).map_err(|e| e.to_string()),
+        io_msg,
+    )?;
+    eprintln!("{} runs merged into {}", rows.len(), out.display());
+    print_summary(&rows);
+    Ok(())
+}

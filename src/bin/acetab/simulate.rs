@@ -1,0 +1,174 @@
+//! `acetab simulate`: the simulation study, levels x runs x methods on a ground-truth surface.
+
+use crate::common::{
+    engine_on, io_msg, load_truth, open_device, parse_list, parse_shard, print_summary,
+    threads_or_all, within, MAX_RUNS,
+};
+use acetab::backend::{BackendChoice, ContourSource, Kernels};
+use acetab::fsutil::fill_dir_atomically;
+use acetab::gpu::GpuBatcher;
+use acetab::pipeline::ReconParams;
+use acetab::study::{
+    run_study_with, tasks, write_examples, write_tables, StudyConfig, StudyMethod,
+};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct SimulateArgs {
+    /// Ground truth: a mesh file (STL/PLY/OBJ; a closed shell is reduced to its outer side)
+    /// or "phantom".
+    #[arg(long)]
+    pub gt: String,
+    #[arg(long, default_value = "1,2,3,4,5")]
+    pub levels: String,
+    #[arg(long, default_value_t = 10)]
+    pub runs: usize,
+    /// Methods: srvf, icp, icp-normvec (every stage of ours, each on its own
+    /// correspondences), and srvf-paper, icp-paper, icp-normvec-paper (the seed paper's
+    /// protocol: the deformation alone, from the perturbed template).
+    #[arg(long, default_value = "srvf,icp,icp-normvec")]
+    pub methods: String,
+    /// Study seed; each run's seed is derived from it, the level and the run number.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Run only shard I of N (0 <= I < N), for job arrays; join with `acetab merge`.
+    #[arg(long, default_value = "0/1")]
+    pub shard: String,
+    /// Where the kernels run: cpu, gpu, or auto (the GPU when an adapter exists).
+    #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
+    pub backend: BackendChoice,
+    /// Model contours from alpha shapes or rasterised silhouettes.
+    #[arg(long, value_enum, default_value_t = ContourSource::AlphaShape)]
+    pub contours: ContourSource,
+    /// ED energy weights w_rot, w_reg, w_obs (defaults: the published 1, 10, 100).
+    #[arg(long, default_value_t = 1.0)]
+    pub w_rot: f64,
+    #[arg(long, default_value_t = 10.0)]
+    pub w_reg: f64,
+    #[arg(long, default_value_t = 100.0)]
+    pub w_obs: f64,
+    /// Coarse-to-fine deformation: a graph of this many nodes in every correspondence round
+    /// but the last (default: the full graph throughout; see README).
+    #[arg(long)]
+    pub coarse_nodes: Option<usize>,
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+pub fn run(args: SimulateArgs) -> Result<(), String> {
+    let SimulateArgs {
+        gt,
+        levels,
+        runs,
+        methods,
+        seed,
+        threads,
+        shard,
+        backend,
+        contours,
+        w_rot,
+        w_reg,
+        w_obs,
+        coarse_nodes,
+        out,
+    } = args;
+    let full_graph = acetab::solve::GraphParams::default().nodes;
+    if let Some(n) = coarse_nodes {
+        within("--coarse-nodes", n, 2, full_graph)?;
+    }
+    within("--runs", runs, 1, MAX_RUNS)?;
+    for (flag, w) in [("--w-rot", w_rot), ("--w-reg", w_reg), ("--w-obs", w_obs)] {
+        if !(w.is_finite() && w >= 0.0) {
+            return Err(format!("{flag} {w}: must be a finite non-negative weight"));
+        }
+    }
+    let method_names = StudyMethod::ALL.map(StudyMethod::name).join(", ");
+    let cfg = StudyConfig {
+        levels: parse_list(&levels, "--levels", "levels 1 to 5", |x| {
+            x.parse::<u32>().ok().filter(|l| (1..=5).contains(l))
+        })?,
+        runs,
+        methods: parse_list(&methods, "--methods", &method_names, |x| {
+            StudyMethod::from_name(&x.to_ascii_lowercase())
+        })?,
+        seed,
+        threads: threads_or_all(threads)?,
+        shard: parse_shard(&shard)?,
+        params: ReconParams {
+            contour_source: contours,
+            weights: acetab::solve::EdWeights {
+                rot: w_rot,
+                reg: w_reg,
+                obs: w_obs,
+                ..Default::default()
+            },
+            coarse_graph_nodes: coarse_nodes,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let truth = load_truth(&gt)?;
+    let total = tasks(&cfg).len();
+    let bar = ProgressBar::new(total as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed} elapsed, ~{eta} left")
+            .map_err(|e| e.to_string())?,
+    );
+    let start = std::time::Instant::now();
+    let dev = open_device(backend)?;
+    let engine = engine_on(&dev)?;
+    // On the GPU, runs in flight together share dispatches (one submit per kernel).
+    let batcher = engine
+        .as_ref()
+        .map(|g| GpuBatcher::new(g, cfg.threads, std::time::Duration::from_millis(2)));
+    let kernels = batcher.as_ref().map_or(Kernels::Cpu, Kernels::Batched);
+    let (rows, examples) = run_study_with(&truth, &cfg, &|| bar.inc(1), kernels)
+        .map_err(|e| format!("--gt {gt}: {e}"))?;
+    if let Some(b) = &batcher {
+        let (req, disp) = b.counts();
+        eprintln!(
+            "GPU: {req} kernel requests in {disp} dispatches ({:.2} runs per submit)",
+            req as f64 / disp.max(1) as f64
+        );
+    }
+    bar.finish_and_clear();
+    // A study in which every run failed (a solver diverging for want of regularisation,
+    // say) has no result to write: it is an error, not a folder of NaN with exit 0.
+    if !rows.is_empty() && rows.iter().all(|r| !r.error.is_empty()) {
+        return Err(format!(
+            "simulate: all {} runs failed, nothing written (the first, {} level {} run {}: {})",
+            rows.len(),
+            rows[0].method.name(),
+            rows[0].level,
+            rows[0].run,
+            rows[0].error
+        ));
+    }
+    let meta = serde_json::json!({
+        "gt": gt, "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
+        "shard": shard, "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),
+        "contours": format!("{:?}", cfg.params.contour_source),
+        "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
+        "w_obs": cfg.params.weights.obs, "coarse_nodes": cfg.params.coarse_graph_nodes,
+    });
+    fill_dir_atomically(
+        &out,
+        |d| {
+            write_tables(&rows, d, &meta).map_err(|e| e.to_string())?;
+            write_examples(&examples, &truth, d).map_err(|e| e.to_string())
+        },
+        io_msg,
+    )?;
+    eprintln!(
+        "{} runs in {:.1} s (seed {seed}); results in {}",
+        rows.len(),
+        start.elapsed().as_secs_f64(),
+        out.display()
+    );
+    print_summary(&rows);
+    Ok(())
+}
