@@ -21,7 +21,7 @@ fn main() -> ExitCode {
         eprintln!("usage: truth_shape MESH...");
         return ExitCode::from(2);
     }
-    println!("mesh: sphere diameter | mean radial deviation (mm) by |d.y| in [0,0.2) .. [0.8,1]");
+    println!("mesh: sphere diameter | mean radial deviation (mm) by |d.y| in [0,0.2) .. [0.8,1] | rim | outline-vertex sphere - truth sphere");
     for p in &paths {
         let raw = if p == "phantom" {
             Ok(phantom(&PhantomParams::default()).mesh)
@@ -35,8 +35,8 @@ fn main() -> ExitCode {
                 return ExitCode::FAILURE;
             }
         };
-        let sphere = match fit_placement(&truth) {
-            Ok((_, s)) => s,
+        let (placement, sphere) = match fit_placement(&truth) {
+            Ok(ps) => ps,
             Err(e) => {
                 eprintln!("{p}: sphere fit: {e}");
                 return ExitCode::FAILURE;
@@ -86,8 +86,29 @@ fn main() -> ExitCode {
             Ok((d, n)) => format!("{:+.2} mm ({n} vertices)", d - sphere.diameter()),
             Err(e) => format!("- ({e})"),
         };
+        // The rim: border vertices more than 60 degrees from the pole (the inner border around
+        // the fossa is nearer the pole), their mean radial offset from the sphere.
+        let pole = -placement.axis.into_inner();
+        let mut border: Vec<u32> = truth.boundary_edges().into_iter().flatten().collect();
+        border.sort_unstable();
+        border.dedup();
+        let rim: Vec<f64> = border
+            .iter()
+            .map(|&i| truth.vertices[i as usize] - c)
+            .filter(|d| d.normalize().dot(&pole) < 60f64.to_radians().cos())
+            .map(|d| d.norm() - sphere.radius)
+            .collect();
+        let rim = if rim.is_empty() {
+            "-".to_string()
+        } else {
+            format!(
+                "{:+.2} mm ({})",
+                rim.iter().sum::<f64>() / rim.len() as f64,
+                rim.len()
+            )
+        };
         println!(
-            "{name}: {:.2} mm | {} | outline-vertex sphere {oracle}",
+            "{name}: {:.2} mm | {} | rim {rim} | outline-vertex sphere {oracle}",
             sphere.diameter(),
             cells.join("  ")
         );
