@@ -12,7 +12,7 @@ mod placement;
 
 pub use cup::observed_part_sphere;
 pub use deformation::resolve_from;
-pub use params::ReconParams;
+pub use params::{ReconParams, MAX_TEMPLATE_VERTICES};
 
 use crate::backend::{KernelError, Kernels};
 use crate::contours::{Curve, ModelContour};
@@ -55,6 +55,13 @@ pub enum ReconError {
     Sphere(#[from] SphereFitError),
     #[error("views ({views}) and observed contour sets ({observed}) differ in number")]
     Mismatch { views: usize, observed: usize },
+    /// A setting outside what the method can run with (see `ReconParams::validate`).
+    #[error("setting {field} = {value}: must be {expected}")]
+    Param {
+        field: &'static str,
+        value: String,
+        expected: &'static str,
+    },
 }
 
 /// What the solver did.
@@ -125,6 +132,7 @@ pub fn reconstruct_with(
     prm: &ReconParams,
     kernels: Kernels,
 ) -> Result<Reconstruction, ReconError> {
+    prm.validate()?;
     if cams.len() != observed.len() {
         return Err(ReconError::Mismatch {
             views: cams.len(),

@@ -1,5 +1,6 @@
 //! The reconstruction's settings and their defaults.
 
+use super::ReconError;
 use crate::backend::ContourSource;
 use crate::correspond::{CorrespondParams, Method};
 use crate::report::CupCatalogue;
@@ -113,5 +114,135 @@ impl Default for ReconParams {
             similarity_srvf_samples: 100,
             similarity_seed_candidates: 2,
         }
+    }
+}
+
+/// Most template vertices a reconstruction takes (the default is 2,500).
+pub const MAX_TEMPLATE_VERTICES: usize = 200_000;
+
+impl ReconParams {
+    /// Check the settings a reconstruction cannot run with: a non-finite or negative weight,
+    /// tolerance or scale, a template cap that is not a cap (polar extent outside (0, 180)
+    /// degrees), a template too large to build. `reconstruct` calls it first; the error names
+    /// the field and its value.
+    pub fn validate(&self) -> Result<(), ReconError> {
+        fn bad(field: &'static str, value: impl ToString, expected: &'static str) -> ReconError {
+            ReconError::Param {
+                field,
+                value: value.to_string(),
+                expected,
+            }
+        }
+        let non_negative = [
+            ("weights.rot", self.weights.rot),
+            ("weights.reg", self.weights.reg),
+            ("weights.obs", self.weights.obs),
+            ("weights.tangential", self.weights.tangential),
+            ("sphere_prior", self.sphere_prior),
+            ("similarity_rim_weight", self.similarity_rim_weight),
+            ("similarity_tol_mm", self.similarity_tol_mm),
+            ("icp_tol_mm", self.icp_tol_mm),
+            ("limb_scale_mm", self.limb_scale_mm),
+            ("lm.rel_tol", self.lm.rel_tol),
+        ];
+        for (field, v) in non_negative {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(bad(field, v, "finite and >= 0"));
+            }
+        }
+        for (field, v) in [
+            ("lm.lambda0", self.lm.lambda0),
+            ("lm.max_lambda", self.lm.max_lambda),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(bad(field, v, "finite and > 0"));
+            }
+        }
+        let polar = self.template_polar_deg;
+        if !(polar > 0.0 && polar < 180.0) {
+            return Err(bad("template_polar_deg", polar, "in (0, 180) degrees"));
+        }
+        if self.template_vertices > MAX_TEMPLATE_VERTICES {
+            return Err(bad(
+                "template_vertices",
+                self.template_vertices,
+                "at most 200,000",
+            ));
+        }
+        if !self.correspond.outlier_k.is_finite() {
+            return Err(bad(
+                "correspond.outlier_k",
+                self.correspond.outlier_k,
+                "finite",
+            ));
+        }
+        let angle = self.correspond.normal_angle_deg;
+        if !(angle > 0.0 && angle <= 180.0) {
+            return Err(bad(
+                "correspond.normal_angle_deg",
+                angle,
+                "in (0, 180] degrees",
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_defaults_pass_and_each_unusable_setting_is_named() {
+        assert!(ReconParams::default().validate().is_ok());
+        let cases: Vec<(&str, Box<dyn Fn(&mut ReconParams)>)> = vec![
+            ("limb_scale_mm", Box::new(|p| p.limb_scale_mm = f64::NAN)),
+            ("limb_scale_mm", Box::new(|p| p.limb_scale_mm = -1.0)),
+            (
+                "template_polar_deg",
+                Box::new(|p| p.template_polar_deg = 360.0),
+            ),
+            (
+                "template_polar_deg",
+                Box::new(|p| p.template_polar_deg = 0.0),
+            ),
+            (
+                "template_polar_deg",
+                Box::new(|p| p.template_polar_deg = f64::NAN),
+            ),
+            (
+                "template_vertices",
+                Box::new(|p| p.template_vertices = usize::MAX),
+            ),
+            ("weights.obs", Box::new(|p| p.weights.obs = f64::NAN)),
+            ("weights.reg", Box::new(|p| p.weights.reg = f64::INFINITY)),
+            ("sphere_prior", Box::new(|p| p.sphere_prior = -0.1)),
+            ("lm.lambda0", Box::new(|p| p.lm.lambda0 = 0.0)),
+            (
+                "correspond.normal_angle_deg",
+                Box::new(|p| p.correspond.normal_angle_deg = 0.0),
+            ),
+            (
+                "correspond.outlier_k",
+                Box::new(|p| p.correspond.outlier_k = f64::NAN),
+            ),
+        ];
+        for (field, set) in cases {
+            let mut p = ReconParams::default();
+            set(&mut p);
+            match p.validate() {
+                Err(ReconError::Param { field: f, .. }) => assert_eq!(f, field),
+                other => panic!("{field}: expected a Param error, got {other:?}"),
+            }
+        }
+        // Companion: settings at the edges of what is allowed pass.
+        let edge = ReconParams {
+            template_polar_deg: 179.0,
+            template_vertices: MAX_TEMPLATE_VERTICES,
+            limb_scale_mm: 0.0,
+            sphere_prior: 0.0,
+            ..Default::default()
+        };
+        assert!(edge.validate().is_ok());
     }
 }

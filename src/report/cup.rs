@@ -57,11 +57,12 @@ impl CupCatalogue {
         Ok(CupCatalogue { sizes_mm: sizes })
     }
 
-    /// The nearest catalogue size (ties go to the larger cup).
+    /// The nearest catalogue size (ties go to the larger cup). An empty catalogue (one built
+    /// by hand; `parse` refuses it) has no size to offer: NaN.
     pub fn nearest(&self, diameter: f64) -> CupSize {
-        let mut best = self.sizes_mm[0];
+        let mut best = f64::NAN;
         for &s in &self.sizes_mm {
-            if (s - diameter).abs() <= (best - diameter).abs() {
+            if !((s - diameter).abs() > (best - diameter).abs()) {
                 best = s;
             }
         }
@@ -94,5 +95,17 @@ mod tests {
         assert!(CupCatalogue::parse("40:30:2").is_err());
         assert!(CupCatalogue::parse("a,b").is_err());
         assert!(CupCatalogue::parse("-4").is_err());
+    }
+
+    #[test]
+    fn an_empty_catalogue_offers_no_size_instead_of_panicking() {
+        let empty = CupCatalogue { sizes_mm: vec![] };
+        let c = empty.nearest(52.0);
+        assert!(c.catalogue_mm.is_nan() && c.diameter_mm == 52.0);
+        // Companion: a one-size catalogue offers that size, however far.
+        let one = CupCatalogue {
+            sizes_mm: vec![60.0],
+        };
+        assert_eq!(one.nearest(40.0).catalogue_mm, 60.0);
     }
 }

@@ -30,7 +30,12 @@ pub enum LimbError {
     Degenerate,
     #[error("sphere from outlines: the fit did not stay finite")]
     NotFinite,
+    #[error("sphere from outlines: the noise floor {value} mm must be finite and >= 0")]
+    Scale { value: f64 },
 }
+
+/// Most halvings of the inside scale (from half the radius, 64 reach 1e-19 of it).
+const MAX_HALVINGS: usize = 64;
 
 struct Ray {
     origin: Point3<f64>,
@@ -106,6 +111,11 @@ pub fn limb_sphere(
     observed: &[Vec<Curve>],
     min_scale_mm: f64,
 ) -> Result<LimbSphere, LimbError> {
+    if !(min_scale_mm.is_finite() && min_scale_mm >= 0.0) {
+        return Err(LimbError::Scale {
+            value: min_scale_mm,
+        });
+    }
     let (rays, views) = rays(cams, observed);
     if views < 2 {
         return Err(LimbError::TooFewViews { views });
@@ -116,7 +126,7 @@ pub fn limb_sphere(
     // least-squares circle) and halves until it reaches the noise floor, so the rim points let
     // go only once the sphere is near.
     let mut c = (0.5 * r).max(min_scale_mm);
-    loop {
+    for halving in 0.. {
         for _ in 0..30 {
             let mut h = Matrix4::<f64>::zeros();
             let mut g = Vector4::<f64>::zeros();
@@ -153,7 +163,7 @@ pub fn limb_sphere(
                 break;
             }
         }
-        if c <= min_scale_mm {
+        if c <= min_scale_mm || halving >= MAX_HALVINGS {
             break;
         }
         c = (0.5 * c).max(min_scale_mm);
@@ -247,5 +257,19 @@ mod tests {
             limb_sphere(&cams, &empty, 0.5),
             Err(LimbError::TooFewViews { views: 0 })
         );
+    }
+
+    #[test]
+    fn an_unusable_noise_floor_is_an_error_not_an_endless_loop() {
+        let (cams, observed, place) = cap_outlines();
+        for bad in [f64::NAN, -1.0, f64::INFINITY] {
+            assert!(matches!(
+                limb_sphere(&cams, &observed, bad),
+                Err(LimbError::Scale { .. })
+            ));
+        }
+        // Companion: a zero floor is allowed and ends (the halvings are bounded).
+        let zero = limb_sphere(&cams, &observed, 0.0).unwrap();
+        assert!(zero.radius.is_finite() && (zero.radius - place.radius).abs() < 3.0);
     }
 }

@@ -26,11 +26,22 @@ impl Placement {
     }
 }
 
+/// Most vertices `spherical_cap` builds (about; larger targets are taken as this).
+pub const MAX_CAP_VERTICES: usize = 1_000_000;
+
 /// Unit-sphere cap mesh in its local frame: points R(sin t cos p, sin t sin p, -cos t) for polar
 /// angle t in [0, max_polar], dome at -z, opening towards +z, faces oriented with normals pointing
 /// away from the centre. `target_vertices` sets the resolution (rings are spaced evenly in t and
-/// each ring gets as many points as its circumference allows).
+/// each ring gets as many points as its circumference allows, up to `MAX_CAP_VERTICES`).
+/// `max_polar` is taken within [1 degree, 179 degrees] (a NaN as 90 degrees): outside it there
+/// is no cap to build, and `ReconParams::validate` refuses such a template.
 pub fn spherical_cap(radius: f64, target_vertices: usize, max_polar: f64) -> Mesh {
+    let max_polar = if max_polar.is_nan() {
+        std::f64::consts::FRAC_PI_2
+    } else {
+        max_polar.clamp(1f64.to_radians(), 179f64.to_radians())
+    };
+    let target_vertices = target_vertices.min(MAX_CAP_VERTICES);
     let area_ratio = 1.0 - max_polar.cos(); // cap area / (2 pi R^2)
                                             // Vertex spacing h so that area / (h^2 sqrt(3)/2) ~ target.
     let h =
@@ -159,6 +170,23 @@ mod tests {
         for [i, j] in b {
             assert!(m.vertices[i as usize].z.abs() < 1e-9 && m.vertices[j as usize].z.abs() < 1e-9);
         }
+    }
+
+    #[test]
+    fn a_cap_outside_its_range_is_built_at_the_nearest_one_not_endlessly() {
+        // 360 degrees used to ask for infinitely many rings.
+        let full = spherical_cap(1.0, 500, 2.0 * std::f64::consts::PI);
+        let edge = spherical_cap(1.0, 500, 179f64.to_radians());
+        assert_eq!(full.vertices, edge.vertices);
+        let nan = spherical_cap(1.0, 500, f64::NAN);
+        assert_eq!(nan.vertices, hemisphere(1.0, 500).vertices);
+        let tiny = spherical_cap(1.0, 500, -1.0);
+        assert!(tiny.vertex_count() > 3 && tiny.vertices.iter().all(|p| p.z < 0.0));
+        // Companion: within the range the extent is the one asked for.
+        let deep = spherical_cap(1.0, 500, 120f64.to_radians());
+        assert_ne!(deep.vertices, edge.vertices);
+        let top = deep.vertices.iter().map(|p| p.z).fold(f64::MIN, f64::max);
+        assert!((top - 0.5).abs() < 1e-9, "{top}");
     }
 
     #[test]
