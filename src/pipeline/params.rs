@@ -195,7 +195,8 @@ mod tests {
     #[test]
     fn the_defaults_pass_and_each_unusable_setting_is_named() {
         assert!(ReconParams::default().validate().is_ok());
-        let cases: Vec<(&str, Box<dyn Fn(&mut ReconParams)>)> = vec![
+        type Set = Box<dyn Fn(&mut ReconParams)>;
+        let cases: Vec<(&str, Set)> = vec![
             ("limb_scale_mm", Box::new(|p| p.limb_scale_mm = f64::NAN)),
             ("limb_scale_mm", Box::new(|p| p.limb_scale_mm = -1.0)),
             (
