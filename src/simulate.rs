@@ -7,7 +7,7 @@ use crate::mesh::Mesh;
 use crate::pipeline::centroid;
 use crate::report::{fit_sphere, Sphere, SphereFitError};
 use crate::template::Placement;
-use crate::views::{simulated_views, Camera, XrayGeometry};
+use crate::views::{simulated_views, Camera, GeometryError, XrayGeometry};
 use nalgebra::{Point3, Rotation3, Unit, Vector3};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
@@ -61,6 +61,29 @@ pub enum SimError {
     Surface(crate::mesh::MeshError),
     #[error("ground truth contour in view {view}: {source}")]
     Contour { view: usize, source: ContourError },
+    #[error("{0}")]
+    Geometry(#[from] GeometryError),
+    /// A simulation setting no draw can be made with.
+    #[error("{field} = {value}: must be {expected}")]
+    Setting {
+        field: &'static str,
+        value: String,
+        expected: &'static str,
+    },
+    #[error("reconstruction settings: {0}")]
+    Params(#[from] crate::pipeline::ReconError),
+}
+
+/// A Gaussian with this SD, or the setting's error (NaN, infinite or negative).
+fn gaussian(field: &'static str, sd: f64) -> Result<Normal<f64>, SimError> {
+    Normal::new(0.0, sd)
+        .ok()
+        .filter(|_| sd.is_finite() && sd >= 0.0)
+        .ok_or(SimError::Setting {
+            field,
+            value: sd.to_string(),
+            expected: "a finite SD >= 0",
+        })
 }
 
 /// The hemisphere that best fits a surface: the sphere fit's centre and radius, the opening axis
@@ -122,19 +145,31 @@ pub const OBSERVED_ALPHA_FRACTION: f64 = 0.5;
 
 /// Perturb a placement: the axis rotated by Euler angles (x, y, z) drawn with the level's SD, the
 /// centre shifted per axis, the radius scaled.
-pub fn perturb(p: &Placement, level: &NoiseLevel, rng: &mut impl rand::Rng) -> Placement {
-    let nr = Normal::new(0.0, level.rotation_sd.max(0.0)).expect("finite SD");
-    let nt = Normal::new(0.0, level.translation_sd.max(0.0)).expect("finite SD");
-    let ns = Normal::new(0.0, level.scale.max(1.0).ln()).expect("finite SD");
+/// A level whose SDs are not finite and >= 0, or whose scale is not finite and >= 1, is an error.
+pub fn perturb(
+    p: &Placement,
+    level: &NoiseLevel,
+    rng: &mut impl rand::Rng,
+) -> Result<Placement, SimError> {
+    let nr = gaussian("noise level rotation_sd", level.rotation_sd)?;
+    let nt = gaussian("noise level translation_sd", level.translation_sd)?;
+    if !(level.scale.is_finite() && level.scale >= 1.0) {
+        return Err(SimError::Setting {
+            field: "noise level scale",
+            value: level.scale.to_string(),
+            expected: "finite and >= 1",
+        });
+    }
+    let ns = gaussian("noise level scale", level.scale.ln())?;
     let (ax, ay, az) = (nr.sample(rng), nr.sample(rng), nr.sample(rng));
     let rot = Rotation3::from_euler_angles(ax, ay, az);
     let t = Vector3::new(nt.sample(rng), nt.sample(rng), nt.sample(rng));
     let s = ns.sample(rng).exp();
-    Placement {
+    Ok(Placement {
         center: p.center + t,
         radius: p.radius * s,
         axis: rot * p.axis,
-    }
+    })
 }
 
 /// What every run of a study shares: the truth's fitted hemisphere, the views aimed at it and
@@ -150,6 +185,7 @@ pub struct SimSetup {
 
 impl SimSetup {
     pub fn new(truth: &Mesh, geometry: &XrayGeometry) -> Result<SimSetup, SimError> {
+        geometry.validate()?;
         let (placement, sphere) = fit_placement(truth)?;
         let cameras = simulated_views(geometry, &placement.center);
         let mut outlines = Vec::new();
@@ -167,10 +203,10 @@ impl SimSetup {
     }
 
     /// One run: Gaussian noise of `noise_px` on every outline point, the start perturbed by
-    /// `level`; all draws from ChaCha8(seed).
-    pub fn case(&self, noise_px: f64, level: &NoiseLevel, seed: u64) -> SimCase {
+    /// `level`; all draws from ChaCha8(seed). A noise SD that is not finite and >= 0 is an error.
+    pub fn case(&self, noise_px: f64, level: &NoiseLevel, seed: u64) -> Result<SimCase, SimError> {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        let noise = Normal::new(0.0, noise_px.max(0.0)).expect("finite SD");
+        let noise = gaussian("contour noise (px)", noise_px)?;
         let observed = self
             .outlines
             .iter()
@@ -190,15 +226,15 @@ impl SimSetup {
                 }]
             })
             .collect();
-        let init = perturb(&self.placement, level, &mut rng);
-        SimCase {
+        let init = perturb(&self.placement, level, &mut rng)?;
+        Ok(SimCase {
             cameras: self.cameras.clone(),
             observed,
             truth_placement: self.placement.clone(),
             truth_sphere: self.sphere,
             init,
             seed,
-        }
+        })
     }
 }
 
@@ -211,7 +247,7 @@ pub fn simulate_case(
     level: &NoiseLevel,
     seed: u64,
 ) -> Result<SimCase, SimError> {
-    Ok(SimSetup::new(truth, geometry)?.case(noise_px, level, seed))
+    SimSetup::new(truth, geometry)?.case(noise_px, level, seed)
 }
 
 /// Views with pose errors: every view except `reference` is turned by `deg` degrees about a
@@ -244,4 +280,53 @@ pub fn perturb_poses(
             crate::solve::corrected_camera(c, center, &[w.x, w.y, w.z, t.x, t.y, t.z])
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::template::{phantom, PhantomParams};
+
+    #[test]
+    fn a_noise_no_gaussian_has_is_an_error_not_a_panic() {
+        let truth = phantom(&PhantomParams::default()).mesh;
+        let setup = SimSetup::new(&truth, &XrayGeometry::default()).unwrap();
+        let level = NoiseLevel::level(2).unwrap();
+        for noise in [f64::INFINITY, f64::NAN, -1.0] {
+            assert!(matches!(
+                setup.case(noise, &level, 1),
+                Err(SimError::Setting { .. })
+            ));
+        }
+        for bad in [
+            NoiseLevel {
+                rotation_sd: f64::INFINITY,
+                ..level
+            },
+            NoiseLevel {
+                translation_sd: -1.0,
+                ..level
+            },
+            NoiseLevel {
+                scale: 0.5,
+                ..level
+            },
+            NoiseLevel {
+                scale: f64::NAN,
+                ..level
+            },
+        ] {
+            assert!(matches!(
+                setup.case(2.0, &bad, 1),
+                Err(SimError::Setting { .. })
+            ));
+        }
+        // Companion: no noise at all is a valid case, and the same seed gives the same case.
+        let a = setup.case(0.0, &NoiseLevel::level(0).unwrap(), 7).unwrap();
+        assert_eq!(a.observed[0][0].points, setup.outlines[0]);
+        let b = setup.case(2.0, &level, 7).unwrap();
+        let c = setup.case(2.0, &level, 7).unwrap();
+        assert_eq!(b.observed[1][0].points, c.observed[1][0].points);
+        assert_ne!(b.observed[1][0].points, setup.outlines[1]);
+    }
 }

@@ -96,6 +96,13 @@ pub fn cup_report(
     kernels: Kernels,
     up: &UncertaintyParams,
 ) -> Result<CupReport, ReconError> {
+    if let Some(n) = up.noise_px.filter(|n| !(n.is_finite() && *n >= 0.0)) {
+        return Err(ReconError::Param {
+            field: "uncertainty noise_px",
+            value: n.to_string(),
+            expected: "finite and >= 0",
+        });
+    }
     let noise_px = up.noise_px.unwrap_or(rec.log.reprojection_rms_px).max(0.5);
     let one_round = ReconParams {
         correspondence_updates: 1,

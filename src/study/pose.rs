@@ -68,7 +68,13 @@ fn one(shared: &Prepared, cfg: &PoseStudy, run: usize) -> PoseRow {
         row.error = format!("no noise level {}", cfg.level);
         return row;
     };
-    let sim = shared.setup.case(2.0, &level, seed);
+    let sim = match shared.setup.case(2.0, &level, seed) {
+        Ok(sim) => sim,
+        Err(e) => {
+            row.error = e.to_string();
+            return row;
+        }
+    };
     let cams = perturb_poses(
         &sim.cameras,
         &sim.truth_placement.center,

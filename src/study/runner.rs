@@ -27,6 +27,43 @@ pub struct StudyConfig {
     pub params: ReconParams,
 }
 
+impl StudyConfig {
+    /// What a study cannot run with, before any run: a contour noise that is not a finite
+    /// SD >= 0, a level outside 0..=5, a shard index not below a shard count >= 1, and the
+    /// reconstruction settings `ReconParams::validate` refuses. (No levels, runs or methods
+    /// is an empty study, not an error.)
+    pub fn validate(&self) -> Result<(), SimError> {
+        let bad = |field, value: String, expected| SimError::Setting {
+            field,
+            value,
+            expected,
+        };
+        if !(self.noise_px.is_finite() && self.noise_px >= 0.0) {
+            return Err(bad(
+                "noise_px",
+                self.noise_px.to_string(),
+                "a finite SD >= 0",
+            ));
+        }
+        if let Some(l) = self
+            .levels
+            .iter()
+            .find(|l| NoiseLevel::level(**l).is_none())
+        {
+            return Err(bad("levels", l.to_string(), "0 to 5"));
+        }
+        let (i, n) = self.shard;
+        if n == 0 || i >= n {
+            return Err(bad("shard", format!("{i}/{n}"), "I/N with 0 <= I < N"));
+        }
+        for m in &self.methods {
+            m.params(&self.params).validate()?;
+        }
+        self.params.validate()?;
+        Ok(())
+    }
+}
+
 impl Default for StudyConfig {
     fn default() -> Self {
         StudyConfig {
@@ -141,7 +178,13 @@ fn run_prepared(
         row.error = format!("no noise level {}", task.level);
         return (row, None);
     };
-    let sim = prep.setup.case(cfg.noise_px, &level, task.seed);
+    let sim = match prep.setup.case(cfg.noise_px, &level, task.seed) {
+        Ok(sim) => sim,
+        Err(e) => {
+            row.error = e.to_string();
+            return (row, None);
+        }
+    };
     row.gt_cup_diameter_mm = sim.truth_sphere.diameter();
     let prm = task.method.params(&cfg.params);
     let start = std::time::Instant::now();
@@ -198,6 +241,7 @@ pub fn run_study_with(
     tick: &(dyn Fn() + Sync),
     kernels: Kernels,
 ) -> Result<(Vec<Row>, Vec<ExampleRun>), SimError> {
+    cfg.validate()?;
     let list = tasks(cfg);
     let prep = Prepared::new(truth, &cfg.geometry)?;
     let next = AtomicUsize::new(0);
@@ -235,6 +279,56 @@ pub fn run_study_with(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_study_that_cannot_run_is_refused_before_any_run() {
+        assert!(StudyConfig::default().validate().is_ok());
+        let field = |cfg: StudyConfig| match cfg.validate() {
+            Err(SimError::Setting { field, .. }) => field,
+            Err(SimError::Params(_)) => "params",
+            other => panic!("expected a setting error, got {other:?}"),
+        };
+        for noise in [f64::NAN, f64::INFINITY, -2.0] {
+            let cfg = StudyConfig {
+                noise_px: noise,
+                ..Default::default()
+            };
+            assert_eq!(field(cfg), "noise_px");
+        }
+        let level6 = StudyConfig {
+            levels: vec![1, 6],
+            ..Default::default()
+        };
+        assert_eq!(field(level6), "levels");
+        let shard = StudyConfig {
+            shard: (2, 2),
+            ..Default::default()
+        };
+        assert_eq!(field(shard), "shard");
+        let mut params = StudyConfig::default();
+        params.params.limb_scale_mm = f64::NAN;
+        assert_eq!(field(params), "params");
+        // The runner refuses it too, before any run (no tick).
+        let truth = crate::template::phantom(&Default::default()).mesh;
+        let bad = StudyConfig {
+            noise_px: f64::INFINITY,
+            ..Default::default()
+        };
+        let ticks = AtomicUsize::new(0);
+        let tick = || {
+            ticks.fetch_add(1, Ordering::Relaxed);
+        };
+        assert!(run_study(&truth, &bad, &tick).is_err());
+        assert_eq!(ticks.load(Ordering::Relaxed), 0);
+        // Companion: level 0, no noise and an empty study are allowed.
+        let edge = StudyConfig {
+            levels: vec![0],
+            noise_px: 0.0,
+            runs: 0,
+            ..Default::default()
+        };
+        assert!(edge.validate().is_ok());
+    }
 
     #[test]
     fn shards_partition_the_tasks_and_seeds_ignore_the_method() {

@@ -16,6 +16,61 @@ pub struct XrayGeometry {
     pub angles_deg: Vec<f64>,
 }
 
+/// A geometry no X-ray set-up has (see `XrayGeometry::validate`).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("X-ray geometry: {field} = {value}: must be {expected}")]
+pub struct GeometryError {
+    pub field: &'static str,
+    pub value: String,
+    pub expected: &'static str,
+}
+
+impl XrayGeometry {
+    /// Distances and pixel size finite and positive, the object between the source and the
+    /// detector, a non-empty image, and at least two distinct finite view angles (one view
+    /// cannot place anything in depth).
+    pub fn validate(&self) -> Result<(), GeometryError> {
+        let bad = |field, value: String, expected| GeometryError {
+            field,
+            value,
+            expected,
+        };
+        for (field, v) in [
+            ("source_to_object", self.source_to_object),
+            ("pixel_size", self.pixel_size),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(bad(field, v.to_string(), "finite and > 0"));
+            }
+        }
+        let sdd = self.source_to_detector;
+        if !(sdd.is_finite() && sdd > self.source_to_object) {
+            return Err(bad(
+                "source_to_detector",
+                sdd.to_string(),
+                "finite and beyond the object (> source_to_object)",
+            ));
+        }
+        if self.image_size == 0 {
+            return Err(bad("image_size", "0".into(), "at least 1 pixel"));
+        }
+        if let Some(a) = self.angles_deg.iter().find(|a| !a.is_finite()) {
+            return Err(bad("angles_deg", a.to_string(), "finite degrees"));
+        }
+        let distinct =
+            |a: f64, b: f64| ((a - b).rem_euclid(360.0)).min((b - a).rem_euclid(360.0)) > 1e-9;
+        let first = self.angles_deg.first().copied();
+        if !first.is_some_and(|f| self.angles_deg.iter().any(|&a| distinct(a, f))) {
+            return Err(bad(
+                "angles_deg",
+                format!("{:?}", self.angles_deg),
+                "at least two distinct angles",
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for XrayGeometry {
     fn default() -> Self {
         XrayGeometry {
@@ -83,5 +138,84 @@ mod tests {
             let up = cam.project(&(target + Vector3::z())).unwrap();
             assert!(up.y < 1024.0);
         }
+    }
+
+    #[test]
+    fn a_geometry_no_xray_has_is_refused_with_its_field() {
+        assert_eq!(XrayGeometry::default().validate(), Ok(()));
+        let cases: Vec<(&str, XrayGeometry)> = vec![
+            (
+                "pixel_size",
+                XrayGeometry {
+                    pixel_size: 0.0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "pixel_size",
+                XrayGeometry {
+                    pixel_size: f64::NAN,
+                    ..Default::default()
+                },
+            ),
+            (
+                "source_to_object",
+                XrayGeometry {
+                    source_to_object: -1.0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "source_to_detector",
+                XrayGeometry {
+                    source_to_detector: 800.0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "image_size",
+                XrayGeometry {
+                    image_size: 0,
+                    ..Default::default()
+                },
+            ),
+            (
+                "angles_deg",
+                XrayGeometry {
+                    angles_deg: vec![0.0, f64::NAN],
+                    ..Default::default()
+                },
+            ),
+            (
+                "angles_deg",
+                XrayGeometry {
+                    angles_deg: vec![20.0],
+                    ..Default::default()
+                },
+            ),
+            (
+                "angles_deg",
+                XrayGeometry {
+                    angles_deg: vec![0.0, 360.0, -360.0],
+                    ..Default::default()
+                },
+            ),
+            (
+                "angles_deg",
+                XrayGeometry {
+                    angles_deg: vec![],
+                    ..Default::default()
+                },
+            ),
+        ];
+        for (field, g) in cases {
+            assert_eq!(g.validate().map_err(|e| e.field), Err(field), "{g:?}");
+        }
+        // Companion: two distinct views are enough.
+        let two = XrayGeometry {
+            angles_deg: vec![0.0, 359.0],
+            ..Default::default()
+        };
+        assert_eq!(two.validate(), Ok(()));
     }
 }

@@ -4,4 +4,4 @@ mod camera;
 mod geometry;
 
 pub use camera::{Camera, Intrinsics, ProjectionError};
-pub use geometry::{simulated_views, XrayGeometry};
+pub use geometry::{simulated_views, GeometryError, XrayGeometry};
