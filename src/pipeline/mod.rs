@@ -139,6 +139,17 @@ pub fn reconstruct_with(
             observed: observed.len(),
         });
     }
+    if let Some(pp) = prm
+        .pose
+        .as_ref()
+        .filter(|pp| pp.reference_view >= cams.len())
+    {
+        return Err(ReconError::Param {
+            field: "pose.reference_view",
+            value: pp.reference_view.to_string(),
+            expected: "the index of one of the views",
+        });
+    }
     let unit = spherical_cap(
         1.0,
         prm.template_vertices,
@@ -341,4 +352,40 @@ pub fn reconstruct_with(
 /// Centroid of a point set.
 pub fn centroid(p: &[Point3<f64>]) -> Point3<f64> {
     Point3::from(p.iter().map(|v| v.coords).sum::<Vector3<f64>>() / p.len().max(1) as f64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simulate::{simulate_case, NoiseLevel};
+    use crate::template::{phantom, PhantomParams};
+    use crate::views::XrayGeometry;
+
+    #[test]
+    fn a_reference_view_that_is_not_a_view_is_named() {
+        let truth = phantom(&PhantomParams::default()).mesh;
+        let level = NoiseLevel::level(1).unwrap();
+        let sim = simulate_case(&truth, &XrayGeometry::default(), 2.0, &level, 3).unwrap();
+        let with_reference = |reference_view| ReconParams {
+            pose: Some(crate::solve::PoseParams {
+                reference_view,
+                ..Default::default()
+            }),
+            ..Default::default()
+        };
+        let r = reconstruct(&sim.cameras, &sim.observed, &sim.init, &with_reference(3));
+        assert!(
+            matches!(
+                r,
+                Err(ReconError::Param {
+                    field: "pose.reference_view",
+                    ..
+                })
+            ),
+            "{r:?}"
+        );
+        // Companion: the last view is a view.
+        let ok = reconstruct(&sim.cameras, &sim.observed, &sim.init, &with_reference(2));
+        assert!(ok.is_ok(), "{:?}", ok.err());
+    }
 }

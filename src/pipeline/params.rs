@@ -176,6 +176,17 @@ impl ReconParams {
                 "finite",
             ));
         }
+        if let Some(pp) = &self.pose {
+            for (field, v) in [
+                ("pose.sigma_deg", pp.sigma_deg),
+                ("pose.sigma_mm", pp.sigma_mm),
+                ("pose.sigma_data_mm", pp.sigma_data_mm),
+            ] {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(bad(field, v, "finite and > 0"));
+                }
+            }
+        }
         let angle = self.correspond.normal_angle_deg;
         if !(angle > 0.0 && angle <= 180.0) {
             return Err(bad(
@@ -226,6 +237,15 @@ mod tests {
             (
                 "correspond.outlier_k",
                 Box::new(|p| p.correspond.outlier_k = f64::NAN),
+            ),
+            (
+                "pose.sigma_mm",
+                Box::new(|p| {
+                    p.pose = Some(PoseParams {
+                        sigma_mm: f64::NAN,
+                        ..Default::default()
+                    })
+                }),
             ),
         ];
         for (field, set) in cases {

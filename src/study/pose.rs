@@ -110,7 +110,23 @@ fn one(shared: &Prepared, cfg: &PoseStudy, run: usize) -> PoseRow {
 
 /// Run every case (threads do not change the results). A truth that cannot be simulated at all
 /// is an error before any run.
+/// Pose errors that are not finite and >= 0, and pose settings `ReconParams::validate` refuses,
+/// are errors before any run too.
 pub fn run_pose_study(truth: &Mesh, cfg: &PoseStudy) -> Result<Vec<PoseRow>, SimError> {
+    for (field, v) in [("deg", cfg.deg), ("mm", cfg.mm)] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(SimError::Setting {
+                field,
+                value: v.to_string(),
+                expected: "finite and >= 0",
+            });
+        }
+    }
+    crate::pipeline::ReconParams {
+        pose: Some(cfg.pose.clone()),
+        ..Default::default()
+    }
+    .validate()?;
     let shared = Prepared::new(truth, &XrayGeometry::default())?;
     let next = AtomicUsize::new(0);
     let rows: Mutex<Vec<Option<PoseRow>>> = Mutex::new(vec![None; cfg.runs]);
