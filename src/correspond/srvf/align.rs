@@ -73,6 +73,8 @@ pub enum SrvfError {
     ZeroLength { curve: &'static str },
     #[error("curve {curve} has a non-finite coordinate at point {index}")]
     NonFinite { curve: &'static str, index: usize },
+    #[error("curve {curve} is too large to measure (its length overflows; rescale the coordinates)")]
+    Overflow { curve: &'static str },
     #[error("samples must be {MIN_SAMPLES} to {MAX_SAMPLES} (got {0})")]
     SampleCount(usize),
 }
@@ -111,6 +113,9 @@ fn check(curve: &'static str, p: &[Point2<f64>]) -> Result<(), SrvfError> {
     }
     if polyline_length(p, false) <= 1e-12 {
         return Err(SrvfError::ZeroLength { curve });
+    }
+    if !polyline_length(p, true).is_finite() {
+        return Err(SrvfError::Overflow { curve });
     }
     Ok(())
 }

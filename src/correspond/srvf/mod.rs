@@ -360,5 +360,21 @@ mod tests {
             Err(SrvfError::SampleCount(50_001))
         ));
         assert!(align_closed(&ok, &ok, &prm(MIN_SAMPLES), false).is_ok());
+        // Finite coordinates whose distances overflow (1e308 apart) cannot be measured.
+        let huge = vec![
+            Point2::new(1e308, 1e308),
+            Point2::new(-1e308, 1e308),
+            Point2::new(-1e308, -1e308),
+            Point2::new(1e308, -1e308),
+        ];
+        assert!(matches!(
+            align_closed(&huge, &ok, &p, false),
+            Err(SrvfError::Overflow { curve: "A" })
+        ));
+        // Companion: the same shape at 1e150 is measured, and matches a square.
+        let big: Vec<_> = huge.iter().map(|q| Point2::from(q.coords * 1e-158)).collect();
+        let square: Vec<_> = huge.iter().map(|q| Point2::from(q.coords * 1e-308)).collect();
+        let al = align_closed(&big, &square, &p, false).unwrap();
+        assert!(al.distance < 0.05, "{}", al.distance);
     }
 }
