@@ -3,5 +3,5 @@
 mod hemisphere;
 mod phantom;
 
-pub use hemisphere::{hemisphere, spherical_cap, Placement};
-pub use phantom::{phantom, Phantom, PhantomParams};
+pub use hemisphere::{hemisphere, spherical_cap, Placement, MAX_CAP_VERTICES};
+pub use phantom::{phantom, try_phantom, Phantom, PhantomError, PhantomParams};

@@ -1,7 +1,7 @@
 //! The built-in acetabulum phantom: a procedural surface that is deliberately not a hemisphere,
 //! used as the default ground truth for the demo and the tests.
 
-use super::hemisphere::{spherical_cap, Placement};
+use super::hemisphere::{spherical_cap, Placement, MAX_CAP_VERTICES};
 use crate::mesh::Mesh;
 use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
 
@@ -66,8 +66,90 @@ pub fn radiographic_axis(anteversion_deg: f64, inclination_deg: f64) -> Unit<Vec
     Unit::new_normalize(Vector3::new(a.cos() * i.sin(), a.sin(), -a.cos() * i.cos()))
 }
 
+/// A phantom setting no acetabulum has (see `PhantomParams::validate`).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("phantom: {field} = {value}: must be {expected}")]
+pub struct PhantomError {
+    pub field: &'static str,
+    pub value: String,
+    pub expected: &'static str,
+}
+
+impl PhantomParams {
+    /// Every length and angle finite; the radius and the ellipticity factors > 0; the rim's
+    /// polar angle in (0, 180) degrees; the notch 0-360 degrees wide; the fossa's angular radius
+    /// >= 0; at most `MAX_CAP_VERTICES` vertices.
+    pub fn validate(&self) -> Result<(), PhantomError> {
+        let bad = |field, value: String, expected| PhantomError {
+            field,
+            value,
+            expected,
+        };
+        let finite = [
+            ("fossa_depth", self.fossa_depth),
+            ("fossa_offset_deg", self.fossa_offset_deg),
+            ("notch_start_deg", self.notch_start_deg),
+            ("anteversion_deg", self.anteversion_deg),
+            ("inclination_deg", self.inclination_deg),
+            ("center.x", self.center.x),
+            ("center.y", self.center.y),
+            ("center.z", self.center.z),
+        ];
+        if let Some((field, v)) = finite.iter().find(|(_, v)| !v.is_finite()) {
+            return Err(bad(field, v.to_string(), "finite"));
+        }
+        for (field, v) in [
+            ("radius", self.radius),
+            ("ellipticity[0]", self.ellipticity[0]),
+            ("ellipticity[1]", self.ellipticity[1]),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(bad(field, v.to_string(), "finite and > 0"));
+            }
+        }
+        if !(self.depth_deg > 0.0 && self.depth_deg < 180.0) {
+            return Err(bad(
+                "depth_deg",
+                self.depth_deg.to_string(),
+                "in (0, 180) degrees",
+            ));
+        }
+        if !(0.0..=360.0).contains(&self.notch_width_deg) {
+            return Err(bad(
+                "notch_width_deg",
+                self.notch_width_deg.to_string(),
+                "0 to 360 degrees",
+            ));
+        }
+        if !(self.fossa_radius_deg.is_finite() && self.fossa_radius_deg >= 0.0) {
+            return Err(bad(
+                "fossa_radius_deg",
+                self.fossa_radius_deg.to_string(),
+                "finite and >= 0",
+            ));
+        }
+        if self.vertices > MAX_CAP_VERTICES {
+            return Err(bad(
+                "vertices",
+                self.vertices.to_string(),
+                "at most 1,000,000",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// `phantom` after `PhantomParams::validate`: the checked way to build a phantom from settings
+/// that come from outside.
+pub fn try_phantom(p: &PhantomParams) -> Result<Phantom, PhantomError> {
+    p.validate()?;
+    Ok(phantom(p))
+}
+
 /// Generate the phantom. The local frame has the opening along +z and the notch at local -y;
-/// the pose maps local +y to the superior direction within the rim plane.
+/// the pose maps local +y to the superior direction within the rim plane. The settings are
+/// taken as they are (the defaults, or ones `PhantomParams::validate` passes); `try_phantom`
+/// checks them first.
 pub fn phantom(p: &PhantomParams) -> Phantom {
     let cap = spherical_cap(1.0, p.vertices, p.depth_deg.to_radians());
     let fossa_dir = {
@@ -134,6 +216,89 @@ pub fn phantom(p: &PhantomParams) -> Phantom {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn settings_no_acetabulum_has_are_named() {
+        assert!(try_phantom(&PhantomParams::default()).is_ok());
+        let d = PhantomParams::default();
+        let cases = [
+            (
+                "radius",
+                PhantomParams {
+                    radius: 0.0,
+                    ..d.clone()
+                },
+            ),
+            (
+                "radius",
+                PhantomParams {
+                    radius: f64::NAN,
+                    ..d.clone()
+                },
+            ),
+            (
+                "ellipticity[0]",
+                PhantomParams {
+                    ellipticity: [0.0, 1.0],
+                    ..d.clone()
+                },
+            ),
+            (
+                "depth_deg",
+                PhantomParams {
+                    depth_deg: 360.0,
+                    ..d.clone()
+                },
+            ),
+            (
+                "notch_width_deg",
+                PhantomParams {
+                    notch_width_deg: -1.0,
+                    ..d.clone()
+                },
+            ),
+            (
+                "fossa_depth",
+                PhantomParams {
+                    fossa_depth: f64::NAN,
+                    ..d.clone()
+                },
+            ),
+            (
+                "fossa_radius_deg",
+                PhantomParams {
+                    fossa_radius_deg: -5.0,
+                    ..d.clone()
+                },
+            ),
+            (
+                "vertices",
+                PhantomParams {
+                    vertices: usize::MAX,
+                    ..d.clone()
+                },
+            ),
+            (
+                "center.x",
+                PhantomParams {
+                    center: Point3::new(f64::INFINITY, 0.0, 0.0),
+                    ..d.clone()
+                },
+            ),
+        ];
+        for (field, p) in cases {
+            assert_eq!(try_phantom(&p).err().map(|e| e.field), Some(field));
+        }
+        // Companion: a spherical phantom without notch or fossa is a valid one.
+        let plain = PhantomParams {
+            ellipticity: [1.0, 1.0],
+            notch_width_deg: 0.0,
+            fossa_depth: 0.0,
+            fossa_radius_deg: 0.0,
+            ..d
+        };
+        assert!(try_phantom(&plain).is_ok());
+    }
 
     #[test]
     fn phantom_is_not_a_hemisphere() {

@@ -73,7 +73,9 @@ pub enum SrvfError {
     ZeroLength { curve: &'static str },
     #[error("curve {curve} has a non-finite coordinate at point {index}")]
     NonFinite { curve: &'static str, index: usize },
-    #[error("curve {curve} is too large to measure (its length overflows; rescale the coordinates)")]
+    #[error(
+        "curve {curve} is too large to measure (its length overflows; rescale the coordinates)"
+    )]
     Overflow { curve: &'static str },
     #[error("samples must be {MIN_SAMPLES} to {MAX_SAMPLES} (got {0})")]
     SampleCount(usize),

@@ -372,8 +372,14 @@ mod tests {
             Err(SrvfError::Overflow { curve: "A" })
         ));
         // Companion: the same shape at 1e150 is measured, and matches a square.
-        let big: Vec<_> = huge.iter().map(|q| Point2::from(q.coords * 1e-158)).collect();
-        let square: Vec<_> = huge.iter().map(|q| Point2::from(q.coords * 1e-308)).collect();
+        let big: Vec<_> = huge
+            .iter()
+            .map(|q| Point2::from(q.coords * 1e-158))
+            .collect();
+        let square: Vec<_> = huge
+            .iter()
+            .map(|q| Point2::from(q.coords * 1e-308))
+            .collect();
         let al = align_closed(&big, &square, &p, false).unwrap();
         assert!(al.distance < 0.05, "{}", al.distance);
     }
