@@ -6,10 +6,8 @@
 //! Run: cargo run --release --example truth_shape -- MESH...   (STL/PLY/OBJ, or `phantom` for the
 //! built-in phantom; closed shells are reduced to their outer side as in `acetab simulate`)
 
-use acetab::contours::model_contour;
 use acetab::mesh::io::read_mesh;
-use acetab::report::fit_sphere_robust;
-use acetab::simulate::{fit_placement, ground_truth_surface, observed_alpha, SimSetup};
+use acetab::simulate::{fit_placement, ground_truth_surface, SimSetup};
 use acetab::template::{phantom, PhantomParams};
 use acetab::views::XrayGeometry;
 use std::path::Path;
@@ -65,21 +63,13 @@ fn main() -> ExitCode {
             .collect();
         // The oracle: the sphere through the truth's own vertices that form the three views'
         // outlines (as the study's annotation traces them), which is the most a sphere read from
-        // the outlines can know.
+        // the outlines can know (`SimSetup::outline_sphere`).
         let oracle = SimSetup::new(&truth, &XrayGeometry::default())
             .map_err(|e| e.to_string())
             .and_then(|setup| {
-                let mut ids = Vec::new();
-                for cam in &setup.cameras {
-                    let alpha = observed_alpha(&truth, cam, &setup.placement);
-                    let c = model_contour(&truth, cam, Some(alpha)).map_err(|e| e.to_string())?;
-                    ids.extend(c.vertex_ids);
-                }
-                ids.sort_unstable();
-                ids.dedup();
-                let pts: Vec<_> = ids.iter().map(|&i| truth.vertices[i as usize]).collect();
-                fit_sphere_robust(&pts)
-                    .map(|s| (s.diameter(), pts.len()))
+                setup
+                    .outline_sphere(&truth)
+                    .map(|s| (s.diameter(), setup.outline_vertices.len()))
                     .map_err(|e| e.to_string())
             });
         let oracle = match oracle {

@@ -181,6 +181,8 @@ pub struct SimSetup {
     pub cameras: Vec<Camera>,
     /// The truth's alpha-shape outline per view, before noise.
     pub outlines: Vec<Vec<nalgebra::Point2<f64>>>,
+    /// The truth's vertices that form those outlines, in any view (sorted, once each).
+    pub outline_vertices: Vec<u32>,
 }
 
 impl SimSetup {
@@ -189,17 +191,35 @@ impl SimSetup {
         let (placement, sphere) = fit_placement(truth)?;
         let cameras = simulated_views(geometry, &placement.center);
         let mut outlines = Vec::new();
+        let mut outline_vertices = Vec::new();
         for (view, cam) in cameras.iter().enumerate() {
             let c = model_contour(truth, cam, Some(observed_alpha(truth, cam, &placement)))
                 .map_err(|source| SimError::Contour { view, source })?;
             outlines.push(c.points);
+            outline_vertices.extend(c.vertex_ids);
         }
+        outline_vertices.sort_unstable();
+        outline_vertices.dedup();
         Ok(SimSetup {
             placement,
             sphere,
             cameras,
             outlines,
+            outline_vertices,
         })
+    }
+
+    /// The sphere (robust fit, as the cup's) through the truth's own outline-forming vertices:
+    /// the most a sphere read from these views' outlines can know of the truth. Its diameter
+    /// minus the truth's cup (`sphere`) is a floor under any outline-based cup estimate's error
+    /// for this truth, before noise. `truth` is the mesh the set-up was made from.
+    pub fn outline_sphere(&self, truth: &Mesh) -> Result<Sphere, SphereFitError> {
+        let pts: Vec<Point3<f64>> = self
+            .outline_vertices
+            .iter()
+            .filter_map(|&i| truth.vertices.get(i as usize).copied())
+            .collect();
+        crate::report::fit_sphere_robust(&pts)
     }
 
     /// One run: Gaussian noise of `noise_px` on every outline point, the start perturbed by
@@ -286,6 +306,36 @@ pub fn perturb_poses(
 mod tests {
     use super::*;
     use crate::template::{phantom, PhantomParams};
+
+    #[test]
+    fn the_outline_sphere_finds_a_sphere_and_misses_what_the_views_do_not_see() {
+        let place = Placement {
+            center: Point3::new(80.0, 10.0, -500.0),
+            radius: 26.0,
+            axis: Unit::new_normalize(Vector3::new(1.0, 0.3, -0.8)),
+        };
+        let cap = place.place(&crate::template::spherical_cap(
+            1.0,
+            3000,
+            85f64.to_radians(),
+        ));
+        let setup = SimSetup::new(&cap, &XrayGeometry::default()).unwrap();
+        let d = setup.outline_sphere(&cap).unwrap().diameter() - setup.sphere.diameter();
+        assert!(d.abs() < 0.05, "sphere: {d}");
+        // The same cap 6 % deeper along y (towards the AP source), which no view turned about
+        // z sees in outline: the outline sphere stays near the unstretched one, the truth's
+        // cup grows.
+        let c = place.center;
+        let deep = cap.with_vertices(
+            cap.vertices
+                .iter()
+                .map(|v| Point3::new(v.x, c.y + 1.06 * (v.y - c.y), v.z))
+                .collect(),
+        );
+        let setup = SimSetup::new(&deep, &XrayGeometry::default()).unwrap();
+        let d = setup.outline_sphere(&deep).unwrap().diameter() - setup.sphere.diameter();
+        assert!(d < -0.5, "stretched in depth: {d}");
+    }
 
     #[test]
     fn a_noise_no_gaussian_has_is_an_error_not_a_panic() {

@@ -329,6 +329,19 @@ fn merge_joins_shards_and_refuses_to_overwrite_one_or_read_a_bad_cell() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let all = std::fs::read_to_string(dir.join("all/runs.csv")).unwrap();
     assert_eq!(all.lines().count(), 3, "header and two runs: {all}");
+    // The truth's cup and its outline-vertex sphere travel with the settings; the phantom is
+    // wider in depth than the views see, so the two differ.
+    let study: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("all/summary.json")).unwrap())
+            .unwrap();
+    let truth = study["study"]["truth_cup_diameter_mm"].as_f64().unwrap();
+    let outline = study["study"]["truth_outline_sphere_diameter_mm"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        (40.0..70.0).contains(&truth) && (truth - outline).abs() > 0.5,
+        "{truth} {outline}"
+    );
 
     let before = std::fs::read_to_string(dir.join("s0/runs.csv")).unwrap();
     let o = merge(&["s0", "s1"], &dir.join("s0"));

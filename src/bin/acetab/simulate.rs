@@ -8,6 +8,7 @@ use acetab::backend::{BackendChoice, ContourSource, Kernels};
 use acetab::fsutil::fill_dir_atomically;
 use acetab::gpu::GpuBatcher;
 use acetab::pipeline::ReconParams;
+use acetab::simulate::SimSetup;
 use acetab::study::{
     run_study_with, tasks, write_examples, write_tables, StudyConfig, StudyMethod,
 };
@@ -148,8 +149,20 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
             rows[0].error
         ));
     }
+    // The truth's cup, and the sphere through its own outline-forming vertices: how far a cup
+    // read from these outlines alone is off for this truth before any noise (null when no
+    // sphere fits them).
+    let (truth_cup, outline_cup) = match SimSetup::new(&truth, &cfg.geometry) {
+        Ok(s) => (
+            Some(s.sphere.diameter()),
+            s.outline_sphere(&truth).ok().map(|o| o.diameter()),
+        ),
+        Err(_) => (None, None),
+    };
     let meta = serde_json::json!({
-        "gt": gt, "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
+        "gt": gt, "truth_cup_diameter_mm": truth_cup,
+        "truth_outline_sphere_diameter_mm": outline_cup,
+        "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
         "shard": shard, "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),
         "contours": format!("{:?}", cfg.params.contour_source),
         "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
@@ -169,6 +182,13 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         start.elapsed().as_secs_f64(),
         out.display()
     );
+    if let (Some(t), Some(o)) = (truth_cup, outline_cup) {
+        eprintln!(
+            "truth cup {t:.2} mm; the sphere through its outline-forming vertices {o:.2} mm \
+             ({:+.2} mm: the cup error of a sphere fitted to the outlined part alone, before noise)",
+            o - t
+        );
+    }
     print_summary(&rows);
     Ok(())
 }
