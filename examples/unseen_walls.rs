@@ -18,6 +18,7 @@
 //! (`--write DIR` saves each twin as DIR/<name>_plus.obj and _minus.obj for `acetab simulate`.)
 
 use acetab::contours::model_contour;
+use acetab::correspond::icp_matches;
 use acetab::demo::{accuracy_from, accuracy_samples};
 use acetab::mesh::io::{read_mesh, write_obj};
 use acetab::mesh::Mesh;
@@ -66,23 +67,14 @@ fn twin(truth: &Mesh, c: &Point3<f64>, w: &[f64], delta: f64) -> Mesh {
     truth.with_vertices(moved)
 }
 
-/// Distance from p to the closed polyline through `poly`.
-fn to_polyline(p: &Point2<f64>, poly: &[Point2<f64>]) -> f64 {
-    let n = poly.len();
-    (0..n)
-        .map(|i| {
-            let (a, b) = (poly[i], poly[(i + 1) % n]);
-            let ab = b - a;
-            let t = ((p - a).dot(&ab) / ab.norm_squared().max(1e-300)).clamp(0.0, 1.0);
-            (p - (a + ab * t)).norm()
-        })
-        .fold(f64::INFINITY, f64::min)
-}
-
-/// Symmetric Hausdorff distance between two closed outlines, pixels.
+/// Symmetric Hausdorff distance between two closed outlines, pixels (closest points on the
+/// other polyline by `icp_matches`, the ICP baseline's rule).
 fn hausdorff(a: &[Point2<f64>], b: &[Point2<f64>]) -> f64 {
     let one = |x: &[Point2<f64>], y: &[Point2<f64>]| {
-        x.iter().map(|p| to_polyline(p, y)).fold(0.0, f64::max)
+        x.iter()
+            .zip(icp_matches(x, true, y))
+            .map(|(p, m)| m.map_or(f64::INFINITY, |(q, _)| (p - q).norm()))
+            .fold(0.0, f64::max)
     };
     one(a, b).max(one(b, a))
 }

@@ -78,10 +78,10 @@ impl<T> Lane<T> {
     }
 }
 
-/// Merges concurrent kernel requests from up to `lanes` runs.
 /// One projection request: the vertices, the vertex count per mesh and the views.
 type ProjectJob = (Vec<[f32; 4]>, usize, Vec<ViewRows>);
 
+/// Merges concurrent kernel requests from up to `lanes` runs.
 pub struct GpuBatcher<'g> {
     gpu: &'g Gpu<'g>,
     lanes: usize,

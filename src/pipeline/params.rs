@@ -176,16 +176,8 @@ impl ReconParams {
                 "finite",
             ));
         }
-        if let Some(pp) = &self.pose {
-            for (field, v) in [
-                ("pose.sigma_deg", pp.sigma_deg),
-                ("pose.sigma_mm", pp.sigma_mm),
-                ("pose.sigma_data_mm", pp.sigma_data_mm),
-            ] {
-                if !(v.is_finite() && v > 0.0) {
-                    return Err(bad(field, v, "finite and > 0"));
-                }
-            }
+        if let Some((field, v)) = self.pose.as_ref().and_then(PoseParams::invalid) {
+            return Err(bad(field, v, "finite and > 0"));
         }
         let angle = self.correspond.normal_angle_deg;
         if !(angle > 0.0 && angle <= 180.0) {

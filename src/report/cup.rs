@@ -60,12 +60,13 @@ impl CupCatalogue {
     /// The nearest catalogue size (ties go to the larger cup). An empty catalogue (one built
     /// by hand; `parse` refuses it) has no size to offer: NaN.
     pub fn nearest(&self, diameter: f64) -> CupSize {
-        let mut best = f64::NAN;
-        for &s in &self.sizes_mm {
-            if !((s - diameter).abs() > (best - diameter).abs()) {
-                best = s;
+        let best = self.sizes_mm.iter().fold(f64::NAN, |best, &s| {
+            if best.is_nan() || (s - diameter).abs() <= (best - diameter).abs() {
+                s
+            } else {
+                best
             }
-        }
+        });
         CupSize {
             diameter_mm: diameter,
             catalogue_mm: best,

@@ -46,6 +46,20 @@ impl Default for PoseParams {
     }
 }
 
+impl PoseParams {
+    /// The first SD that is not finite and > 0, as (field, value), the field named as in
+    /// `ReconParams` (`pose.sigma_deg`, ...); None when all can weight the energy.
+    pub fn invalid(&self) -> Option<(&'static str, f64)> {
+        [
+            ("pose.sigma_deg", self.sigma_deg),
+            ("pose.sigma_mm", self.sigma_mm),
+            ("pose.sigma_data_mm", self.sigma_data_mm),
+        ]
+        .into_iter()
+        .find(|(_, v)| !(v.is_finite() && *v > 0.0))
+    }
+}
+
 /// The pose problem on fixed points and correspondences; x = 6 per view (omega, tau).
 pub struct PoseProblem<'a> {
     pub points: &'a [Point3<f64>],

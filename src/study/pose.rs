@@ -108,10 +108,9 @@ fn one(shared: &Prepared, cfg: &PoseStudy, run: usize) -> PoseRow {
     row
 }
 
-/// Run every case (threads do not change the results). A truth that cannot be simulated at all
-/// is an error before any run.
-/// Pose errors that are not finite and >= 0, and pose settings `ReconParams::validate` refuses,
-/// are errors before any run too.
+/// Run every case (threads do not change the results). A truth that cannot be simulated at all,
+/// pose errors that are not finite and >= 0, and pose settings `PoseParams::invalid` names are
+/// errors before any run.
 pub fn run_pose_study(truth: &Mesh, cfg: &PoseStudy) -> Result<Vec<PoseRow>, SimError> {
     for (field, v) in [("deg", cfg.deg), ("mm", cfg.mm)] {
         if !(v.is_finite() && v >= 0.0) {
@@ -122,11 +121,13 @@ pub fn run_pose_study(truth: &Mesh, cfg: &PoseStudy) -> Result<Vec<PoseRow>, Sim
             });
         }
     }
-    crate::pipeline::ReconParams {
-        pose: Some(cfg.pose.clone()),
-        ..Default::default()
+    if let Some((field, v)) = cfg.pose.invalid() {
+        return Err(SimError::Setting {
+            field,
+            value: v.to_string(),
+            expected: "finite and > 0",
+        });
     }
-    .validate()?;
     let shared = Prepared::new(truth, &XrayGeometry::default())?;
     let next = AtomicUsize::new(0);
     let rows: Mutex<Vec<Option<PoseRow>>> = Mutex::new(vec![None; cfg.runs]);
