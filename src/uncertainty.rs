@@ -1,13 +1,15 @@
 //! How sure the cup size is: the reconstruction is re-solved from its result many times with its
 //! inputs resampled, each observed contour jittered by Gaussian noise of the fit's own
 //! reprojection RMS and each correspondence re-weighted by an Exp(1) draw (the Bayesian
-//! bootstrap); the spread of the fitted diameters gives the +- and, per catalogue size, the share
-//! of resamples whose nearest size it is. Seeded; the seed is in the report.
+//! bootstrap); each resample's cup goes through the estimator the result's own cup does
+//! (`pipeline::cup_spheres`: the observed part's sphere), and the spread of those diameters gives
+//! the +- and, per catalogue size, the share of resamples whose nearest size it is. Seeded; the
+//! seed is in the report.
 
 use crate::backend::Kernels;
 use crate::contours::Curve;
-use crate::pipeline::{resolve_from, ReconError, ReconParams, Reconstruction};
-use crate::report::fit_sphere_robust;
+use crate::pipeline::{cup_spheres, resolve_from, ReconError, ReconParams, Reconstruction};
+use crate::solve::Observation;
 use crate::views::Camera;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Exp1, Normal};
@@ -87,15 +89,21 @@ impl CupReport {
     }
 }
 
-/// Resample and re-solve `samples` times (see the module comment).
-pub fn cup_report(
+/// The cup estimator the resamples go through: a diameter from a resolved mesh and its round's
+/// correspondences.
+type CupEstimator<'a> = &'a dyn Fn(&crate::mesh::Mesh, &[Observation]) -> Result<f64, ReconError>;
+
+/// The diameters of `up.samples` resamples (see the module comment), each measured by `cup`, and
+/// the contour noise SD used.
+fn resampled_diameters(
     rec: &Reconstruction,
     cams: &[Camera],
     observed: &[Vec<Curve>],
     prm: &ReconParams,
     kernels: Kernels,
     up: &UncertaintyParams,
-) -> Result<CupReport, ReconError> {
+    cup: CupEstimator,
+) -> Result<(Vec<f64>, f64), ReconError> {
     if let Some(n) = up.noise_px.filter(|n| !(n.is_finite() && *n >= 0.0)) {
         return Err(ReconError::Param {
             field: "uncertainty noise_px",
@@ -109,8 +117,10 @@ pub fn cup_report(
         ..prm.clone()
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(up.seed);
-    let normal = Normal::new(0.0, noise_px).map_err(|e| ReconError::Diverged {
-        what: format!("noise SD {noise_px}: {e}"),
+    let normal = Normal::new(0.0, noise_px).map_err(|_| ReconError::Param {
+        field: "uncertainty noise_px",
+        value: noise_px.to_string(),
+        expected: "a finite SD (the fit's reprojection RMS was not finite)",
     })?;
     let mut diam = Vec::with_capacity(up.samples);
     for _ in 0..up.samples.max(1) {
@@ -136,7 +146,7 @@ pub fn cup_report(
             .collect();
         let mut sub = rand_chacha::ChaCha8Rng::seed_from_u64(rng.next_u64());
         let mut reweight = |_k: usize| -> f64 { Exp1.sample(&mut sub) };
-        let mesh = resolve_from(
+        let (mesh, obs) = resolve_from(
             &rec.mesh,
             cams,
             &jittered,
@@ -144,8 +154,23 @@ pub fn cup_report(
             kernels,
             &mut reweight,
         )?;
-        diam.push(fit_sphere_robust(&mesh.vertices)?.diameter());
+        diam.push(cup(&mesh, &obs)?);
     }
+    Ok((diam, noise_px))
+}
+
+/// Resample and re-solve `samples` times (see the module comment).
+pub fn cup_report(
+    rec: &Reconstruction,
+    cams: &[Camera],
+    observed: &[Vec<Curve>],
+    prm: &ReconParams,
+    kernels: Kernels,
+    up: &UncertaintyParams,
+) -> Result<CupReport, ReconError> {
+    // The same estimator as the reported cup (`Reconstruction::sphere`).
+    let cup = |m: &crate::mesh::Mesh, o: &[Observation]| Ok(cup_spheres(m, o)?.cup.diameter());
+    let (diam, noise_px) = resampled_diameters(rec, cams, observed, prm, kernels, up, &cup)?;
     let n = diam.len() as f64;
     let mean = diam.iter().sum::<f64>() / n;
     let sd = (diam.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
@@ -188,4 +213,62 @@ pub fn cup_report(
         noise_px,
         resampled_mm: diam,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::case::CaseFile;
+    use crate::pipeline::reconstruct;
+    use crate::report::fit_sphere_robust;
+    use std::path::Path;
+
+    /// Does the reported diameter stand among its resamples: inside their range and within one
+    /// SD of their median?
+    fn stands_among(d: f64, r: &[f64]) -> bool {
+        let mut s = r.to_vec();
+        s.sort_by(f64::total_cmp);
+        let n = s.len() as f64;
+        let mean = s.iter().sum::<f64>() / n;
+        let sd = (s.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        let median = 0.5 * (s[(s.len() - 1) / 2] + s[s.len() / 2]);
+        d >= s[0] && d <= s[s.len() - 1] && (d - median).abs() <= sd
+    }
+
+    /// The shipped example case started with its axis along z (the case): the whole
+    /// surface's sphere put all 16 resamples below the reported cup. Through the cup estimator
+    /// the cup stands among them; the whole-surface estimator (the old bug) is rejected.
+    #[test]
+    fn resamples_go_through_the_reported_cups_estimator() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/case/case.json");
+        let mut case = CaseFile::load(&path).expect("the shipped example case loads");
+        case.init.axis = nalgebra::Vector3::z_axis();
+        let prm = ReconParams::default();
+        let rec = reconstruct(&case.cameras, &case.observed, &case.init, &prm).unwrap();
+        let up = UncertaintyParams::default();
+        let report =
+            cup_report(&rec, &rec.cameras, &case.observed, &prm, Kernels::Cpu, &up).unwrap();
+        assert_eq!(report.diameter_mm, rec.sphere.diameter());
+        assert!(
+            stands_among(report.diameter_mm, &report.resampled_mm),
+            "{} among {:?}",
+            report.diameter_mm,
+            report.resampled_mm
+        );
+        // Companion: the same resamples measured on the whole surface do not stand around it.
+        let whole = |m: &crate::mesh::Mesh, _: &[Observation]| {
+            Ok(fit_sphere_robust(&m.vertices)?.diameter())
+        };
+        let (other, _) = resampled_diameters(
+            &rec,
+            &rec.cameras,
+            &case.observed,
+            &prm,
+            Kernels::Cpu,
+            &up,
+            &whole,
+        )
+        .unwrap();
+        assert!(!stands_among(report.diameter_mm, &other), "{other:?}");
+    }
 }

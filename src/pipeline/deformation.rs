@@ -211,7 +211,9 @@ pub(super) fn ed_solve(
 /// One more ED round from an already reconstructed mesh: correspondences recomputed once against
 /// `observed`, each observation's weight multiplied by `reweight` (the bootstrap's draws), the
 /// graph rebuilt on `mesh` and solved. Used to measure how the result moves when the inputs are
-/// resampled; returns the new vertices.
+/// resampled. Returns the new mesh and the round's correspondences with their robust weights
+/// (without the bootstrap's factors), as `Reconstruction::observations` are kept, so that the
+/// cup estimator (`cup_spheres`) sees the resample as it sees the result.
 pub fn resolve_from(
     mesh: &Mesh,
     cams: &[Camera],
@@ -219,23 +221,24 @@ pub fn resolve_from(
     prm: &ReconParams,
     kernels: Kernels,
     reweight: &mut dyn FnMut(usize) -> f64,
-) -> Result<Mesh, ReconError> {
-    let mut obs = weighted_correspondences(mesh, cams, observed, prm, kernels, "resampling")?;
-    for (k, o) in obs.iter_mut().enumerate() {
+) -> Result<(Mesh, Vec<Observation>), ReconError> {
+    let obs = weighted_correspondences(mesh, cams, observed, prm, kernels, "resampling")?;
+    let mut drawn = obs.clone();
+    for (k, o) in drawn.iter_mut().enumerate() {
         o.weight *= reweight(k);
     }
     let mut sphere = None;
-    Ok(ed_solve(
+    let (out, _) = ed_solve(
         mesh,
         &prm.graph,
         cams,
-        &obs,
+        &drawn,
         prm,
         &prm.lm,
         kernels,
         "resampling",
         &mut sphere,
         &mut SymbolicCache::default(),
-    )?
-    .0)
+    )?;
+    Ok((out, obs))
 }

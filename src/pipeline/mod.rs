@@ -10,7 +10,7 @@ mod deformation;
 mod params;
 mod placement;
 
-pub use cup::observed_part_sphere;
+pub use cup::{cup_spheres, observed_part_sphere, CupSpheres};
 pub use deformation::resolve_from;
 pub use params::{ReconParams, MAX_TEMPLATE_VERTICES};
 
@@ -18,7 +18,7 @@ use crate::backend::{KernelError, Kernels};
 use crate::contours::{Curve, ModelContour};
 use crate::correspond::srvf::SrvfError;
 use crate::mesh::Mesh;
-use crate::report::{fit_sphere_robust, CupSize, Sphere, SphereFitError};
+use crate::report::{CupSize, Sphere, SphereFitError};
 use crate::solve::limb_sphere;
 use crate::solve::{Observation, SolveError};
 use crate::template::{spherical_cap, Placement};
@@ -332,8 +332,8 @@ pub fn reconstruct_with(
     log.converged = converged;
     log.reprojection_rms_px = rms_px(&mesh, &cams_now, &obs);
     log.correspondences = obs.len();
-    let surface_sphere = fit_sphere_robust(&mesh.vertices)?;
-    let sphere = observed_part_sphere(&mesh, &obs).unwrap_or(surface_sphere);
+    let spheres = cup_spheres(&mesh, &obs)?;
+    let (sphere, surface_sphere) = (spheres.cup, spheres.surface);
     let cup = prm.catalogue.nearest(sphere.diameter());
     Ok(Reconstruction {
         initial_contours: contours(&initial, cams, prm, kernels)?,
