@@ -2,11 +2,13 @@
 //! GPU adapter only the CPU twins are measured (and a line says so).
 
 use acetab::correspond::srvf::{coprime_steps, srvf};
-use acetab::cpu::{deform as cdeform, project as cproject, silhouette as csil, srvf_dp as cdp};
-use acetab::gpu::GpuDevice;
+use acetab::engine::cpu::{
+    deform as cdeform, project as cproject, silhouette as csil, srvf_dp as cdp,
+};
+use acetab::engine::gpu::GpuDevice;
+use acetab::sim::{simulated_views, XrayGeometry};
 use acetab::solve::{DeformationGraph, GraphParams};
 use acetab::template::hemisphere;
-use acetab::views::{simulated_views, XrayGeometry};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use nalgebra::{Point2, Point3};
 

@@ -1,9 +1,9 @@
 //! One whole reconstruction of the phantom (level 3, seed 1), SRVF correspondences.
 
 use acetab::pipeline::{reconstruct, ReconParams};
-use acetab::simulate::{simulate_case, NoiseLevel};
-use acetab::template::{phantom, PhantomParams};
-use acetab::views::XrayGeometry;
+use acetab::sim::XrayGeometry;
+use acetab::sim::{phantom, PhantomParams};
+use acetab::sim::{simulate_case, NoiseLevel};
 use criterion::{criterion_group, criterion_main, Criterion};
 
 fn bench(c: &mut Criterion) {

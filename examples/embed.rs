@@ -4,13 +4,13 @@
 //!
 //! Run: cargo run --release --example embed
 
-use acetab::backend::Kernels;
-use acetab::demo::accuracy;
-use acetab::gpu::Gpu;
+use acetab::engine::gpu::Gpu;
+use acetab::engine::Kernels;
 use acetab::pipeline::{reconstruct_with, ReconParams};
-use acetab::simulate::{simulate_case, NoiseLevel};
-use acetab::template::{phantom, PhantomParams};
-use acetab::views::XrayGeometry;
+use acetab::report::accuracy;
+use acetab::sim::XrayGeometry;
+use acetab::sim::{phantom, PhantomParams};
+use acetab::sim::{simulate_case, NoiseLevel};
 use std::process::ExitCode;
 
 /// The host's own device: any adapter the environment allows (WGPU_BACKEND, WGPU_ADAPTER_NAME).

@@ -11,10 +11,10 @@
 //!
 //! Run: cargo run --release --example error_zones -- [--levels 1,3,5] [--runs 4] MESH...
 
-use acetab::demo::accuracy_samples;
-use acetab::mesh::io::read_mesh;
+use acetab::io::read_mesh;
+use acetab::report::accuracy_samples;
 use acetab::report::SurfaceQuery;
-use acetab::simulate::{fit_placement, ground_truth_surface};
+use acetab::sim::{fit_placement, ground_truth_surface};
 use acetab::study::{run_one, tasks, StudyConfig, StudyMethod};
 use std::path::Path;
 use std::process::ExitCode;

@@ -6,12 +6,12 @@
 //! Run: cargo run --release --example make_case [-- OUT_DIR]
 
 use acetab::case::CaseFile;
-use acetab::contours::Curve;
-use acetab::cpu::project::{project, ViewRows};
-use acetab::cpu::silhouette::for_each_covered;
-use acetab::simulate::{simulate_case, NoiseLevel};
-use acetab::template::{phantom, PhantomParams};
-use acetab::views::XrayGeometry;
+use acetab::engine::cpu::project::{project, ViewRows};
+use acetab::engine::cpu::silhouette::for_each_covered;
+use acetab::geom::Curve;
+use acetab::sim::XrayGeometry;
+use acetab::sim::{phantom, PhantomParams};
+use acetab::sim::{simulate_case, NoiseLevel};
 use std::path::PathBuf;
 use std::process::ExitCode;
 

@@ -1,8 +1,8 @@
 //! Reconstruct the built-in phantom through the library API (what `acetab demo` does), printing
 //! the accuracy and the cup size: `cargo run --release --example phantom -- [seed] [level]`.
 
-use acetab::demo::run_demo;
 use acetab::pipeline::ReconParams;
+use acetab::sim::run_demo;
 
 fn main() {
     let mut args = std::env::args().skip(1);

@@ -6,10 +6,10 @@
 //! Run: cargo run --release --example truth_shape -- MESH...   (STL/PLY/OBJ, or `phantom` for the
 //! built-in phantom; closed shells are reduced to their outer side as in `acetab simulate`)
 
-use acetab::mesh::io::read_mesh;
-use acetab::simulate::{fit_placement, ground_truth_surface, SimSetup};
-use acetab::template::{phantom, PhantomParams};
-use acetab::views::XrayGeometry;
+use acetab::io::read_mesh;
+use acetab::sim::XrayGeometry;
+use acetab::sim::{fit_placement, ground_truth_surface, SimSetup};
+use acetab::sim::{phantom, PhantomParams};
 use std::path::Path;
 use std::process::ExitCode;
 

@@ -19,12 +19,12 @@
 
 use acetab::contours::model_contour;
 use acetab::correspond::icp_matches;
-use acetab::demo::{accuracy_from, accuracy_samples};
-use acetab::mesh::io::{read_mesh, write_obj};
-use acetab::mesh::Mesh;
-use acetab::simulate::{fit_placement, ground_truth_surface, observed_alpha, SimSetup};
-use acetab::template::{phantom, PhantomParams};
-use acetab::views::XrayGeometry;
+use acetab::geom::Mesh;
+use acetab::io::{read_mesh, write_obj};
+use acetab::report::{accuracy_from, accuracy_samples};
+use acetab::sim::XrayGeometry;
+use acetab::sim::{fit_placement, ground_truth_surface, observed_alpha, SimSetup};
+use acetab::sim::{phantom, PhantomParams};
 use nalgebra::{Point2, Point3};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;

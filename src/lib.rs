@@ -1,31 +1,56 @@
 //! acetab: reconstruct the acetabular surface from three pelvic X-rays and size the cup.
 //!
-//! The pipeline, one module per stage:
-//! template (hemisphere) -> views (cameras) -> contours (alpha shape) -> correspond (SRVF | ICP |
-//! ICP-NormVec) -> solve (similarity, then the embedded deformation graph by Gauss-Newton with
-//! faer) -> report (metrics, sphere fit, cup size). `pipeline` runs them in order; `case` reads
-//! case files; `simulate` makes synthetic cases from a ground-truth surface.
+//! The pipeline, one module per stage, data flowing forward:
+//! `template` (hemisphere) -> `views` (cameras) -> `contours` (alpha shape | silhouette) ->
+//! `correspond` (SRVF | ICP | ICP-NormVec) -> `solve` (similarity, then the embedded deformation
+//! graph by Gauss-Newton with faer) -> `report` (metrics, cup catalogue, plots). `geom` and `io`
+//! are the ground floor every stage stands on; `engine` runs the per-iteration kernels on the CPU
+//! or the GPU; `pipeline` is the method, stage after stage; `sim` makes synthetic truths and
+//! X-rays; `case` reads and runs case files; `study` runs simulation studies and the bench.
+//!
+//! The usual entry points are re-exported here:
+//!
+//! ```no_run
+//! use acetab::{reconstruct, Kernels, ReconParams};
+//! # fn go(case: &acetab::case::Case) -> Result<(), acetab::ReconError> {
+//! let rec = reconstruct(&case.cameras, &case.observed, &case.init, &ReconParams::default())?;
+//! println!("cup {:.1} mm -> {} mm", rec.sphere.diameter(), rec.cup.catalogue_mm);
+//! # let _ = Kernels::Cpu;
+//! # Ok(())
+//! # }
+//! ```
 
 // `!(x > y)` is how this crate turns away NaN along with the values that fail the test; the
 // lint's `partial_cmp` rewrite would hide that.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-pub mod backend;
-pub mod bench;
-pub mod case;
-pub mod case_run;
+pub mod geom;
+pub mod io;
+
 pub mod contours;
 pub mod correspond;
-pub mod cpu;
-pub mod demo;
-pub mod fsutil;
-pub mod gpu;
-pub mod mesh;
-pub mod pipeline;
 pub mod report;
-pub mod simulate;
 pub mod solve;
-pub mod study;
 pub mod template;
-pub mod uncertainty;
 pub mod views;
+
+pub mod engine;
+pub mod pipeline;
+
+pub mod case;
+pub mod sim;
+pub mod study;
+
+pub use case::{Case, CaseFile};
+pub use contours::{ContourSource, ModelContour};
+pub use correspond::{Method, Observation};
+pub use engine::gpu::{Gpu, GpuDevice, GpuError};
+pub use engine::{BackendChoice, Kernels};
+pub use geom::{Curve, Mesh, Sphere};
+pub use pipeline::{
+    cup_report, reconstruct, reconstruct_with, CupReport, ReconError, ReconParams, Reconstruction,
+    UncertaintyParams,
+};
+pub use report::{CupCatalogue, CupSize};
+pub use template::Placement;
+pub use views::{Camera, Intrinsics};

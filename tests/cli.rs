@@ -1,9 +1,9 @@
 //! The command line: the demo's JSON, a case file through `acetab reconstruct`, and bad input.
 
 use acetab::case::CaseFile;
-use acetab::simulate::{simulate_case, NoiseLevel};
-use acetab::template::{phantom, PhantomParams};
-use acetab::views::XrayGeometry;
+use acetab::sim::XrayGeometry;
+use acetab::sim::{phantom, PhantomParams};
+use acetab::sim::{simulate_case, NoiseLevel};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -272,11 +272,11 @@ fn align_reports_a_rotation_and_rejects_a_bad_file() {
 fn simulate_warns_about_a_ground_truth_in_the_wrong_units() {
     let dir = tmp("units");
     let mut mesh = phantom(&PhantomParams::default()).mesh;
-    acetab::mesh::io::write_obj(&mesh, &dir.join("mm.obj")).unwrap();
+    acetab::io::write_obj(&mesh, &dir.join("mm.obj")).unwrap();
     for v in &mut mesh.vertices {
         *v = nalgebra::Point3::from(v.coords * 0.1);
     }
-    acetab::mesh::io::write_obj(&mesh, &dir.join("cm.obj")).unwrap();
+    acetab::io::write_obj(&mesh, &dir.join("cm.obj")).unwrap();
     let warned = |name: &str| {
         let o = bin()
             .arg("simulate")

@@ -1,10 +1,12 @@
 //! Whole-pipeline checks on the phantom and, when ../shared is present, on a real acetabulum.
 
-use acetab::demo::{accuracy, run_demo};
-use acetab::mesh::io::read_mesh;
+use acetab::report::accuracy;
+
+use acetab::io::read_mesh;
 use acetab::pipeline::{reconstruct, ReconParams};
-use acetab::simulate::{ground_truth_surface, simulate_case, NoiseLevel};
-use acetab::views::XrayGeometry;
+use acetab::sim::run_demo;
+use acetab::sim::XrayGeometry;
+use acetab::sim::{ground_truth_surface, simulate_case, NoiseLevel};
 use std::path::Path;
 
 #[test]
@@ -67,7 +69,7 @@ fn a_coarse_graph_changes_only_the_rounds_before_the_last() {
 /// The phantom's level-1 case with the start moved 292 mm and scaled by 2.5: the limb sphere
 /// uses only the start's axis. Returns the MAE of the result and of the start itself.
 fn far_start_mae() -> (f64, f64) {
-    let truth = acetab::template::phantom(&acetab::template::PhantomParams::default()).mesh;
+    let truth = acetab::sim::phantom(&acetab::sim::PhantomParams::default()).mesh;
     let sim = simulate_case(
         &truth,
         &XrayGeometry::default(),
@@ -196,7 +198,7 @@ fn an_orientation_the_cap_cannot_choose_is_chosen_after_a_deformation_round() {
 /// The pose-refinement bar on a small sample: views 1 and 2 off by 2 degrees and 5 mm.
 fn pose_reduction(pose: Option<acetab::solve::PoseParams>) -> f64 {
     use acetab::study::pose::{run_pose_study, PoseStudy};
-    let truth = acetab::template::phantom(&acetab::template::PhantomParams::default()).mesh;
+    let truth = acetab::sim::phantom(&acetab::sim::PhantomParams::default()).mesh;
     let cfg = PoseStudy {
         runs: 3,
         threads: 2,

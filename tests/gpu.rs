@@ -5,11 +5,13 @@
 //! These run on whatever adapter wgpu finds (lavapipe in CI). Without one they fail with a clear
 //! message; they skip only when ACETAB_SKIP_GPU=1 is set on purpose.
 
-use acetab::cpu::{deform as cdeform, project as cproject, silhouette as csil, srvf_dp as cdp};
-use acetab::gpu::{Gpu, GpuDevice};
+use acetab::engine::cpu::{
+    deform as cdeform, project as cproject, silhouette as csil, srvf_dp as cdp,
+};
+use acetab::engine::gpu::{Gpu, GpuDevice};
+use acetab::sim::{simulated_views, XrayGeometry};
 use acetab::solve::{DeformationGraph, GraphParams};
 use acetab::template::hemisphere;
-use acetab::views::{simulated_views, XrayGeometry};
 use nalgebra::{Point3, Vector2};
 use std::sync::OnceLock;
 
@@ -242,8 +244,8 @@ fn srvf_dp_back_pointers_equal_the_twin_exactly() {
             "the comparison must reject one changed back-pointer"
         );
         // And the warps built from the GPU tables cost what the CPU's do.
-        let wg = acetab::cpu::srvf_dp::warps_from_tables(&pairs, &batch, &gpu_back);
-        let wc = acetab::cpu::srvf_dp::warps_from_tables(&pairs, &batch, &cpu_back);
+        let wg = acetab::engine::cpu::srvf_dp::warps_from_tables(&pairs, &batch, &gpu_back);
+        let wc = acetab::engine::cpu::srvf_dp::warps_from_tables(&pairs, &batch, &cpu_back);
         for (a, b) in wg.iter().zip(&wc) {
             assert_eq!(a.path, b.path);
         }
@@ -253,11 +255,11 @@ fn srvf_dp_back_pointers_equal_the_twin_exactly() {
 #[test]
 fn whole_reconstruction_on_the_gpu_matches_the_cpu() {
     with_gpu(|gpu| {
-        use acetab::backend::Kernels;
-        use acetab::demo::accuracy;
+        use acetab::engine::Kernels;
         use acetab::pipeline::{reconstruct_with, ReconParams};
-        use acetab::simulate::{simulate_case, NoiseLevel};
-        use acetab::template::{phantom, PhantomParams};
+        use acetab::report::accuracy;
+        use acetab::sim::{phantom, PhantomParams};
+        use acetab::sim::{simulate_case, NoiseLevel};
         let truth = phantom(&PhantomParams::default()).mesh;
         let sim = simulate_case(
             &truth,
@@ -295,7 +297,7 @@ fn whole_reconstruction_on_the_gpu_matches_the_cpu() {
         assert!((a - c).abs() >= 0.05, "a shifted mesh passed: {a} vs {c}");
         // Stricter than the MAE bar (which a 0.3 mm shift slips under): vertex by
         // vertex, the GPU result is the CPU's within 1e-3 mm; the shifted mesh is not.
-        let worst = |m: &acetab::mesh::Mesh| {
+        let worst = |m: &acetab::geom::Mesh| {
             cpu.mesh
                 .vertices
                 .iter()
@@ -315,10 +317,10 @@ fn whole_reconstruction_on_the_gpu_matches_the_cpu() {
 #[test]
 fn study_runs_batched_on_the_gpu_match_the_cpu() {
     with_gpu(|gpu| {
-        use acetab::backend::Kernels;
-        use acetab::gpu::GpuBatcher;
+        use acetab::engine::gpu::GpuBatcher;
+        use acetab::engine::Kernels;
+        use acetab::sim::{phantom, PhantomParams};
         use acetab::study::{run_study_with, StudyConfig};
-        use acetab::template::{phantom, PhantomParams};
         let truth = phantom(&PhantomParams::default()).mesh;
         let cfg = StudyConfig {
             levels: vec![1],
@@ -350,7 +352,7 @@ fn study_runs_batched_on_the_gpu_match_the_cpu() {
 #[test]
 fn the_batcher_merges_concurrent_requests_into_one_dispatch_with_exact_results() {
     with_gpu(|gpu| {
-        use acetab::gpu::GpuBatcher;
+        use acetab::engine::gpu::GpuBatcher;
         let gs = graphs();
         let batches: Vec<cdeform::DeformBatch> = gs
             .iter()

@@ -5,11 +5,12 @@
 use acetab::correspond::srvf::{
     align_closed, align_open, align_partial, coprime_steps, SrvfParams,
 };
+use acetab::correspond::Observation;
+use acetab::sim::{simulated_views, XrayGeometry};
 use acetab::solve::{
-    levenberg_marquardt, DeformationGraph, EdProblem, EdWeights, GraphParams, LmParams, Observation,
+    levenberg_marquardt, DeformationGraph, EdProblem, EdWeights, GraphParams, LmParams,
 };
 use acetab::template::hemisphere;
-use acetab::views::{simulated_views, XrayGeometry};
 use nalgebra::{Point2, Point3, Vector2};
 use proptest::prelude::*;
 

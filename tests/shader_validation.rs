@@ -1,8 +1,8 @@
 //! Every shaders/*.wgsl parses and validates with naga (all validation flags), every kernel is
-//! listed in `acetab::gpu::SHADERS`, and every host struct shared with WGSL has the size and
+//! listed in `acetab::engine::gpu::SHADERS`, and every host struct shared with WGSL has the size and
 //! member offsets naga computes for the WGSL struct of the same role.
 
-use acetab::gpu::{deform, project, silhouette, srvf_dp, SHADERS};
+use acetab::engine::gpu::{deform, project, silhouette, srvf_dp, SHADERS};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 use std::mem::{offset_of, size_of};
 

@@ -2,11 +2,11 @@
 //! table, and the output folder holds what the README promises.
 
 use acetab::pipeline::ReconParams;
+use acetab::sim::{phantom, PhantomParams};
 use acetab::study::StudyMethod;
 use acetab::study::{
     merge_dirs, run_study, write_csv, write_examples, write_tables, Row, StudyConfig,
 };
-use acetab::template::{phantom, PhantomParams};
 
 fn quick() -> StudyConfig {
     let mut params = ReconParams {
@@ -28,7 +28,7 @@ fn quick() -> StudyConfig {
     }
 }
 
-fn small_phantom() -> acetab::mesh::Mesh {
+fn small_phantom() -> acetab::geom::Mesh {
     phantom(&PhantomParams {
         vertices: 1200,
         ..Default::default()

@@ -1,8 +1,8 @@
 //! Alpha-shape boundary of projected vertices (spade Delaunay), as one ordered closed polyline of
 //! model vertex indices.
 
-use super::polyline::signed_area;
-use crate::mesh::Mesh;
+use crate::geom::signed_area;
+use crate::geom::Mesh;
 use crate::views::{Camera, ProjectionError};
 use nalgebra::Point2;
 use spade::{DelaunayTriangulation, HasPosition, Triangulation};

@@ -3,12 +3,10 @@
 
 mod alpha_shape;
 mod curve_file;
-mod polyline;
+mod silhouette;
 
 pub use alpha_shape::{
     alpha_shape_contour, default_alpha, model_contour, model_contours, ContourError, ModelContour,
 };
 pub use curve_file::{read_curve_csv, CurveFileError};
-pub use polyline::{
-    polyline_length, resample_closed, resample_open, signed_area, ClosedPolyline, Curve,
-};
+pub use silhouette::{exact_points, silhouette_contour, ContourSource};

@@ -2,14 +2,17 @@
 //! view: SRVF elastic registration (ours), or the ICP and ICP-NormVec baselines.
 
 mod icp;
+mod observation;
 mod outliers;
 pub mod srvf;
 
 pub use icp::{curve_normals, icp_matches, icp_normvec_matches};
+pub use observation::Observation;
 pub use outliers::{mad_inliers, similarity_residuals};
 
-use crate::contours::{resample_closed, resample_open, Curve, ModelContour};
-use crate::solve::Observation;
+use crate::geom::{resample_closed, resample_open, Curve};
+
+use crate::contours::ModelContour;
 use nalgebra::{Point2, Vector2};
 use srvf::{CurveKind, SrvfError, SrvfParams};
 
@@ -76,7 +79,7 @@ type Pair = (Point2<f64>, Point2<f64>, usize, Vector2<f64>);
 /// contour, which are then free to bulge out.)
 fn aligned_targets(al: &srvf::Alignment, model: &ModelContour, closed: bool) -> Vec<Pair> {
     let t = al.a_points.len();
-    let total = crate::contours::polyline_length(&model.points, true);
+    let total = crate::geom::polyline_length(&model.points, true);
     if t < 2 || !(total > 0.0) {
         return Vec::new();
     }

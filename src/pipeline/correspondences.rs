@@ -2,11 +2,12 @@
 //! every stage's solves work on.
 
 use super::{ReconError, ReconParams};
-use crate::backend::Kernels;
-use crate::contours::{Curve, ModelContour};
+use crate::contours::ModelContour;
 use crate::correspond::correspond;
-use crate::mesh::Mesh;
-use crate::solve::Observation;
+use crate::correspond::Observation;
+use crate::engine::Kernels;
+use crate::geom::Curve;
+use crate::geom::Mesh;
 use crate::views::Camera;
 
 pub(super) fn contours(

@@ -2,9 +2,9 @@
 //! observe. `reconstruct` reports it and the uncertainty's resamples go through it too, so the
 //! +- and the size probabilities describe the number they stand beside.
 
-use crate::mesh::Mesh;
-use crate::report::{fit_sphere_robust, Sphere, SphereFitError};
-use crate::solve::Observation;
+use crate::correspond::Observation;
+use crate::geom::Mesh;
+use crate::geom::{fit_sphere_robust, Sphere, SphereFitError};
 use nalgebra::Point3;
 
 /// Fewest distinct observed vertices the cup sphere is fitted to.

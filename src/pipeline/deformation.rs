@@ -4,15 +4,16 @@
 use super::correspondences::{check_finite, rms_motion, rms_px, weighted_correspondences};
 use super::placement::refine_poses;
 use super::{ReconError, ReconParams};
-use crate::backend::Kernels;
-use crate::contours::Curve;
 use crate::correspond::Method;
-use crate::mesh::Mesh;
-use crate::report::fit_sphere_robust;
+use crate::correspond::Observation;
+use crate::engine::Kernels;
+use crate::geom::fit_sphere_robust;
+use crate::geom::Curve;
+use crate::geom::Mesh;
 use crate::solve::SpherePrior;
 use crate::solve::{
     levenberg_marquardt_cached, DeformationGraph, EdProblem, GraphParams, LmInfo, LmParams,
-    Observation, SymbolicCache,
+    SymbolicCache,
 };
 use crate::template::Placement;
 use crate::views::Camera;

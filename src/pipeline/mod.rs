@@ -9,18 +9,23 @@ mod cup;
 mod deformation;
 mod params;
 mod placement;
+mod uncertainty;
 
 pub use cup::{cup_spheres, observed_part_sphere, CupSpheres};
 pub use deformation::resolve_from;
 pub use params::{ReconParams, MAX_TEMPLATE_VERTICES};
+pub use uncertainty::{cup_report, CupReport, SizeProbability, UncertaintyParams};
 
-use crate::backend::{KernelError, Kernels};
-use crate::contours::{Curve, ModelContour};
+use crate::contours::ModelContour;
 use crate::correspond::srvf::SrvfError;
-use crate::mesh::Mesh;
-use crate::report::{CupSize, Sphere, SphereFitError};
+use crate::correspond::Observation;
+use crate::engine::{KernelError, Kernels};
+use crate::geom::Curve;
+use crate::geom::Mesh;
+use crate::geom::{Sphere, SphereFitError};
+use crate::report::CupSize;
 use crate::solve::limb_sphere;
-use crate::solve::{Observation, SolveError};
+use crate::solve::SolveError;
 use crate::template::{spherical_cap, Placement};
 use crate::views::Camera;
 use correspondences::{contours, rms_px, weighted_correspondences};
@@ -357,9 +362,9 @@ pub fn centroid(p: &[Point3<f64>]) -> Point3<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::simulate::{simulate_case, NoiseLevel};
-    use crate::template::{phantom, PhantomParams};
-    use crate::views::XrayGeometry;
+    use crate::sim::XrayGeometry;
+    use crate::sim::{phantom, PhantomParams};
+    use crate::sim::{simulate_case, NoiseLevel};
 
     #[test]
     fn a_reference_view_that_is_not_a_view_is_named() {

@@ -1,7 +1,7 @@
 //! The reconstruction's settings and their defaults.
 
 use super::ReconError;
-use crate::backend::ContourSource;
+use crate::contours::ContourSource;
 use crate::correspond::{CorrespondParams, Method};
 use crate::report::CupCatalogue;
 use crate::solve::{EdWeights, GraphParams, LmParams, PoseParams};

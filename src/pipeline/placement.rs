@@ -3,13 +3,14 @@
 
 use super::correspondences::{check_finite, residuals_px, weighted_correspondences};
 use super::{ReconError, ReconParams};
-use crate::backend::Kernels;
-use crate::contours::Curve;
-use crate::mesh::Mesh;
+use crate::correspond::Observation;
+use crate::engine::Kernels;
+use crate::geom::Curve;
+use crate::geom::Mesh;
 use crate::solve::Problem;
 use crate::solve::{
-    apply_similarity, corrected_camera, levenberg_marquardt, LmInfo, LmParams, Observation,
-    PoseParams, PoseProblem, SimilarityProblem,
+    apply_similarity, corrected_camera, levenberg_marquardt, LmInfo, LmParams, PoseParams,
+    PoseProblem, SimilarityProblem,
 };
 use crate::template::Placement;
 use crate::views::Camera;

@@ -1,7 +1,7 @@
 //! Surface distances: points spread evenly over one surface, true closest points on the other's
 //! triangles (parry3d's triangle-mesh point query), and summary statistics.
 
-use crate::mesh::Mesh;
+use crate::geom::Mesh;
 use nalgebra::Point3;
 use parry3d_f64::math::Vector as PVec;
 use parry3d_f64::query::PointQuery;

@@ -2,8 +2,8 @@
 //! an RGB buffer and saved as PNG with `image`. Text needs a TrueType font: DejaVu Sans
 //! (Debian's fonts-dejavu-core, which ci/install-deps.sh installs) or the file in ACETAB_FONT.
 
-use crate::contours::Curve;
-use crate::fsutil::write_atomic;
+use crate::geom::Curve;
+use crate::io::write_atomic;
 use nalgebra::Point2;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};

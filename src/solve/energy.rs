@@ -18,8 +18,9 @@
 use super::graph::{DeformationGraph, NODE_PARAMS};
 use super::lm::Problem;
 use super::normal::Linearization;
+use crate::correspond::Observation;
 use crate::views::Camera;
-use nalgebra::{Matrix2, Point2, Point3, Vector2};
+use nalgebra::Point3;
 
 /// Energy weights.
 #[derive(Clone, Debug, PartialEq)]
@@ -39,32 +40,6 @@ impl Default for EdWeights {
             obs: 100.0,
             tangential: 0.1,
         }
-    }
-}
-
-/// One 2D-3D correspondence: model vertex `vertex` should project onto `target` in view `view`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Observation {
-    pub view: usize,
-    pub vertex: u32,
-    pub target: Point2<f64>,
-    /// Robustness weight in [0, 1] (multiplies the squared residual).
-    pub weight: f64,
-    /// Unit normal of the observed contour at `target` (zero when unknown).
-    pub normal: Vector2<f64>,
-}
-
-impl Observation {
-    /// The 2x2 map applied to the pixel residual: rows n^T and `tangential` t^T (t the contour
-    /// tangent). A silhouette point may slide along the outline, so the component along the
-    /// contour is down-weighted (point-to-line distance plus a little point-to-point); with no
-    /// normal it is the identity (plain reprojection error).
-    pub fn residual_frame(&self, tangential: f64) -> Matrix2<f64> {
-        let n = self.normal;
-        if n.norm_squared() < 0.5 {
-            return Matrix2::identity();
-        }
-        Matrix2::new(n.x, n.y, -tangential * n.y, tangential * n.x)
     }
 }
 
@@ -324,10 +299,11 @@ impl Problem for EdProblem<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::{simulated_views, XrayGeometry};
     use crate::solve::graph::GraphParams;
     use crate::solve::lm::{levenberg_marquardt, LmParams};
     use crate::template::hemisphere;
-    use crate::views::{simulated_views, XrayGeometry};
+    use nalgebra::Vector2;
     use rand::{RngExt, SeedableRng};
 
     fn setup() -> (DeformationGraph, Vec<Camera>, Vec<Observation>) {

@@ -3,8 +3,8 @@
 //! moves by v_i = sum_j w_ij (A_j (P_i - g_j) + g_j + t_j) over its m nearest nodes, with
 //! w_ij = 1 - |P_i - g_j| / d_max (d_max: distance to the (m+1)-th nearest node), normalised.
 
-use super::knn::Knn3;
-use crate::mesh::Mesh;
+use crate::geom::Knn3;
+use crate::geom::Mesh;
 use nalgebra::{Matrix3, Point3, Vector3};
 
 /// Graph construction parameters.

@@ -6,7 +6,7 @@
 //! points well inside count less and less (Cauchy). No correspondences and no starting pose are
 //! needed: the start is triangulated from the outlines' centroids.
 
-use crate::contours::Curve;
+use crate::geom::Curve;
 use crate::views::Camera;
 use nalgebra::{Matrix4, Point3, Vector3, Vector4};
 
@@ -183,8 +183,8 @@ pub fn limb_sphere(
 mod tests {
     use super::*;
     use crate::contours::model_contour;
+    use crate::sim::{simulated_views, XrayGeometry};
     use crate::template::{spherical_cap, Placement};
-    use crate::views::{simulated_views, XrayGeometry};
     use nalgebra::Unit;
 
     /// Outlines of a spherical cap (80 degrees, opening lateral and a little anterior) in the

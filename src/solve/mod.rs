@@ -4,16 +4,14 @@
 
 mod energy;
 mod graph;
-mod knn;
 mod limb;
 mod lm;
 mod normal;
 mod pose;
 mod similarity;
 
-pub use energy::{EdProblem, EdWeights, Observation, SpherePrior};
+pub use energy::{EdProblem, EdWeights, SpherePrior};
 pub use graph::{farthest_point_sample, DeformationGraph, GraphParams, NODE_PARAMS};
-pub use knn::Knn3;
 pub use limb::{limb_sphere, LimbError, LimbSphere};
 pub use lm::{
     levenberg_marquardt, levenberg_marquardt_cached, LmInfo, LmParams, Problem, SolveError,

@@ -13,9 +13,9 @@
 //! over the views being refined (the reference view, by default the first, fixes the frame: a
 //! common motion of every view and the inverse motion of the shape would look the same).
 
-use super::energy::Observation;
 use super::lm::Problem;
 use super::normal::Linearization;
+use crate::correspond::Observation;
 use crate::views::Camera;
 use nalgebra::{Point3, Rotation3, Vector3};
 
@@ -189,9 +189,9 @@ impl Problem for PoseProblem<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::{simulated_views, XrayGeometry};
     use crate::solve::lm::{levenberg_marquardt, LmParams};
     use crate::template::hemisphere;
-    use crate::views::{simulated_views, XrayGeometry};
 
     #[test]
     fn recovers_known_view_corrections_from_exact_correspondences() {

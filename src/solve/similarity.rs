@@ -7,9 +7,9 @@
 //! c + tau + e^sigma R (P - c), c the template centroid. Steps compose on the left:
 //! R <- Exp(d_omega) R, so the Jacobian is taken at d_omega = 0.
 
-use super::energy::Observation;
 use super::lm::Problem;
 use super::normal::Linearization;
+use crate::correspond::Observation;
 use crate::views::Camera;
 use nalgebra::{Point3, Rotation3, Vector3};
 
@@ -132,9 +132,9 @@ pub fn full_state(x: &[f64]) -> [f64; SIM_PARAMS] {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::{simulated_views, XrayGeometry};
     use crate::solve::lm::{levenberg_marquardt, LmParams};
     use crate::template::hemisphere;
-    use crate::views::{simulated_views, XrayGeometry};
 
     #[test]
     fn recovers_a_known_similarity_from_exact_correspondences() {

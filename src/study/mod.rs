@@ -3,16 +3,18 @@
 //! level and the run number (not the method, so all methods see the same simulated case), so any
 //! run can be repeated alone, and results do not depend on thread count or sharding.
 
+pub mod bench;
 mod method;
 mod outputs;
 pub mod pose;
 mod runner;
 mod table;
+mod task;
 
 pub use method::StudyMethod;
 pub use outputs::{write_examples, write_tables};
 pub use runner::{
-    run_one, run_one_with, run_seed, run_study, run_study_with, tasks, ExampleRun, StudyConfig,
-    Task,
+    run_one, run_one_with, run_study, run_study_with, tasks, ExampleRun, StudyConfig,
 };
 pub use table::{merge_dirs, merge_meta, read_csv, summarize, write_csv, Row, StudyError, Summary};
+pub use task::{run_seed, Task};

@@ -4,10 +4,10 @@
 use super::method::StudyMethod;
 use super::runner::ExampleRun;
 use super::table::{summarize, write_csv, Row, StudyError};
-use crate::demo::write_error_ply;
-use crate::fsutil::write_atomic;
-use crate::mesh::Mesh;
+use crate::geom::Mesh;
+use crate::io::write_atomic;
 use crate::report::plots::{box_plots, overlay};
+use crate::report::write_error_ply;
 use std::path::Path;
 
 /// Everything but the examples: the tables and the box plots.

@@ -4,12 +4,12 @@
 //! refinement and once without; the truth's observations come from the true poses.
 
 use super::runner::Prepared;
-use crate::demo::accuracy_from;
-use crate::mesh::Mesh;
+use crate::geom::Mesh;
 use crate::pipeline::{reconstruct, ReconParams};
-use crate::simulate::{perturb_poses, NoiseLevel, SimError};
+use crate::report::accuracy_from;
+use crate::sim::XrayGeometry;
+use crate::sim::{perturb_poses, NoiseLevel, SimError};
 use crate::solve::PoseParams;
-use crate::views::XrayGeometry;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 

@@ -2,13 +2,14 @@
 
 use super::method::StudyMethod;
 use super::table::Row;
-use crate::backend::Kernels;
-use crate::demo::{accuracy_from, accuracy_samples};
-use crate::mesh::Mesh;
+use super::task::{run_seed, Task};
+use crate::engine::Kernels;
+use crate::geom::Mesh;
 use crate::pipeline::{reconstruct_with, ReconParams, Reconstruction};
+use crate::report::{accuracy_from, accuracy_samples};
 use crate::report::{DistanceStats, InteriorQuery};
-use crate::simulate::{NoiseLevel, SimCase, SimError, SimSetup};
-use crate::views::XrayGeometry;
+use crate::sim::XrayGeometry;
+use crate::sim::{NoiseLevel, SimCase, SimError, SimSetup};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
@@ -76,25 +77,6 @@ impl Default for StudyConfig {
             params: ReconParams::default(),
         }
     }
-}
-
-/// One run to do.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Task {
-    pub method: StudyMethod,
-    pub level: u32,
-    pub run: usize,
-    pub seed: u64,
-}
-
-/// The seed of run `run` at `level` of a study seeded with `master` (SplitMix64 of the three).
-pub fn run_seed(master: u64, level: u32, run: usize) -> u64 {
-    let mut z = master
-        .wrapping_add(0x9E37_79B9_7F4A_7C15u64.wrapping_mul(1 + level as u64))
-        .wrapping_add(0xD1B5_4A32_D192_ED03u64.wrapping_mul(1 + run as u64));
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
 }
 
 /// Every task of the study in its canonical order (method, level, run), then this shard's share.
@@ -307,7 +289,7 @@ mod tests {
         params.params.limb_scale_mm = f64::NAN;
         assert_eq!(field(params), "params");
         // The runner refuses it too, before any run (no tick).
-        let truth = crate::template::phantom(&Default::default()).mesh;
+        let truth = crate::sim::phantom(&Default::default()).mesh;
         let bad = StudyConfig {
             noise_px: f64::INFINITY,
             ..Default::default()

@@ -2,8 +2,8 @@
 //! (summary.json), and merging shards.
 
 use super::method::StudyMethod;
-use super::runner::Task;
-use crate::fsutil::write_atomic;
+use super::task::Task;
+use crate::io::write_atomic;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 

@@ -1,6 +1,6 @@
 //! A parametric hemisphere mesh (the method's template M) and its placement in the world.
 
-use crate::mesh::Mesh;
+use crate::geom::Mesh;
 use nalgebra::{Point3, Rotation3, Unit, Vector3};
 
 /// Where the template sits: centre of the sphere, radius and the opening axis (from the centre out

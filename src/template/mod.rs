@@ -1,7 +1,5 @@
-//! Stage 1: the standard hemisphere template and the built-in acetabulum phantom.
+//! Stage 1: the standard hemisphere template and where it is placed.
 
 mod hemisphere;
-mod phantom;
 
 pub use hemisphere::{hemisphere, spherical_cap, Placement, MAX_CAP_VERTICES};
-pub use phantom::{phantom, try_phantom, Phantom, PhantomError, PhantomParams};

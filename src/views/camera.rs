@@ -99,7 +99,7 @@ impl Camera {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::views::{simulated_views, XrayGeometry};
+    use crate::sim::{simulated_views, XrayGeometry};
 
     #[test]
     fn jacobian_matches_finite_differences() {

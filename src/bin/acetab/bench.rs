@@ -2,7 +2,7 @@
 //! throughput on both backends (needs a GPU adapter; lavapipe counts).
 
 use crate::common::{within, MAX_RUNS};
-use acetab::gpu::GpuDevice;
+use acetab::engine::gpu::GpuDevice;
 
 #[derive(clap::Args)]
 pub struct BenchArgs {
@@ -30,7 +30,7 @@ pub fn run(args: BenchArgs) -> Result<(), String> {
     within("--repeats", repeats, 1, 1000)?;
     let dev = GpuDevice::from_env().map_err(|e| format!("acetab bench: {e}"))?;
     let gpu = dev.engine().map_err(|e| e.to_string())?;
-    let mut prm = acetab::bench::BenchParams {
+    let mut prm = acetab::study::bench::BenchParams {
         study_runs,
         repeats,
         ..Default::default()
@@ -39,7 +39,7 @@ pub fn run(args: BenchArgs) -> Result<(), String> {
         prm.mesh_sizes = vec![500];
         prm.dp_batches = vec![1, 4];
     }
-    let report = acetab::bench::run_bench(&gpu, &dev.describe(), &prm, &|s| {
+    let report = acetab::study::bench::run_bench(&gpu, &dev.describe(), &prm, &|s| {
         if !json {
             eprintln!("  measured {s}")
         }

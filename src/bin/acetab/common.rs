@@ -1,13 +1,13 @@
 //! What the subcommands share: the GPU device, output-folder errors, the ground truth, and the
 //! checks of numeric flags.
 
-use acetab::backend::BackendChoice;
-use acetab::gpu::GpuDevice;
-use acetab::mesh::io::read_mesh;
-use acetab::report::fit_sphere;
-use acetab::simulate::ground_truth_surface;
+use acetab::engine::gpu::GpuDevice;
+use acetab::engine::BackendChoice;
+use acetab::geom::fit_sphere;
+use acetab::io::read_mesh;
+use acetab::sim::ground_truth_surface;
+use acetab::sim::{phantom, PhantomParams};
 use acetab::study::summarize;
-use acetab::template::{phantom, PhantomParams};
 use std::path::Path;
 
 /// The device for `--backend`: none for cpu; for auto, none (with one line saying so) when no
@@ -39,7 +39,7 @@ pub const PLAUSIBLE_CUP_MM: (f64, f64) = (20.0, 100.0);
 
 /// The study's ground truth from `--gt` (a mesh file or `phantom`). A surface no sphere fits, or
 /// one the simulated views cannot see, is refused by the study itself before any run.
-pub fn load_truth(gt: &str) -> Result<acetab::mesh::Mesh, String> {
+pub fn load_truth(gt: &str) -> Result<acetab::geom::Mesh, String> {
     let truth = if gt == "phantom" {
         phantom(&PhantomParams::default()).mesh
     } else {
@@ -60,7 +60,7 @@ pub fn load_truth(gt: &str) -> Result<acetab::mesh::Mesh, String> {
 }
 
 /// The engine on the device, if any (its pipelines compile here).
-pub fn engine_on(dev: &Option<GpuDevice>) -> Result<Option<acetab::gpu::Gpu<'_>>, String> {
+pub fn engine_on(dev: &Option<GpuDevice>) -> Result<Option<acetab::engine::gpu::Gpu<'_>>, String> {
     dev.as_ref()
         .map(|d| d.engine())
         .transpose()

@@ -1,12 +1,14 @@
 //! `acetab demo`: simulate three X-rays of the built-in phantom, reconstruct, and report accuracy.
 
 use crate::common::{engine_on, io_msg, open_device};
-use acetab::backend::{BackendChoice, ContourSource, Kernels};
+use acetab::contours::ContourSource;
 use acetab::correspond::Method;
-use acetab::demo::{run_demo_with, write_error_ply};
-use acetab::fsutil::fill_dir_atomically;
-use acetab::mesh::io::write_ply;
+use acetab::engine::{BackendChoice, Kernels};
+use acetab::io::fill_dir_atomically;
+use acetab::io::write_ply;
 use acetab::pipeline::ReconParams;
+use acetab::report::write_error_ply;
+use acetab::sim::run_demo_with;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]

@@ -1,7 +1,7 @@
 //! `acetab merge`: join the runs of several `acetab simulate --shard` folders.
 
 use crate::common::{io_msg, print_summary};
-use acetab::fsutil::fill_dir_atomically;
+use acetab::io::fill_dir_atomically;
 use acetab::study::{merge_dirs, merge_meta, write_tables};
 use std::path::PathBuf;
 

@@ -1,12 +1,13 @@
 //! `acetab reconstruct`: reconstruct a case file.
 
 use crate::common::{engine_on, open_device};
-use acetab::backend::{BackendChoice, ContourSource, Kernels};
-use acetab::case_run::run_case;
+use acetab::case::run_case;
+use acetab::contours::ContourSource;
 use acetab::correspond::Method;
+use acetab::engine::{BackendChoice, Kernels};
 use acetab::pipeline::ReconParams;
+use acetab::pipeline::UncertaintyParams;
 use acetab::report::CupCatalogue;
-use acetab::uncertainty::UncertaintyParams;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]

@@ -4,11 +4,12 @@ use crate::common::{
     engine_on, io_msg, load_truth, open_device, parse_list, parse_shard, print_summary,
     threads_or_all, within, MAX_RUNS,
 };
-use acetab::backend::{BackendChoice, ContourSource, Kernels};
-use acetab::fsutil::fill_dir_atomically;
-use acetab::gpu::GpuBatcher;
+use acetab::contours::ContourSource;
+use acetab::engine::gpu::GpuBatcher;
+use acetab::engine::{BackendChoice, Kernels};
+use acetab::io::fill_dir_atomically;
 use acetab::pipeline::ReconParams;
-use acetab::simulate::SimSetup;
+use acetab::sim::SimSetup;
 use acetab::study::{
     run_study_with, tasks, write_examples, write_tables, StudyConfig, StudyMethod,
 };

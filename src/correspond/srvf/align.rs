@@ -5,7 +5,7 @@
 
 use super::curve::{best_rotation, dist2, rotate, srvf};
 use super::dp::{coprime_steps, dp_warp, dp_warp_fast, dp_warp_near, Warp};
-use crate::contours::{polyline_length, resample_closed, resample_open, ClosedPolyline};
+use crate::geom::{polyline_length, resample_closed, resample_open, ClosedPolyline};
 use nalgebra::{Point2, Vector2};
 
 /// How the two curves are matched.

@@ -105,7 +105,7 @@ mod tests {
             // B starts at a[shift], arc length s from a[0]: the seed that brings B back onto A's
             // start is (L - s) / L * T samples.
             let s: f64 = (0..shift).map(|i| (a[i + 1] - a[i]).norm()).sum();
-            let l = crate::contours::polyline_length(&a, true);
+            let l = crate::geom::polyline_length(&a, true);
             let expect = (((l - s) / l * t as f64).round() as usize) % t;
             let d = (al.seed as isize - expect as isize).rem_euclid(t as isize) as usize;
             assert!(
@@ -251,7 +251,7 @@ mod tests {
         let t = 40;
         let p = SrvfParams { band: 0, ..prm(t) };
         let b = blob(300, 0.0);
-        let poly = crate::contours::ClosedPolyline::new(&b);
+        let poly = crate::geom::ClosedPolyline::new(&b);
         let cases = [
             (40usize, 130usize, 0.5, false),
             (200, 330, -1.0, true),
@@ -267,9 +267,9 @@ mod tests {
                 a.reverse();
             }
             let fast = align_partial(&a, &b, &p).unwrap();
-            let ratio = crate::contours::polyline_length(&a, false)
+            let ratio = crate::geom::polyline_length(&a, false)
                 / 2.0
-                / crate::contours::polyline_length(&b, true);
+                / crate::geom::polyline_length(&b, true);
             let mut best = f64::INFINITY;
             for dir in [false, true] {
                 let mut aa = a.clone();

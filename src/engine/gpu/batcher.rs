@@ -4,8 +4,8 @@
 //! its slice back. A request waits at most `wait` for companions, so a lone run is not held up.
 
 use super::{Gpu, GpuError};
-use crate::cpu::deform::DeformBatch;
-use crate::cpu::project::ViewRows;
+use crate::engine::cpu::deform::DeformBatch;
+use crate::engine::cpu::project::ViewRows;
 use std::collections::HashMap;
 use std::sync::{Condvar, Mutex};
 use std::time::{Duration, Instant};

@@ -2,7 +2,7 @@
 //! source (magnification 1.22), 0.2 mm pixels, 2048 x 2048 images; views rotated about the body's
 //! longitudinal axis (z) and aimed at the object.
 
-use super::camera::{Camera, Intrinsics};
+use crate::views::{Camera, Intrinsics};
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 
 /// X-ray geometry in mm and pixels.

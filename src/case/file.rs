@@ -2,7 +2,7 @@
 //! and the template's initial placement. Everything is validated on load; an error names the
 //! file, the field and the value.
 
-use crate::contours::{signed_area, Curve};
+use crate::geom::{signed_area, Curve};
 use crate::template::Placement;
 use crate::views::{Camera, Intrinsics};
 use nalgebra::{Matrix3, Point2, Point3, Rotation3, Unit, Vector3};

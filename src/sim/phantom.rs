@@ -1,8 +1,8 @@
 //! The built-in acetabulum phantom: a procedural surface that is deliberately not a hemisphere,
 //! used as the default ground truth for the demo and the tests.
 
-use super::hemisphere::{spherical_cap, Placement, MAX_CAP_VERTICES};
-use crate::mesh::Mesh;
+use crate::geom::Mesh;
+use crate::template::{spherical_cap, Placement, MAX_CAP_VERTICES};
 use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
 
 /// Shape and pose of the phantom. Angles in degrees, lengths in mm.

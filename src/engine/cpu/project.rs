@@ -66,7 +66,7 @@ pub fn project(vertices: &[[f32; 4]], vertex_count: usize, views: &[ViewRows]) -
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::views::{simulated_views, XrayGeometry};
+    use crate::sim::{simulated_views, XrayGeometry};
     use nalgebra::Point3;
 
     #[test]

@@ -1,10 +1,10 @@
-//! GPU module of `shaders/deform.wgsl` (CPU twin: `crate::cpu::deform`).
+//! GPU module of `shaders/deform.wgsl` (CPU twin: `crate::engine::cpu::deform`).
 
 use super::buffers::{
     bind, bytes_of, compute_pipeline, fill, kernel_entries, uniform, SENTINEL_F32,
 };
 use super::{Gpu, GpuError};
-use crate::cpu::deform::DeformBatch;
+use crate::engine::cpu::deform::DeformBatch;
 
 /// Keep in sync with `Params` in shaders/deform.wgsl.
 #[repr(C)]

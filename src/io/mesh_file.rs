@@ -1,8 +1,8 @@
 //! Mesh files: STL (ASCII and binary, via `stl_io`), PLY (ASCII, with per-vertex colour, via
 //! `ply-rs`) and OBJ (read via `tobj`; written by hand, the format is three line kinds).
 
-use super::{Mesh, MeshError};
-use crate::fsutil::write_atomic;
+use crate::geom::{Mesh, MeshError};
+use crate::io::write_atomic;
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
 

@@ -3,14 +3,17 @@
 //! read-back on the GPU side (what a caller pays). On lavapipe the "GPU" is the CPU, so the
 //! ratios show dispatch overhead and batching, not GPU speed.
 
-use crate::backend::Kernels;
 use crate::correspond::srvf::{coprime_steps, srvf};
-use crate::cpu::{deform as cdeform, project as cproject, silhouette as csil, srvf_dp as cdp};
-use crate::gpu::{Gpu, GpuError};
+use crate::engine::cpu::{
+    deform as cdeform, project as cproject, silhouette as csil, srvf_dp as cdp,
+};
+use crate::engine::gpu::{Gpu, GpuError};
+use crate::engine::Kernels;
+use crate::sim::{phantom, PhantomParams};
+use crate::sim::{simulated_views, XrayGeometry};
 use crate::solve::{DeformationGraph, GraphParams};
 use crate::study::{run_study_with, StudyConfig, StudyMethod};
-use crate::template::{hemisphere, phantom, PhantomParams};
-use crate::views::{simulated_views, XrayGeometry};
+use crate::template::hemisphere;
 use nalgebra::{Point2, Point3};
 use std::time::Instant;
 
@@ -202,8 +205,11 @@ pub fn run_bench(
             threads: p.threads.max(1),
             ..Default::default()
         };
-        let batcher =
-            crate::gpu::GpuBatcher::new(gpu, cfg.threads, std::time::Duration::from_millis(2));
+        let batcher = crate::engine::gpu::GpuBatcher::new(
+            gpu,
+            cfg.threads,
+            std::time::Duration::from_millis(2),
+        );
         for kernels in [Kernels::Cpu, Kernels::Gpu(gpu), Kernels::Batched(&batcher)] {
             let s = Instant::now();
             let (rows, _) =

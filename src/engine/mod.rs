@@ -1,12 +1,18 @@
-//! Where the per-iteration kernels run: the CPU (f64, the reference) or the GPU (the WGSL
-//! kernels in f32 through `crate::gpu`). The solver itself always runs on the CPU.
+//! The engine: where the per-iteration kernels run. `Kernels` dispatches each call to the CPU
+//! (f64, the reference) or the GPU (the WGSL kernels in f32, `gpu`), whose CPU twins (`cpu`) run
+//! the same loops for the kernel tests and the bench. The solver itself always runs on the CPU.
 
-use crate::contours::{signed_area, ContourError, ModelContour};
-use crate::cpu::deform::DeformBatch;
-use crate::cpu::project::ViewRows;
-use crate::cpu::silhouette::{edges, rasterise, trace, Window};
-use crate::gpu::{Gpu, GpuBatcher, GpuError};
-use crate::mesh::Mesh;
+pub mod cpu;
+pub mod gpu;
+
+use crate::contours::{
+    exact_points, silhouette_contour, ContourError, ContourSource, ModelContour,
+};
+use crate::engine::cpu::deform::DeformBatch;
+use crate::engine::cpu::project::ViewRows;
+use crate::engine::cpu::silhouette::{edges, rasterise, trace, Window};
+use crate::engine::gpu::{Gpu, GpuBatcher, GpuError};
+use crate::geom::Mesh;
 use crate::solve::DeformationGraph;
 use crate::views::{Camera, ProjectionError};
 use nalgebra::{Point2, Point3};
@@ -19,17 +25,6 @@ pub enum BackendChoice {
     Gpu,
     /// The GPU when an adapter exists, else the CPU (saying so in one line).
     Auto,
-}
-
-/// How the model contour of each view is found.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum ContourSource {
-    /// Alpha shape of the projected vertices (spade Delaunay).
-    #[default]
-    AlphaShape,
-    /// Rasterised silhouette (render pass + edge kernel on the GPU, its twin on the CPU).
-    Silhouette,
 }
 
 /// The kernels a reconstruction calls.
@@ -79,7 +74,10 @@ impl Kernels<'_> {
             Kernels::Gpu(g) => g.deform(&b)?,
             Kernels::Cpu => unreachable!("returned above"),
         };
-        Ok(crate::cpu::deform::positions(&graph.rest, &displacement))
+        Ok(crate::engine::cpu::deform::positions(
+            &graph.rest,
+            &displacement,
+        ))
     }
 
     /// Projected vertices (u, v, depth, valid) per view, in f32 as the kernels produce them.
@@ -91,7 +89,7 @@ impl Kernels<'_> {
             .collect();
         let rows: Vec<ViewRows> = cams.iter().map(ViewRows::from_camera).collect();
         let all = match self {
-            Kernels::Cpu => crate::cpu::project::project(&v, v.len(), &rows),
+            Kernels::Cpu => crate::engine::cpu::project::project(&v, v.len(), &rows),
             Kernels::Gpu(g) => g.project(&v, v.len(), &rows)?,
             Kernels::Batched(g) => g.project(v.clone(), v.len(), rows)?,
         };
@@ -156,24 +154,6 @@ impl Kernels<'_> {
     }
 }
 
-/// The kernels choose the contour's vertices; their positions are re-projected in f64 so that
-/// the correspondence stage sees the same numbers on either backend.
-fn exact_points(
-    mut c: ModelContour,
-    mesh: &Mesh,
-    cam: &Camera,
-) -> Result<ModelContour, ContourError> {
-    for (p, &id) in c.points.iter_mut().zip(&c.vertex_ids) {
-        *p = cam.project(&mesh.vertices[id as usize]).map_err(|source| {
-            ContourError::Projection {
-                vertex: id as usize,
-                source,
-            }
-        })?;
-    }
-    Ok(c)
-}
-
 /// f64 points of valid projections; a vertex behind the source is the same error as on the
 /// CPU path.
 fn valid_points(proj: &[[f32; 4]]) -> Result<Vec<Point2<f64>>, ContourError> {
@@ -190,18 +170,4 @@ fn valid_points(proj: &[[f32; 4]]) -> Result<Vec<Point2<f64>>, ContourError> {
             }
         })
         .collect()
-}
-
-/// A model contour from a traced loop of vertex ids, turned to positive signed area.
-pub fn silhouette_contour(ids: &[u32], pts: &[Point2<f64>]) -> Result<ModelContour, ContourError> {
-    if ids.len() < 3 {
-        return Err(ContourError::TooFewPoints { count: ids.len() });
-    }
-    let mut vertex_ids = ids.to_vec();
-    let mut points: Vec<Point2<f64>> = ids.iter().map(|&i| pts[i as usize]).collect();
-    if signed_area(&points) < 0.0 {
-        vertex_ids.reverse();
-        points.reverse();
-    }
-    Ok(ModelContour { vertex_ids, points })
 }

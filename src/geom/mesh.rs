@@ -1,7 +1,5 @@
 //! Triangle meshes: the template, the phantom, ground-truth surfaces and reconstructions.
 
-pub mod io;
-
 use nalgebra::{Point3, Vector3};
 
 /// An indexed triangle mesh in millimetres with per-vertex normals.

@@ -1,10 +1,10 @@
-//! GPU module of `shaders/project.wgsl` (CPU twin: `crate::cpu::project`).
+//! GPU module of `shaders/project.wgsl` (CPU twin: `crate::engine::cpu::project`).
 
 use super::buffers::{
     bind, bytes_of, compute_pipeline, fill, kernel_entries, uniform, SENTINEL_F32,
 };
 use super::{Gpu, GpuError};
-use crate::cpu::project::ViewRows;
+use crate::engine::cpu::project::ViewRows;
 
 /// Keep in sync with `Params` in shaders/project.wgsl.
 #[repr(C)]

@@ -1,5 +1,5 @@
 //! The GPU engine: one module per kernel in `shaders/`, each owning its pipeline, bind-group
-//! layout and dispatch maths; CPU twins live in `crate::cpu`. The engine borrows the caller's
+//! layout and dispatch maths; CPU twins live in `crate::engine::cpu`. The engine borrows the caller's
 //! `wgpu::Device` and `wgpu::Queue` (`Gpu::new`), so a planning tool that already renders with
 //! wgpu can embed it; `GpuDevice::from_env` builds a device for the command-line tool.
 
@@ -16,8 +16,11 @@ pub use context::{Gpu, GpuDevice, GpuError};
 
 /// The WGSL sources, by kernel name (validated by the naga test and compiled by `Gpu::new`).
 pub const SHADERS: [(&str, &str); 4] = [
-    ("deform", include_str!("../../shaders/deform.wgsl")),
-    ("project", include_str!("../../shaders/project.wgsl")),
-    ("silhouette", include_str!("../../shaders/silhouette.wgsl")),
-    ("srvf_dp", include_str!("../../shaders/srvf_dp.wgsl")),
+    ("deform", include_str!("../../../shaders/deform.wgsl")),
+    ("project", include_str!("../../../shaders/project.wgsl")),
+    (
+        "silhouette",
+        include_str!("../../../shaders/silhouette.wgsl"),
+    ),
+    ("srvf_dp", include_str!("../../../shaders/srvf_dp.wgsl")),
 ];

@@ -2,12 +2,15 @@
 //! contours with Gaussian pixel noise as the "annotations", and perturb the template's start
 //! from the truth's fitted hemisphere by a noise level. Every draw comes from one seeded RNG.
 
-use crate::contours::{model_contour, ContourError, Curve};
-use crate::mesh::Mesh;
-use crate::pipeline::centroid;
-use crate::report::{fit_sphere, Sphere, SphereFitError};
+use crate::contours::{model_contour, ContourError};
+
+use crate::geom::centroid;
+use crate::geom::Curve;
+use crate::geom::Mesh;
+use crate::geom::{fit_sphere, Sphere, SphereFitError};
+use crate::sim::{simulated_views, GeometryError, XrayGeometry};
 use crate::template::Placement;
-use crate::views::{simulated_views, Camera, GeometryError, XrayGeometry};
+use crate::views::Camera;
 use nalgebra::{Point3, Rotation3, Unit, Vector3};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
@@ -58,7 +61,7 @@ pub enum SimError {
     #[error("ground truth sphere fit: {0}")]
     Sphere(#[from] SphereFitError),
     #[error("ground truth outer side: {0}")]
-    Surface(crate::mesh::MeshError),
+    Surface(crate::geom::MeshError),
     #[error("ground truth contour in view {view}: {source}")]
     Contour { view: usize, source: ContourError },
     #[error("{0}")]
@@ -219,7 +222,7 @@ impl SimSetup {
             .iter()
             .filter_map(|&i| truth.vertices.get(i as usize).copied())
             .collect();
-        crate::report::fit_sphere_robust(&pts)
+        crate::geom::fit_sphere_robust(&pts)
     }
 
     /// One run: Gaussian noise of `noise_px` on every outline point, the start perturbed by
@@ -305,7 +308,7 @@ pub fn perturb_poses(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::template::{phantom, PhantomParams};
+    use crate::sim::{phantom, PhantomParams};
 
     #[test]
     fn the_outline_sphere_finds_a_sphere_and_misses_what_the_views_do_not_see() {

@@ -3,12 +3,12 @@
 //! and moved into place only when all of it succeeded (`fsutil::fill_dir_atomically`), so a
 //! failed run leaves no files.
 
-use crate::backend::Kernels;
 use crate::case::{CaseError, CaseFile};
-use crate::mesh::io::{write_ply, MeshIoError};
+use crate::engine::Kernels;
+use crate::io::{write_ply, MeshIoError};
+use crate::pipeline::{cup_report, CupReport, UncertaintyParams};
 use crate::pipeline::{reconstruct_with, ReconError, ReconParams};
 use crate::report::plots::{overlay, PlotError};
-use crate::uncertainty::{cup_report, CupReport, UncertaintyParams};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
@@ -35,7 +35,7 @@ pub struct CaseRunReport {
     pub method: String,
     pub backend: String,
     pub cup: CupReport,
-    pub sphere: crate::report::Sphere,
+    pub sphere: crate::geom::Sphere,
     pub log: crate::pipeline::SolveLog,
     pub seconds: f64,
     pub files: Vec<String>,
@@ -77,7 +77,7 @@ pub fn run_case(
         source,
     };
     let mut report = None;
-    crate::fsutil::fill_dir_atomically(
+    crate::io::fill_dir_atomically(
         out,
         |stage| {
             let mut files = vec!["reconstruction.ply".to_string()];

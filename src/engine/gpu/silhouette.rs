@@ -1,11 +1,11 @@
-//! GPU module of `shaders/silhouette.wgsl` (CPU twin: `crate::cpu::silhouette`): a render pass
+//! GPU module of `shaders/silhouette.wgsl` (CPU twin: `crate::engine::cpu::silhouette`): a render pass
 //! draws the projected mesh into an R32Uint id texture, then the `edges` compute pass marks the
 //! silhouette texels with their vertex ids; the host traces them into an ordered loop.
 
 use super::buffers::{bind, bytes_of, fill, storage, uniform, uniform_entry, SENTINEL_U32};
 use super::{Gpu, GpuError};
-use crate::cpu::project::ViewRows;
-use crate::cpu::silhouette::{trace, Window};
+use crate::engine::cpu::project::ViewRows;
+use crate::engine::cpu::silhouette::{trace, Window};
 
 /// Keep in sync with `Window` in shaders/silhouette.wgsl.
 #[repr(C)]

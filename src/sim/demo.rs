@@ -1,48 +1,15 @@
 //! The built-in demonstration and the evaluation shared by the CLI: simulate the phantom, run the
 //! reconstruction, measure it against the truth, write the outputs.
 
-use crate::backend::Kernels;
-use crate::mesh::io::{write_ply, MeshIoError};
-use crate::mesh::Mesh;
+use crate::engine::Kernels;
+use crate::geom::Mesh;
+use crate::io::MeshIoError;
 use crate::pipeline::{reconstruct_with, ReconError, ReconParams, Reconstruction};
-use crate::report::{error_colors, surface_distance, surface_samples, DistanceStats};
-use crate::simulate::{simulate_case, NoiseLevel, SimError};
-use crate::template::{phantom, PhantomParams};
-use crate::views::XrayGeometry;
+use crate::report::accuracy;
+use crate::sim::XrayGeometry;
+use crate::sim::{phantom, PhantomParams};
+use crate::sim::{simulate_case, NoiseLevel, SimError};
 use serde::Serialize;
-use std::path::Path;
-
-/// Accuracy of a reconstruction against the truth. `mae_mm` is the untrimmed mean distance from
-/// points spread evenly over the truth (20,000, seed 0) to the reconstructed surface (closest
-/// point on its triangles); `sd_mm`, `p95_mm` its SD and 95th percentile.
-#[derive(Clone, Debug, Serialize)]
-pub struct Accuracy {
-    pub mae_mm: f64,
-    pub sd_mm: f64,
-    pub p95_mm: f64,
-    pub max_mm: f64,
-}
-
-/// Truth -> reconstruction distances.
-pub fn accuracy(truth: &Mesh, recon: &Mesh) -> Accuracy {
-    accuracy_from(&accuracy_samples(truth), recon)
-}
-
-/// The points on the truth that `accuracy` measures from (20,000, evenly spread, seed 0).
-pub fn accuracy_samples(truth: &Mesh) -> Vec<nalgebra::Point3<f64>> {
-    surface_samples(truth, 20_000, 0)
-}
-
-/// `accuracy` from samples drawn once by `accuracy_samples`.
-pub fn accuracy_from(samples: &[nalgebra::Point3<f64>], recon: &Mesh) -> Accuracy {
-    let s = DistanceStats::from(&surface_distance(samples, recon));
-    Accuracy {
-        mae_mm: s.mean,
-        sd_mm: s.sd,
-        p95_mm: s.p95,
-        max_mm: s.max,
-    }
-}
 
 /// What `acetab demo` reports.
 #[derive(Clone, Debug, Serialize)]
@@ -124,10 +91,4 @@ pub fn run_demo_with(
         log: rec.log.clone(),
     };
     Ok((report, truth, rec))
-}
-
-/// Write the reconstruction as a PLY coloured by its distance to the truth (0..3 mm).
-pub fn write_error_ply(recon: &Mesh, truth: &Mesh, path: &Path) -> Result<(), MeshIoError> {
-    let err = surface_distance(&recon.vertices, truth);
-    write_ply(recon, Some(&error_colors(&err, 3.0)), path)
 }

@@ -1,4 +1,4 @@
-//! GPU module of `shaders/srvf_dp.wgsl` (CPU twin: `crate::cpu::srvf_dp`): one DP problem per
+//! GPU module of `shaders/srvf_dp.wgsl` (CPU twin: `crate::engine::cpu::srvf_dp`): one DP problem per
 //! workgroup, filled by anti-diagonals; back-pointers come back and are traced on the host.
 
 use super::buffers::{
@@ -6,7 +6,7 @@ use super::buffers::{
 };
 use super::{Gpu, GpuError};
 use crate::correspond::srvf::{CurvePair, Warp};
-use crate::cpu::srvf_dp::{warps_from_tables, DpBatch, StepEntry, TapEntry};
+use crate::engine::cpu::srvf_dp::{warps_from_tables, DpBatch, StepEntry, TapEntry};
 
 /// Keep in sync with `Params` in shaders/srvf_dp.wgsl.
 #[repr(C)]

@@ -6,10 +6,10 @@
 //! the +- and, per catalogue size, the share of resamples whose nearest size it is. Seeded; the
 //! seed is in the report.
 
-use crate::backend::Kernels;
-use crate::contours::Curve;
+use crate::correspond::Observation;
+use crate::engine::Kernels;
+use crate::geom::Curve;
 use crate::pipeline::{cup_spheres, resolve_from, ReconError, ReconParams, Reconstruction};
-use crate::solve::Observation;
 use crate::views::Camera;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Exp1, Normal};
@@ -91,7 +91,7 @@ impl CupReport {
 
 /// The cup estimator the resamples go through: a diameter from a resolved mesh and its round's
 /// correspondences.
-type CupEstimator<'a> = &'a dyn Fn(&crate::mesh::Mesh, &[Observation]) -> Result<f64, ReconError>;
+type CupEstimator<'a> = &'a dyn Fn(&crate::geom::Mesh, &[Observation]) -> Result<f64, ReconError>;
 
 /// The diameters of `up.samples` resamples (see the module comment), each measured by `cup`, and
 /// the contour noise SD used.
@@ -169,7 +169,7 @@ pub fn cup_report(
     up: &UncertaintyParams,
 ) -> Result<CupReport, ReconError> {
     // The same estimator as the reported cup (`Reconstruction::sphere`).
-    let cup = |m: &crate::mesh::Mesh, o: &[Observation]| Ok(cup_spheres(m, o)?.cup.diameter());
+    let cup = |m: &crate::geom::Mesh, o: &[Observation]| Ok(cup_spheres(m, o)?.cup.diameter());
     let (diam, noise_px) = resampled_diameters(rec, cams, observed, prm, kernels, up, &cup)?;
     let n = diam.len() as f64;
     let mean = diam.iter().sum::<f64>() / n;
@@ -219,8 +219,8 @@ pub fn cup_report(
 mod tests {
     use super::*;
     use crate::case::CaseFile;
+    use crate::geom::fit_sphere_robust;
     use crate::pipeline::reconstruct;
-    use crate::report::fit_sphere_robust;
     use std::path::Path;
 
     /// Does the reported diameter stand among its resamples: inside their range and within one
@@ -256,7 +256,7 @@ mod tests {
             report.resampled_mm
         );
         // Companion: the same resamples measured on the whole surface do not stand around it.
-        let whole = |m: &crate::mesh::Mesh, _: &[Observation]| {
+        let whole = |m: &crate::geom::Mesh, _: &[Observation]| {
             Ok(fit_sphere_robust(&m.vertices)?.diameter())
         };
         let (other, _) = resampled_diameters(

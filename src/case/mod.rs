@@ -1,0 +1,10 @@
+//! Case files: a patient's views and annotated rims read from JSON (`file`), and the whole run of
+//! one case, from the file to the written report (`run`).
+
+mod file;
+mod run;
+
+pub use file::{
+    Case, CaseError, CaseFile, ContourFile, ContourKind, IntrinsicsFile, TemplateFile, ViewFile,
+};
+pub use run::{run_case, CaseRunError, CaseRunReport};

@@ -1,0 +1,15 @@
+//! Simulated truths and X-rays: the built-in phantom, the simulated view geometry, synthetic
+//! cases from a ground-truth surface (noise levels, perturbed starts), and the demonstration.
+
+mod demo;
+mod geometry;
+mod phantom;
+mod simulate;
+
+pub use demo::{run_demo, run_demo_with, DemoError, DemoReport};
+pub use geometry::{simulated_views, GeometryError, XrayGeometry};
+pub use phantom::{phantom, radiographic_axis, try_phantom, Phantom, PhantomError, PhantomParams};
+pub use simulate::{
+    fit_placement, ground_truth_surface, observed_alpha, perturb, perturb_poses, simulate_case,
+    NoiseLevel, SimCase, SimError, SimSetup, OBSERVED_ALPHA_FRACTION,
+};
