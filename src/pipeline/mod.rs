@@ -30,7 +30,7 @@ use crate::template::{spherical_cap, Placement};
 use crate::views::Camera;
 use correspondences::{contours, rms_px, weighted_correspondences};
 use deformation::{Deformation, StageB};
-use nalgebra::{Point3, Vector3};
+use nalgebra::Vector3;
 use placement::{
     mirrored_axis, refine_poses, similarity_lm, similarity_stage, similarity_step,
     MIRROR_PROBE_ROUNDS, MIRROR_SWITCH,
@@ -241,7 +241,7 @@ pub fn reconstruct_with(
 
     // Stage A': with pose refinement, similarity and per-view pose corrections alternate on
     // correspondences recomputed each round, from where stage A settled.
-    let pose_center = centroid(&mesh.vertices);
+    let pose_center = crate::geom::centroid(&mesh.vertices);
     let mut pose_x = vec![0.0; 6 * cams.len()];
     let mut cams_now: Vec<Camera> = cams.to_vec();
     if let Some(pp) = &prm.pose {
@@ -352,11 +352,6 @@ pub fn reconstruct_with(
         observations: obs,
         cameras: cams_now,
     })
-}
-
-/// Centroid of a point set.
-pub fn centroid(p: &[Point3<f64>]) -> Point3<f64> {
-    Point3::from(p.iter().map(|v| v.coords).sum::<Vector3<f64>>() / p.len().max(1) as f64)
 }
 
 #[cfg(test)]

@@ -9,6 +9,7 @@
 use crate::correspond::Observation;
 use crate::engine::Kernels;
 use crate::geom::Curve;
+use crate::geom::{mean_sd, quantile_sorted};
 use crate::pipeline::{cup_spheres, resolve_from, ReconError, ReconParams, Reconstruction};
 use crate::views::Camera;
 use rand::{Rng, SeedableRng};
@@ -172,12 +173,10 @@ pub fn cup_report(
     let cup = |m: &crate::geom::Mesh, o: &[Observation]| Ok(cup_spheres(m, o)?.cup.diameter());
     let (diam, noise_px) = resampled_diameters(rec, cams, observed, prm, kernels, up, &cup)?;
     let n = diam.len() as f64;
-    let mean = diam.iter().sum::<f64>() / n;
-    let sd = (diam.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
+    let (_, sd) = mean_sd(&diam, true);
     let mut sorted = diam.clone();
     sorted.sort_by(f64::total_cmp);
-    let q = |f: f64| sorted[((f * (n - 1.0)).round() as usize).min(sorted.len() - 1)];
-    let plus_minus = 0.5 * (q(0.975) - q(0.025));
+    let plus_minus = 0.5 * (quantile_sorted(&sorted, 0.975) - quantile_sorted(&sorted, 0.025));
     let diameter = rec.sphere.diameter();
     let chosen = prm.catalogue.nearest(diameter).catalogue_mm;
     let mut probabilities: Vec<SizeProbability> = Vec::new();
@@ -228,9 +227,7 @@ mod tests {
     fn stands_among(d: f64, r: &[f64]) -> bool {
         let mut s = r.to_vec();
         s.sort_by(f64::total_cmp);
-        let n = s.len() as f64;
-        let mean = s.iter().sum::<f64>() / n;
-        let sd = (s.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        let (_, sd) = mean_sd(&s, true);
         let median = 0.5 * (s[(s.len() - 1) / 2] + s[s.len() / 2]);
         d >= s[0] && d <= s[s.len() - 1] && (d - median).abs() <= sd
     }

@@ -2,6 +2,7 @@
 //! triangles (parry3d's triangle-mesh point query), and summary statistics.
 
 use crate::geom::Mesh;
+use crate::geom::{mean_sd, quantile_sorted};
 use nalgebra::Point3;
 use parry3d_f64::math::Vector as PVec;
 use parry3d_f64::query::PointQuery;
@@ -23,12 +24,10 @@ impl DistanceStats {
         if d.is_empty() {
             return DistanceStats::default();
         }
-        let n = d.len() as f64;
-        let mean = d.iter().sum::<f64>() / n;
-        let sd = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt();
+        let (mean, sd) = mean_sd(d, false);
         let mut s = d.to_vec();
         s.sort_by(f64::total_cmp);
-        let p95 = s[((s.len() - 1) as f64 * 0.95).round() as usize];
+        let p95 = quantile_sorted(&s, 0.95);
         DistanceStats {
             mean,
             sd,

@@ -56,7 +56,7 @@ pub fn farthest_point_sample(points: &[Point3<f64>], count: usize) -> Vec<usize>
     if points.is_empty() {
         return Vec::new();
     }
-    let centroid = points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len() as f64;
+    let centroid = crate::geom::centroid(points).coords;
     let first = (0..points.len())
         .min_by(|&a, &b| {
             (points[a].coords - centroid)

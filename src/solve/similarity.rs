@@ -46,9 +46,7 @@ impl<'a> SimilarityProblem<'a> {
         cameras: &'a [Camera],
         observations: &'a [Observation],
     ) -> Self {
-        let center = Point3::from(
-            rest.iter().map(|p| p.coords).sum::<Vector3<f64>>() / rest.len().max(1) as f64,
-        );
+        let center = crate::geom::centroid(rest);
         let px_per_mm = cameras
             .iter()
             .map(|c| c.pixels_per_mm_at(&center))
@@ -141,9 +139,7 @@ mod tests {
         let m = hemisphere(26.0, 500);
         let cams = simulated_views(&XrayGeometry::default(), &Point3::origin());
         let truth = [0.2, -0.1, 0.15, 5.0, -8.0, 3.0, 0.2f64];
-        let center = Point3::from(
-            m.vertices.iter().map(|p| p.coords).sum::<Vector3<f64>>() / m.vertex_count() as f64,
-        );
+        let center = crate::geom::centroid(&m.vertices);
         let moved = apply_similarity(&truth, &center, &m.vertices);
         let obs: Vec<Observation> = (0..m.vertex_count())
             .step_by(5)

@@ -237,15 +237,9 @@ pub struct Summary {
     pub median_seconds: f64,
 }
 
+/// Mean and SD of the runs themselves (the SD divides by n).
 fn mean_sd(v: &[f64]) -> (f64, f64) {
-    if v.is_empty() {
-        return (f64::NAN, f64::NAN);
-    }
-    let m = v.iter().sum::<f64>() / v.len() as f64;
-    (
-        m,
-        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt(),
-    )
+    crate::geom::mean_sd(v, false)
 }
 
 /// Runs whose `diameter` is within 1 mm of the truth's.
