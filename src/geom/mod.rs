@@ -1,9 +1,11 @@
 //! Geometry every stage shares: triangle meshes, 2D polylines and curves, sphere fits, nearest
-//! neighbours in 3D, and the summary statistics (one mean, SD, quantile and centroid).
+//! neighbours in 3D, the summary statistics (one mean, SD, quantile and centroid), and the one
+//! thread pool (`pool_map`).
 
 mod knn;
 mod mesh;
 mod polyline;
+mod pool;
 mod sphere;
 mod stats;
 
@@ -12,5 +14,6 @@ pub use mesh::{Mesh, MeshError};
 pub use polyline::{
     polyline_length, resample_closed, resample_open, signed_area, ClosedPolyline, Curve,
 };
+pub use pool::pool_map;
 pub use sphere::{fit_sphere, fit_sphere_robust, Sphere, SphereFitError};
 pub use stats::{centroid, mean, mean_sd, quantile_sorted};

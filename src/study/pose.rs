@@ -4,14 +4,13 @@
 //! refinement and once without; the truth's observations come from the true poses.
 
 use super::runner::Prepared;
+use crate::geom::pool_map;
 use crate::geom::Mesh;
 use crate::pipeline::{reconstruct, ReconParams};
 use crate::report::accuracy_from;
 use crate::sim::XrayGeometry;
 use crate::sim::{perturb_poses, NoiseLevel, SimError};
 use crate::solve::PoseParams;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
 
 /// One case, both ways.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -129,24 +128,6 @@ pub fn run_pose_study(truth: &Mesh, cfg: &PoseStudy) -> Result<Vec<PoseRow>, Sim
         });
     }
     let shared = Prepared::new(truth, &XrayGeometry::default())?;
-    let next = AtomicUsize::new(0);
-    let rows: Mutex<Vec<Option<PoseRow>>> = Mutex::new(vec![None; cfg.runs]);
-    std::thread::scope(|s| {
-        for _ in 0..cfg.threads.max(1) {
-            s.spawn(|| loop {
-                let k = next.fetch_add(1, Ordering::Relaxed);
-                if k >= cfg.runs {
-                    break;
-                }
-                let r = one(&shared, cfg, k);
-                rows.lock().unwrap_or_else(|e| e.into_inner())[k] = Some(r);
-            });
-        }
-    });
-    Ok(rows
-        .into_inner()
-        .unwrap_or_else(|e| e.into_inner())
-        .into_iter()
-        .flatten()
-        .collect())
+    let runs: Vec<usize> = (0..cfg.runs).collect();
+    Ok(pool_map(cfg.threads, &runs, |_, &k| one(&shared, cfg, k)))
 }

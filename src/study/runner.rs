@@ -4,14 +4,13 @@ use super::method::StudyMethod;
 use super::table::Row;
 use super::task::{run_seed, Task};
 use crate::engine::Kernels;
+use crate::geom::pool_map;
 use crate::geom::Mesh;
 use crate::pipeline::{reconstruct_with, ReconParams, Reconstruction};
 use crate::report::{accuracy_from, accuracy_samples};
 use crate::report::{DistanceStats, InteriorQuery};
 use crate::sim::XrayGeometry;
 use crate::sim::{NoiseLevel, SimCase, SimError, SimSetup};
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
 
 /// What to run.
 #[derive(Clone, Debug)]
@@ -224,34 +223,19 @@ pub fn run_study_with(
     cfg.validate()?;
     let list = tasks(cfg);
     let prep = Prepared::new(truth, &cfg.geometry)?;
-    let next = AtomicUsize::new(0);
-    let rows: Mutex<Vec<Option<Row>>> = Mutex::new(vec![None; list.len()]);
-    let examples: Mutex<Vec<ExampleRun>> = Mutex::new(Vec::new());
     let first_of_method =
         |k: usize| list.iter().position(|t| t.method == list[k].method) == Some(k);
-    std::thread::scope(|s| {
-        for _ in 0..cfg.threads.max(1) {
-            s.spawn(|| loop {
-                let k = next.fetch_add(1, Ordering::Relaxed);
-                if k >= list.len() {
-                    break;
-                }
-                let (row, ex) = run_prepared(&prep, &list[k], cfg, kernels);
-                if let (Some(ex), true) = (ex, first_of_method(k)) {
-                    examples.lock().unwrap_or_else(|e| e.into_inner()).push(ex);
-                }
-                rows.lock().unwrap_or_else(|e| e.into_inner())[k] = Some(row);
-                tick();
-            });
-        }
+    let done = pool_map(cfg.threads, &list, |k, task| {
+        let (row, ex) = run_prepared(&prep, task, cfg, kernels);
+        tick();
+        (row, ex.filter(|_| first_of_method(k)))
     });
-    let rows = rows
-        .into_inner()
-        .unwrap_or_else(|e| e.into_inner())
-        .into_iter()
-        .flatten()
-        .collect();
-    let mut ex = examples.into_inner().unwrap_or_else(|e| e.into_inner());
+    let mut rows = Vec::with_capacity(done.len());
+    let mut ex = Vec::new();
+    for (row, example) in done {
+        rows.push(row);
+        ex.extend(example);
+    }
     ex.sort_by_key(|e| e.task.method);
     Ok((rows, ex))
 }
@@ -259,6 +243,7 @@ pub fn run_study_with(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
 
     #[test]
     fn a_study_that_cannot_run_is_refused_before_any_run() {

@@ -64,10 +64,6 @@ impl Row {
     }
 }
 
-const HEADER: &str = "method,level,run,seed,mae_mm,sd_mm,p95_mm,recon_mae_mm,cup_diameter_mm,gt_cup_diameter_mm,surface_fit_diameter_mm,limb_diameter_mm,converged,iterations,correspondence_updates,seconds,error";
-
-const FIELDS: usize = 17;
-
 /// Problems with study files.
 #[derive(Debug, thiserror::Error)]
 pub enum StudyError {
@@ -104,113 +100,189 @@ pub enum StudyError {
     },
 }
 
-/// Write rows as CSV (errors have commas and newlines replaced).
-pub fn write_csv(rows: &[Row], path: &Path) -> Result<(), StudyError> {
-    let mut s = String::from(HEADER);
-    s.push('\n');
-    for r in rows {
-        s.push_str(&format!(
-            "{},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{},{},{},{:.4},{}\n",
-            r.method.name(),
-            r.level,
-            r.run,
-            r.seed,
-            r.mae_mm,
-            r.sd_mm,
-            r.p95_mm,
-            r.recon_mae_mm,
-            r.cup_diameter_mm,
-            r.gt_cup_diameter_mm,
-            r.surface_fit_diameter_mm,
-            r.limb_diameter_mm,
-            r.converged,
-            r.iterations,
-            r.correspondence_updates,
-            r.seconds,
-            r.error.replace([',', '\n', '\r'], ";")
-        ));
+/// One line of runs.csv (csv + serde): the row with its numbers at fixed precision (6 decimals,
+/// 4 for seconds) and its method by name.
+#[derive(Serialize, serde::Deserialize)]
+struct CsvRecord {
+    method: String,
+    level: u32,
+    run: usize,
+    seed: u64,
+    #[serde(serialize_with = "six")]
+    mae_mm: f64,
+    #[serde(serialize_with = "six")]
+    sd_mm: f64,
+    #[serde(serialize_with = "six")]
+    p95_mm: f64,
+    #[serde(serialize_with = "six")]
+    recon_mae_mm: f64,
+    #[serde(serialize_with = "six")]
+    cup_diameter_mm: f64,
+    #[serde(serialize_with = "six")]
+    gt_cup_diameter_mm: f64,
+    #[serde(serialize_with = "six")]
+    surface_fit_diameter_mm: f64,
+    #[serde(serialize_with = "six")]
+    limb_diameter_mm: f64,
+    converged: bool,
+    iterations: usize,
+    correspondence_updates: usize,
+    #[serde(serialize_with = "four")]
+    seconds: f64,
+    error: String,
+}
+
+fn six<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_str(&format_args!("{v:.6}"))
+}
+
+fn four<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_str(&format_args!("{v:.4}"))
+}
+
+impl From<&Row> for CsvRecord {
+    fn from(r: &Row) -> Self {
+        CsvRecord {
+            method: r.method.name().to_string(),
+            level: r.level,
+            run: r.run,
+            seed: r.seed,
+            mae_mm: r.mae_mm,
+            sd_mm: r.sd_mm,
+            p95_mm: r.p95_mm,
+            recon_mae_mm: r.recon_mae_mm,
+            cup_diameter_mm: r.cup_diameter_mm,
+            gt_cup_diameter_mm: r.gt_cup_diameter_mm,
+            surface_fit_diameter_mm: r.surface_fit_diameter_mm,
+            limb_diameter_mm: r.limb_diameter_mm,
+            converged: r.converged,
+            iterations: r.iterations,
+            correspondence_updates: r.correspondence_updates,
+            seconds: r.seconds,
+            error: r.error.clone(),
+        }
     }
-    write_atomic(path, s.as_bytes()).map_err(|source| StudyError::Write {
+}
+
+/// The header line of runs.csv: the record's field names in order.
+fn header() -> Vec<&'static str> {
+    vec![
+        "method",
+        "level",
+        "run",
+        "seed",
+        "mae_mm",
+        "sd_mm",
+        "p95_mm",
+        "recon_mae_mm",
+        "cup_diameter_mm",
+        "gt_cup_diameter_mm",
+        "surface_fit_diameter_mm",
+        "limb_diameter_mm",
+        "converged",
+        "iterations",
+        "correspondence_updates",
+        "seconds",
+        "error",
+    ]
+}
+
+/// Write rows as CSV (an error message with commas or line breaks is quoted).
+pub fn write_csv(rows: &[Row], path: &Path) -> Result<(), StudyError> {
+    let werr = |e: std::io::Error| StudyError::Write {
         path: path.to_path_buf(),
-        source,
-    })
+        source: e,
+    };
+    let mut w = csv::Writer::from_writer(Vec::new());
+    for r in rows {
+        w.serialize(CsvRecord::from(r))
+            .map_err(|e| werr(std::io::Error::other(e)))?;
+    }
+    if rows.is_empty() {
+        w.write_record(header())
+            .map_err(|e| werr(std::io::Error::other(e)))?;
+    }
+    let bytes = w.into_inner().map_err(|e| werr(e.into_error()))?;
+    write_atomic(path, &bytes).map_err(werr)
 }
 
 /// Read a runs.csv written by `write_csv`.
 pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
-    let text = std::fs::read_to_string(path).map_err(|source| StudyError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let mut lines = text.lines().enumerate();
     let perr = |line: usize, reason: String| StudyError::Parse {
         path: path.to_path_buf(),
         line,
         reason,
     };
-    match lines.next() {
-        Some((_, h)) if h.trim() == HEADER => {}
-        _ => return Err(perr(1, format!("expected the header {HEADER:?}"))),
+    let mut rd = csv::Reader::from_path(path).map_err(|e| match e.into_kind() {
+        csv::ErrorKind::Io(source) => StudyError::Read {
+            path: path.to_path_buf(),
+            source,
+        },
+        other => perr(1, format!("{other:?}")),
+    })?;
+    let want = header();
+    match rd.headers() {
+        Ok(h) if h.iter().eq(want.iter().copied()) => {}
+        _ => return Err(perr(1, format!("expected the header {:?}", want.join(",")))),
     }
+    let headers = csv::StringRecord::from(want.clone());
     let mut rows = Vec::new();
-    for (i, line) in lines {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let f: Vec<&str> = line.splitn(FIELDS, ',').collect();
-        if f.len() != FIELDS {
-            return Err(perr(
-                i + 1,
-                format!("{} fields, expected {FIELDS}", f.len()),
-            ));
-        }
-        let column = |k: usize| HEADER.split(',').nth(k).unwrap_or("?");
-        let num = |k: usize| {
-            f[k].parse::<f64>().map_err(|_| {
-                perr(
-                    i + 1,
-                    format!("column {:?}: {:?} is not a number", column(k), f[k]),
-                )
-            })
-        };
-        let int = |k: usize| {
-            f[k].parse::<u64>().map_err(|_| {
-                perr(
-                    i + 1,
-                    format!("column {:?}: {:?} is not a whole number", column(k), f[k]),
-                )
-            })
-        };
-        let converged = match f[12] {
-            "true" => true,
-            "false" => false,
-            other => {
-                return Err(perr(
-                    i + 1,
-                    format!("column \"converged\": {other:?} is not true or false"),
-                ))
+    for rec in rd.records() {
+        let rec = rec.map_err(|e| {
+            let line = e.position().map_or(0, |p| p.line() as usize);
+            match e.kind() {
+                csv::ErrorKind::UnequalLengths { len, .. } => {
+                    perr(line, format!("{len} fields, expected {}", want.len()))
+                }
+                other => perr(line, format!("{other:?}")),
             }
-        };
-        let method = StudyMethod::from_name(f[0])
-            .ok_or_else(|| perr(i + 1, format!("unknown method {:?}", f[0])))?;
+        })?;
+        let line = rec.position().map_or(0, |p| p.line() as usize);
+        let r: CsvRecord = rec.deserialize(Some(&headers)).map_err(|e| {
+            let reason = match e.kind() {
+                csv::ErrorKind::Deserialize { err, .. } => match err.field() {
+                    Some(k) => format!(
+                        "column {:?}: {:?} is not {}",
+                        want.get(k as usize).unwrap_or(&"?"),
+                        rec.get(k as usize).unwrap_or(""),
+                        match want.get(k as usize) {
+                            Some(&"converged") => "true or false",
+                            Some(
+                                &("level"
+                                | "run"
+                                | "seed"
+                                | "iterations"
+                                | "correspondence_updates"),
+                            ) => "a whole number",
+                            _ => "a number",
+                        }
+                    ),
+                    None => err.kind().to_string(),
+                },
+                other => format!("{other:?}"),
+            };
+            perr(line, reason)
+        })?;
+        let method = StudyMethod::from_name(&r.method)
+            .ok_or_else(|| perr(line, format!("unknown method {:?}", r.method)))?;
         rows.push(Row {
             method,
-            level: int(1)? as u32,
-            run: int(2)? as usize,
-            seed: int(3)?,
-            mae_mm: num(4)?,
-            sd_mm: num(5)?,
-            p95_mm: num(6)?,
-            recon_mae_mm: num(7)?,
-            cup_diameter_mm: num(8)?,
-            gt_cup_diameter_mm: num(9)?,
-            surface_fit_diameter_mm: num(10)?,
-            limb_diameter_mm: num(11)?,
-            converged,
-            iterations: int(13)? as usize,
-            correspondence_updates: int(14)? as usize,
-            seconds: num(15)?,
-            error: f[16].to_string(),
+            level: r.level,
+            run: r.run,
+            seed: r.seed,
+            mae_mm: r.mae_mm,
+            sd_mm: r.sd_mm,
+            p95_mm: r.p95_mm,
+            recon_mae_mm: r.recon_mae_mm,
+            cup_diameter_mm: r.cup_diameter_mm,
+            gt_cup_diameter_mm: r.gt_cup_diameter_mm,
+            surface_fit_diameter_mm: r.surface_fit_diameter_mm,
+            limb_diameter_mm: r.limb_diameter_mm,
+            converged: r.converged,
+            iterations: r.iterations,
+            correspondence_updates: r.correspondence_updates,
+            seconds: r.seconds,
+            error: r.error,
         });
     }
     Ok(rows)
@@ -469,7 +541,7 @@ mod tests {
         write_csv(&[row(StudyMethod::Srvf, 1, 1, 0.7)], &b.join("runs.csv")).unwrap();
         let back = read_csv(&a.join("runs.csv")).unwrap();
         assert_eq!(format!("{:?}", back[0]), format!("{:?}", r1[0]));
-        assert!(back[1].mae_mm.is_nan() && back[1].error == "solver: boom; twice");
+        assert!(back[1].mae_mm.is_nan() && back[1].error == "solver: boom, twice");
         let merged = merge_dirs(&[b.clone(), a.clone()]).unwrap();
         assert_eq!(
             merged.iter().map(|r| r.key()).collect::<Vec<_>>(),

@@ -3,8 +3,6 @@
 
 use super::align::{align, Alignment, CurveKind, SrvfError, SrvfParams};
 use nalgebra::Point2;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
 
 /// One problem: align B onto A.
 #[derive(Clone, Debug)]
@@ -20,24 +18,7 @@ pub fn align_batch(
     prm: &SrvfParams,
     threads: usize,
 ) -> Vec<Result<Alignment, SrvfError>> {
-    let next = AtomicUsize::new(0);
-    let out: Mutex<Vec<Option<Result<Alignment, SrvfError>>>> =
-        Mutex::new(vec![None; problems.len()]);
-    std::thread::scope(|s| {
-        for _ in 0..threads.max(1).min(problems.len().max(1)) {
-            s.spawn(|| loop {
-                let k = next.fetch_add(1, Ordering::Relaxed);
-                let Some(p) = problems.get(k) else { break };
-                let r = align(&p.a, &p.b, p.kind, prm);
-                out.lock().unwrap_or_else(|e| e.into_inner())[k] = Some(r);
-            });
-        }
-    });
-    out.into_inner()
-        .unwrap_or_else(|e| e.into_inner())
-        .into_iter()
-        .map(|r| r.unwrap_or(Err(SrvfError::SampleCount(0))))
-        .collect()
+    crate::geom::pool_map(threads, problems, |_, p| align(&p.a, &p.b, p.kind, prm))
 }
 
 /// B's matched points turned by the alignment's rotation and moved and scaled onto A (same
