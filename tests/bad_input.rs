@@ -10,11 +10,11 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/cases")
 }
 
-fn scratch(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("acetab-bad-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn scratch(tag: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("acetab-bad-{tag}-"))
+        .tempdir()
+        .unwrap()
 }
 
 fn run(command: &str, file: &Path, out: &Path) -> Output {
@@ -99,16 +99,16 @@ fn every_malformed_case_is_a_clear_error_with_no_output() {
     assert!(cases.len() >= 30, "the corpus has {} cases", cases.len());
     let mut failures = Vec::new();
     for (file, command, expect) in &cases {
-        let dir = scratch(file);
+        let tmp = scratch(file);
+        let dir = tmp.path();
         let out = dir.join("out");
         let path = root().join("bad").join(file);
         assert!(path.is_file(), "{file} is listed but missing");
         let o = run(command, &path, &out);
-        let why = judge(&o, &path, expect, &out, &dir);
+        let why = judge(&o, &path, expect, &out, dir);
         if !why.is_empty() {
             failures.push(format!("{file}: {}", why.join("; ")));
         }
-        let _ = std::fs::remove_dir_all(&dir);
     }
     assert!(
         failures.is_empty(),
@@ -121,7 +121,8 @@ fn every_malformed_case_is_a_clear_error_with_no_output() {
 
 #[test]
 fn the_valid_case_beside_the_corpus_succeeds_and_the_judge_rejects_it() {
-    let dir = scratch("good");
+    let tmp = scratch("good");
+    let dir = tmp.path();
     let out = dir.join("out");
     let path = root().join("good.json");
     let o = run("reconstruct", &path, &out);
@@ -130,6 +131,5 @@ fn the_valid_case_beside_the_corpus_succeeds_and_the_judge_rejects_it() {
         assert!(out.join(f).is_file(), "{f}");
     }
     // Companion: the corpus's judge must reject a successful run.
-    assert!(!judge(&o, &path, "invalid JSON", &out, &dir).is_empty());
-    let _ = std::fs::remove_dir_all(&dir);
+    assert!(!judge(&o, &path, "invalid JSON", &out, dir).is_empty());
 }

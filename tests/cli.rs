@@ -14,35 +14,36 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_acetab"))
 }
 
-/// A scratch folder, removed when the test ends (kept when it fails, to look at).
-struct Scratch(PathBuf);
+/// A scratch folder (tempfile), removed when the test ends (kept when it fails, to look at).
+struct Scratch(Option<tempfile::TempDir>);
 
 impl std::ops::Deref for Scratch {
     type Target = Path;
     fn deref(&self) -> &Path {
-        &self.0
+        self.0.as_ref().expect("present until drop").path()
     }
 }
 
 impl AsRef<std::ffi::OsStr> for Scratch {
     fn as_ref(&self) -> &std::ffi::OsStr {
-        self.0.as_os_str()
+        std::ops::Deref::deref(self).as_os_str()
     }
 }
 
 impl Drop for Scratch {
     fn drop(&mut self) {
-        if !std::thread::panicking() {
-            let _ = std::fs::remove_dir_all(&self.0);
+        if let Some(t) = self.0.take().filter(|_| std::thread::panicking()) {
+            eprintln!("scratch folder kept: {}", t.keep().display());
         }
     }
 }
 
 fn tmp(tag: &str) -> Scratch {
-    let d = std::env::temp_dir().join(format!("acetab-cli-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    Scratch(d)
+    let t = tempfile::Builder::new()
+        .prefix(&format!("acetab-cli-{tag}-"))
+        .tempdir()
+        .unwrap();
+    Scratch(Some(t))
 }
 
 fn phantom_case(dir: &Path) -> PathBuf {

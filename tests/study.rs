@@ -65,7 +65,8 @@ fn threads_and_shards_give_the_same_table() {
     )
     .unwrap();
     assert_eq!(strip(&one), strip(&two));
-    let base = std::env::temp_dir().join(format!("acetab-study-{}", std::process::id()));
+    let tmp = tempfile::tempdir().unwrap();
+    let base = tmp.path();
     let mut dirs = Vec::new();
     for i in 0..3 {
         let (rows, _) = run_study(
@@ -110,7 +111,6 @@ fn threads_and_shards_give_the_same_table() {
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["summary"].as_array().unwrap().len(), 4);
-    std::fs::remove_dir_all(&base).unwrap();
 }
 
 #[test]
@@ -147,8 +147,8 @@ fn paper_protocol_runs_only_the_deformation_and_keeps_its_name() {
     assert_eq!(ex.recon.log.similarity_rounds, 0);
     assert!(ex.recon.log.limb_sphere.is_none());
 
-    let d = std::env::temp_dir().join(format!("acetab-paper-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path().to_path_buf();
     write_tables(&rows, &d, &serde_json::json!({})).unwrap();
     write_examples(&examples, &truth, &d).unwrap();
     let back = merge_dirs(std::slice::from_ref(&d)).unwrap();
@@ -157,5 +157,4 @@ fn paper_protocol_runs_only_the_deformation_and_keeps_its_name() {
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["summary"][1]["method"], "icp-paper");
-    std::fs::remove_dir_all(&d).unwrap();
 }

@@ -69,8 +69,8 @@ mod tests {
 
     #[test]
     fn header_is_optional_and_bad_lines_are_named() {
-        let d = std::env::temp_dir().join(format!("acetab-csv-{}", std::process::id()));
-        std::fs::create_dir_all(&d).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let d = tmp.path();
         let p = d.join("a.csv");
         std::fs::write(&p, "x,y\n0,0\n1,0\n1,1\n").unwrap();
         assert_eq!(read_curve_csv(&p).unwrap().len(), 3);
@@ -94,6 +94,5 @@ mod tests {
             read_curve_csv(&p),
             Err(CurveFileError::TooFew { count: 1, .. })
         ));
-        std::fs::remove_dir_all(&d).unwrap();
     }
 }

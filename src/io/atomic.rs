@@ -1,62 +1,68 @@
 //! Output files are written atomically: into a temporary file beside the target, then renamed,
 //! so a failed run never leaves a half-written file behind.
 
-use std::path::{Path, PathBuf};
+use std::io::Write;
+use std::path::Path;
 
-/// Write `bytes` to `path` through a temporary sibling file and a rename.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let tmp = temp_sibling(path);
-    let result = std::fs::write(&tmp, bytes).and_then(|_| std::fs::rename(&tmp, path));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+/// The folder a path's temporary sibling is made in.
+fn parent_of(path: &Path) -> &Path {
+    path.parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
 }
 
-fn temp_sibling(path: &Path) -> PathBuf {
+/// Write `bytes` to `path` through a temporary sibling file (tempfile) and a rename. The file
+/// gets the permissions a plain write would (0666 less the umask), not tempfile's private 0600.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+    let prefix = format!(".{name}.");
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(&prefix).suffix(".tmp");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    let mut tmp = builder.tempfile_in(parent_of(path))?;
+    tmp.write_all(bytes)?;
+    tmp.persist(path).map_err(|e| e.error)?;
+    Ok(())
 }
 
-/// Fill an output folder all at once: `fill` writes into a staging folder beside `out`; only
-/// when it succeeds are its entries moved into `out` (created if needed, same-named entries
-/// replaced). On failure the staging folder is removed and `out` is left as it was.
+/// Fill an output folder all at once: `fill` writes into a staging folder beside `out`
+/// (tempfile, removed whatever happens); only when it succeeds are its entries moved into `out`
+/// (created if needed, same-named entries replaced). On failure `out` is left as it was.
 pub fn fill_dir_atomically<E>(
     out: &Path,
     fill: impl FnOnce(&Path) -> Result<(), E>,
     io_err: impl Fn(&Path, std::io::Error) -> E,
 ) -> Result<(), E> {
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
+    let parent = parent_of(out);
     let name = out
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "out".into());
-    let stage = parent.join(format!(".{name}.partial-{}", std::process::id()));
-    let result = (|| {
-        std::fs::create_dir_all(&stage).map_err(|e| io_err(&stage, e))?;
-        fill(&stage)?;
-        std::fs::create_dir_all(out).map_err(|e| io_err(out, e))?;
-        let entries: Vec<_> = std::fs::read_dir(&stage)
-            .map_err(|e| io_err(&stage, e))?
-            .filter_map(|e| e.ok())
-            .collect();
-        for e in entries {
-            let to = out.join(e.file_name());
-            if to.is_dir() {
-                std::fs::remove_dir_all(&to).map_err(|err| io_err(&to, err))?;
-            }
-            std::fs::rename(e.path(), &to).map_err(|err| io_err(&to, err))?;
+    let stage = tempfile::Builder::new()
+        .prefix(&format!(".{name}.partial-"))
+        .tempdir_in(parent)
+        .map_err(|e| io_err(parent, e))?;
+    fill(stage.path())?;
+    std::fs::create_dir_all(out).map_err(|e| io_err(out, e))?;
+    let entries: Vec<_> = std::fs::read_dir(stage.path())
+        .map_err(|e| io_err(stage.path(), e))?
+        .filter_map(|e| e.ok())
+        .collect();
+    for e in entries {
+        let to = out.join(e.file_name());
+        if to.is_dir() {
+            std::fs::remove_dir_all(&to).map_err(|err| io_err(&to, err))?;
         }
-        Ok(())
-    })();
-    let _ = std::fs::remove_dir_all(&stage);
-    result
+        std::fs::rename(e.path(), &to).map_err(|err| io_err(&to, err))?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -65,9 +71,8 @@ mod tests {
 
     #[test]
     fn a_failed_fill_leaves_no_folder_and_a_good_one_moves_everything() {
-        let root = std::env::temp_dir().join(format!("acetab-filldir-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&root);
-        std::fs::create_dir_all(&root).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let root = tmp.path();
         let out = root.join("out");
         let r: Result<(), String> = fill_dir_atomically(
             &out,
@@ -101,20 +106,24 @@ mod tests {
             1,
             "only out remains"
         );
-        std::fs::remove_dir_all(&root).unwrap();
     }
 
     #[test]
     fn atomic_write_replaces_and_leaves_no_temporary() {
-        let dir = std::env::temp_dir().join(format!("acetab-fsutil-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         let p = dir.join("a.txt");
         write_atomic(&p, b"one").unwrap();
         write_atomic(&p, b"two").unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"two");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
         assert!(write_atomic(&dir.join("missing/x.txt"), b"x").is_err());
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
-        std::fs::remove_dir_all(&dir).unwrap();
+        assert_eq!(std::fs::read_dir(dir).unwrap().count(), 1);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(&p).unwrap().permissions().mode() & 0o777;
+            assert_ne!(mode, 0o600, "tempfile's private mode leaked onto an output");
+        }
     }
 }

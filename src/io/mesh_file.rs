@@ -338,10 +338,11 @@ mod tests {
     use super::*;
     use crate::template::hemisphere;
 
-    fn tmpdir(tag: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("acetab-io-{tag}-{}", std::process::id()));
-        std::fs::create_dir_all(&d).unwrap();
-        d
+    fn tmpdir(tag: &str) -> tempfile::TempDir {
+        tempfile::Builder::new()
+            .prefix(&format!("acetab-io-{tag}-"))
+            .tempdir()
+            .unwrap()
     }
 
     fn assert_same_geometry(a: &Mesh, b: &Mesh, tol: f64) {
@@ -353,7 +354,8 @@ mod tests {
     #[test]
     fn round_trip_every_format() {
         let m = hemisphere(10.0, 400);
-        let d = tmpdir("rt");
+        let tmp = tmpdir("rt");
+        let d = tmp.path();
         for name in ["a.obj", "a.ply", "a.stl"] {
             let p = d.join(name);
             write_mesh(&m, &p).unwrap();
@@ -368,12 +370,12 @@ mod tests {
         let text = std::fs::read_to_string(&p).unwrap();
         assert!(text.contains("property uchar red"));
         assert_same_geometry(&m, &read_mesh(&p).unwrap(), 1e-9);
-        std::fs::remove_dir_all(&d).unwrap();
     }
 
     #[test]
     fn bad_files_name_the_path() {
-        let d = tmpdir("bad");
+        let tmp = tmpdir("bad");
+        let d = tmp.path();
         let p = d.join("broken.ply");
         std::fs::write(
             &p,
@@ -386,6 +388,5 @@ mod tests {
         assert!(e.contains("nothing.stl"), "{e}");
         let e = read_mesh(&d.join("x.xyz")).unwrap_err().to_string();
         assert!(e.contains("unsupported"), "{e}");
-        std::fs::remove_dir_all(&d).unwrap();
     }
 }

@@ -487,7 +487,8 @@ mod tests {
 
     #[test]
     fn merge_meta_keeps_the_shared_settings_and_rejects_another_study() {
-        let dir = std::env::temp_dir().join(format!("acetab-meta-{}", std::process::id()));
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         let write = |name: &str, seed: u64, shard: &str| {
             let d = dir.join(name);
             std::fs::create_dir_all(&d).unwrap();
@@ -522,12 +523,12 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("not JSON"));
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn csv_round_trips_and_merge_rejects_duplicates() {
-        let dir = std::env::temp_dir().join(format!("acetab-table-{}", std::process::id()));
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         let (a, b) = (dir.join("a"), dir.join("b"));
         std::fs::create_dir_all(&a).unwrap();
         std::fs::create_dir_all(&b).unwrap();
@@ -560,7 +561,6 @@ mod tests {
             merge_dirs(std::slice::from_ref(&b)),
             Err(StudyError::Parse { line: 1, .. })
         ));
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
