@@ -8,6 +8,7 @@ use crate::engine::Kernels;
 use crate::io::{write_ply, MeshIoError};
 use crate::pipeline::{cup_report, CupReport, UncertaintyParams};
 use crate::pipeline::{reconstruct_with, ReconError, ReconParams};
+#[cfg(feature = "plots")]
 use crate::report::plots::{overlay, PlotError};
 use std::path::{Path, PathBuf};
 
@@ -19,6 +20,7 @@ pub enum CaseRunError {
     Recon { path: PathBuf, source: ReconError },
     #[error(transparent)]
     Mesh(#[from] MeshIoError),
+    #[cfg(feature = "plots")]
     #[error(transparent)]
     Plot(#[from] PlotError),
     #[error("{path}: cannot write: {source}")]
@@ -41,6 +43,7 @@ pub struct CaseRunReport {
     pub files: Vec<String>,
 }
 
+#[cfg(feature = "plots")]
 fn file_safe(s: &str) -> String {
     s.chars()
         .map(|c| match c {
@@ -82,6 +85,7 @@ pub fn run_case(
         |stage| {
             let mut files = vec!["reconstruction.ply".to_string()];
             write_ply(&rec.mesh, None, &stage.join("reconstruction.ply"))?;
+            #[cfg(feature = "plots")]
             for (k, cam) in case.cameras.iter().enumerate() {
                 let name = format!("overlay-{k}-{}.png", file_safe(&case.names[k]));
                 overlay(
@@ -94,6 +98,8 @@ pub fn run_case(
                 )?;
                 files.push(name);
             }
+            #[cfg(not(feature = "plots"))]
+            let _ = &case.images; // overlays need the `plots` feature
             files.push("cup.json".into());
             files.push("report.json".into());
             let r = CaseRunReport {

@@ -9,7 +9,8 @@ use crate::views::Camera;
 use nalgebra::Point2;
 
 /// How the model contour of each view is found.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum ContourSource {
     /// Alpha shape of the projected vertices (spade Delaunay).

@@ -18,7 +18,8 @@ use crate::views::{Camera, ProjectionError};
 use nalgebra::{Point2, Point3};
 
 /// The user's choice on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum BackendChoice {
     Cpu,

@@ -4,6 +4,7 @@
 mod accuracy;
 mod cup;
 mod metrics;
+#[cfg(feature = "plots")]
 pub mod plots;
 
 pub use accuracy::{accuracy, accuracy_from, accuracy_samples, write_error_ply, Accuracy};

@@ -1,11 +1,11 @@
 //! Writing a study's folder: runs.csv, summary.json, errors.png, and one example run per method
 //! (the reconstruction coloured by error and one overlay per view).
 
-use super::method::StudyMethod;
 use super::runner::ExampleRun;
 use super::table::{summarize, write_csv, Row, StudyError};
 use crate::geom::Mesh;
 use crate::io::write_atomic;
+#[cfg(feature = "plots")]
 use crate::report::plots::{box_plots, overlay};
 use crate::report::write_error_ply;
 use std::path::Path;
@@ -25,6 +25,19 @@ pub fn write_tables(rows: &[Row], dir: &Path, meta: &serde_json::Value) -> Resul
         path: p.clone(),
         source,
     })?;
+    #[cfg(feature = "plots")]
+    write_box_plots(rows, dir)?;
+    Ok(())
+}
+
+/// errors.png: MAE and cup error per level, a box per method.
+#[cfg(feature = "plots")]
+fn write_box_plots(rows: &[Row], dir: &Path) -> Result<(), StudyError> {
+    use super::method::StudyMethod;
+    let werr = |p: &Path, e: String| StudyError::Write {
+        path: p.to_path_buf(),
+        source: std::io::Error::other(e),
+    };
     let mut levels: Vec<u32> = rows.iter().map(|r| r.level).collect();
     levels.sort();
     levels.dedup();
@@ -74,6 +87,7 @@ pub fn write_examples(examples: &[ExampleRun], truth: &Mesh, dir: &Path) -> Resu
             path: p.clone(),
             source: std::io::Error::other(e.to_string()),
         })?;
+        #[cfg(feature = "plots")]
         for (k, cam) in ex.sim.cameras.iter().enumerate() {
             let p = d.join(format!("view{k}.png"));
             overlay(
