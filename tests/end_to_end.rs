@@ -3,7 +3,7 @@
 use acetab::report::accuracy;
 
 use acetab::io::read_mesh;
-use acetab::pipeline::{reconstruct, ReconParams};
+use acetab::pipeline::{reconstruct, DeformationParams, PlacementParams, ReconParams};
 use acetab::sim::run_demo;
 use acetab::sim::XrayGeometry;
 use acetab::sim::{ground_truth_surface, simulate_case, NoiseLevel};
@@ -37,8 +37,14 @@ fn the_accuracy_measure_rejects_an_unfitted_template() {
         2,
         3,
         &ReconParams {
-            similarity_rounds: 1,
-            correspondence_updates: 1,
+            placement: PlacementParams {
+                rounds: 1,
+                ..Default::default()
+            },
+            deformation: DeformationParams {
+                correspondence_updates: 1,
+                ..Default::default()
+            },
             ..Default::default()
         },
     )
@@ -50,8 +56,11 @@ fn the_accuracy_measure_rejects_an_unfitted_template() {
 fn a_coarse_graph_changes_only_the_rounds_before_the_last() {
     let mae = |updates: usize, coarse: Option<usize>| {
         let prm = ReconParams {
-            correspondence_updates: updates,
-            coarse_graph_nodes: coarse,
+            deformation: DeformationParams {
+                correspondence_updates: updates,
+                coarse_graph_nodes: coarse,
+                ..Default::default()
+            },
             ..Default::default()
         };
         let (r, _, _) = run_demo(2, 1, &prm).unwrap();
@@ -186,7 +195,10 @@ fn an_orientation_the_cap_cannot_choose_is_chosen_after_a_deformation_round() {
     // Companion: without the comparison the start's (wrong) orientation stays, and the same
     // bound rejects it.
     let prm = ReconParams {
-        orientation_rounds: 0,
+        deformation: DeformationParams {
+            orientation_rounds: 0,
+            ..Default::default()
+        },
         ..Default::default()
     };
     let (wrong, none) = m1_rhip_run(1, 1, &prm).unwrap();

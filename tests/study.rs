@@ -9,14 +9,12 @@ use acetab::study::{
 };
 
 fn quick() -> StudyConfig {
-    let mut params = ReconParams {
-        template_vertices: 700,
-        similarity_rounds: 4,
-        correspondence_updates: 1,
-        ..Default::default()
-    };
+    let mut params = ReconParams::default();
+    params.template.vertices = 700;
+    params.placement.rounds = 4;
+    params.deformation.correspondence_updates = 1;
     params.correspond.srvf.samples = 64;
-    params.graph.nodes = 40;
+    params.deformation.graph.nodes = 40;
     StudyConfig {
         levels: vec![1, 4],
         runs: 2,
@@ -132,14 +130,14 @@ fn paper_protocol_runs_only_the_deformation_and_keeps_its_name() {
     // Ours placed the template on the limb sphere and ran the similarity stage (several
     // solver iterations per round) before the deformation's one iteration per round.
     assert!(ours.limb_diameter_mm.is_finite());
-    assert!(ours.iterations > cfg.params.icp_iterations);
+    assert!(ours.iterations > cfg.params.deformation.icp_iterations);
     // The paper's protocol: no limb sphere, no similarity stage.
     assert!(
         paper.limb_diameter_mm.is_nan(),
         "{}",
         paper.limb_diameter_mm
     );
-    assert!(paper.iterations <= cfg.params.icp_iterations);
+    assert!(paper.iterations <= cfg.params.deformation.icp_iterations);
     let ex = examples
         .iter()
         .find(|e| e.task.method == StudyMethod::IcpPaper)

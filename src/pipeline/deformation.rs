@@ -40,9 +40,12 @@ impl<'a> StageB<'a> {
         pose_center: Point3<f64>,
     ) -> Self {
         let (rounds, lm) = match prm.method {
-            Method::Srvf => (prm.correspondence_updates.max(1), prm.lm.clone()),
+            Method::Srvf => (
+                prm.deformation.correspondence_updates.max(1),
+                prm.lm.clone(),
+            ),
             Method::Icp | Method::IcpNormvec => (
-                prm.icp_iterations.max(1),
+                prm.deformation.icp_iterations.max(1),
                 LmParams {
                     max_iterations: 1,
                     ..prm.lm.clone()
@@ -132,15 +135,15 @@ impl Deformation {
                 )?;
             }
             let coarse;
-            let graph = match prm.coarse_graph_nodes {
+            let graph = match prm.deformation.coarse_graph_nodes {
                 Some(nodes) if self.rounds + 1 < b.rounds => {
                     coarse = GraphParams {
                         nodes,
-                        ..prm.graph.clone()
+                        ..prm.deformation.graph.clone()
                     };
                     &coarse
                 }
-                _ => &prm.graph,
+                _ => &prm.deformation.graph,
             };
             let (deformed, info) = ed_solve(
                 &self.mesh,
@@ -159,7 +162,7 @@ impl Deformation {
             self.rounds += 1;
             self.gn_iterations += info.iterations;
             self.converged = info.converged || prm.method != Method::Srvf;
-            self.settled = prm.method != Method::Srvf && moved < prm.icp_tol_mm;
+            self.settled = prm.method != Method::Srvf && moved < prm.deformation.icp_tol_mm;
         }
         Ok(())
     }
@@ -182,17 +185,19 @@ pub(super) fn ed_solve(
 ) -> Result<(Mesh, LmInfo), ReconError> {
     let graph = DeformationGraph::new(mesh, graph);
     let mut problem = EdProblem::new(&graph, cams, obs, prm.weights.clone());
-    if prm.sphere_prior > 0.0 && sphere.is_none() {
+    if prm.deformation.sphere_prior > 0.0 && sphere.is_none() {
         *sphere = fit_sphere_robust(&mesh.vertices)
             .ok()
             .map(|s| (s.center_point(), s.radius));
     }
-    if prm.sphere_prior > 0.0 && sphere.is_some() {
+    if prm.deformation.sphere_prior > 0.0 && sphere.is_some() {
         // Every k-th vertex, weighted k-fold: the same energy at a fraction of the rows.
         let n = mesh.vertex_count();
-        let k = n.div_ceil(prm.sphere_prior_vertices.max(1)).max(1);
+        let k = n
+            .div_ceil(prm.deformation.sphere_prior_vertices.max(1))
+            .max(1);
         problem.sphere = Some(SpherePrior {
-            weight: prm.sphere_prior * k as f64,
+            weight: prm.deformation.sphere_prior * k as f64,
             vertices: (0..n as u32).step_by(k).collect(),
         });
     }
@@ -231,7 +236,7 @@ pub fn resolve_from(
     let mut sphere = None;
     let (out, _) = ed_solve(
         mesh,
-        &prm.graph,
+        &prm.deformation.graph,
         cams,
         &drawn,
         prm,

@@ -13,7 +13,10 @@ mod uncertainty;
 
 pub use cup::{cup_spheres, observed_part_sphere, CupSpheres};
 pub use deformation::resolve_from;
-pub use params::{ReconParams, MAX_TEMPLATE_VERTICES};
+pub use params::{
+    CupParams, DeformationParams, PlacementParams, ReconParams, TemplateParams,
+    MAX_TEMPLATE_VERTICES,
+};
 pub use uncertainty::{cup_report, CupReport, SizeProbability, UncertaintyParams};
 
 use crate::contours::ModelContour;
@@ -84,7 +87,7 @@ pub struct SolveLog {
     /// The sphere fitted to the outlines' limbs (centre x, y, z and radius, mm), when used.
     pub limb_sphere: Option<[f64; 4]>,
     /// The orientations stage B compared (none when stage A's was the only one), with their
-    /// reprojection RMS after `orientation_rounds`; the lowest went on.
+    /// reprojection RMS after `deformation.orientation_rounds`; the lowest went on.
     pub orientations: Vec<OrientationTrial>,
 }
 
@@ -157,21 +160,21 @@ pub fn reconstruct_with(
     }
     let unit = spherical_cap(
         1.0,
-        prm.template_vertices,
-        prm.template_polar_deg.to_radians(),
+        prm.template.vertices,
+        prm.template.polar_deg.to_radians(),
     );
     let initial = init.place(&unit);
     let mut log = SolveLog::default();
     let mut start = init.clone();
     // The limb sphere needs the views' poses as given; with pose refinement it is left out.
-    if prm.limb_start && prm.pose.is_none() {
-        if let Ok(ls) = limb_sphere(cams, observed, prm.limb_scale_mm) {
+    if prm.placement.limb_start && prm.pose.is_none() {
+        if let Ok(ls) = limb_sphere(cams, observed, prm.placement.limb_scale_mm) {
             start.center = ls.center;
             start.radius = ls.radius;
             log.limb_sphere = Some([ls.center.x, ls.center.y, ls.center.z, ls.radius]);
         }
     }
-    let rotation_only = prm.similarity_rotation_only && log.limb_sphere.is_some();
+    let rotation_only = prm.placement.rotation_only && log.limb_sphere.is_some();
     let mut on_rim = vec![false; unit.vertex_count()];
     for [a, b] in unit.boundary_edges() {
         on_rim[a as usize] = true;
@@ -185,14 +188,14 @@ pub fn reconstruct_with(
     // view, and only the oblique views tell them apart. The mirrored one replaces the given
     // start when it reprojects clearly better (by the factor MIRROR_SWITCH) and is dropped when
     // clearly worse; in between, the rigid cap cannot tell them apart and both go on to stage B
-    // (see `orientation_rounds`).
+    // (see `DeformationParams::orientation_rounds`).
     // The similarity stage fixes only a handful of parameters: coarser SRVF curves do.
     let mut coarse = prm.clone();
     let srvf = &mut coarse.correspond.srvf;
-    srvf.samples = srvf.samples.min(prm.similarity_srvf_samples.max(16));
+    srvf.samples = srvf.samples.min(prm.placement.srvf_samples.max(16));
     srvf.seed_candidates = srvf
         .seed_candidates
-        .min(prm.similarity_seed_candidates.max(1));
+        .min(prm.placement.seed_candidates.max(1));
     // Stage A from `mesh` (the template at `placement`), its work added to the log.
     let stage = |mesh: Mesh, placement: Placement, max_rounds: usize, log: &mut SolveLog| {
         let r = similarity_stage(
@@ -205,13 +208,14 @@ pub fn reconstruct_with(
     let mut best = stage(
         start.place(&unit),
         start.clone(),
-        prm.similarity_rounds,
+        prm.placement.rounds,
         &mut log,
     )?;
     // The mirrored orientation when the outlines leave it open: carried through stage B beside
-    // the start's (see `orientation_rounds`).
+    // the start's (see `DeformationParams::orientation_rounds`).
     let mut rivals: Vec<(&'static str, Mesh, Placement)> = Vec::new();
-    if let Some(axis) = mirrored_axis(&start, cams).filter(|_| rotation_only && prm.mirrored_start)
+    if let Some(axis) =
+        mirrored_axis(&start, cams).filter(|_| rotation_only && prm.placement.mirrored_start)
     {
         let mirrored = Placement {
             axis,
@@ -226,9 +230,11 @@ pub fn reconstruct_with(
             &mut log,
         )?;
         let clear = probe.score < best.score * MIRROR_SWITCH;
-        let open = !clear && prm.orientation_rounds > 0 && probe.score < best.score / MIRROR_SWITCH;
+        let open = !clear
+            && prm.deformation.orientation_rounds > 0
+            && probe.score < best.score / MIRROR_SWITCH;
         if clear || open {
-            let settled = stage(probe.mesh, probe.placement, prm.similarity_rounds, &mut log)?;
+            let settled = stage(probe.mesh, probe.placement, prm.placement.rounds, &mut log)?;
             if clear {
                 best = settled;
             } else {
@@ -245,7 +251,7 @@ pub fn reconstruct_with(
     let mut pose_x = vec![0.0; 6 * cams.len()];
     let mut cams_now: Vec<Camera> = cams.to_vec();
     if let Some(pp) = &prm.pose {
-        for _ in 0..prm.similarity_rounds {
+        for _ in 0..prm.placement.rounds {
             let mut obs = weighted_correspondences(
                 &mesh,
                 &cams_now,
@@ -255,7 +261,7 @@ pub fn reconstruct_with(
                 "pose refinement",
             )?;
             for o in obs.iter_mut().filter(|o| on_rim[o.vertex as usize]) {
-                o.weight *= prm.similarity_rim_weight;
+                o.weight *= prm.placement.rim_weight;
             }
             let before = pose_x.clone();
             let it = refine_poses(
@@ -280,7 +286,7 @@ pub fn reconstruct_with(
                 .zip(&pose_x)
                 .map(|(a, b)| (a - b).abs())
                 .fold(0.0, f64::max);
-            if shift < prm.similarity_tol_mm && pose_step < 1e-4 {
+            if shift < prm.placement.tol_mm && pose_step < 1e-4 {
                 break;
             }
         }
@@ -294,7 +300,7 @@ pub fn reconstruct_with(
         // Stage A's rigid cap cannot tell mirror-image orientations apart where the acetabulum
         // is not a cap, but the deformed surface of a wrong one cannot follow the oblique views'
         // outlines.
-        let k = prm.orientation_rounds.min(ctx.rounds);
+        let k = prm.deformation.orientation_rounds.min(ctx.rounds);
         run.advance(&ctx, k)?;
         log.orientations.push(OrientationTrial {
             source: "stage A",
@@ -339,7 +345,7 @@ pub fn reconstruct_with(
     log.correspondences = obs.len();
     let spheres = cup_spheres(&mesh, &obs)?;
     let (sphere, surface_sphere) = (spheres.cup, spheres.surface);
-    let cup = prm.catalogue.nearest(sphere.diameter());
+    let cup = prm.cup.catalogue.nearest(sphere.diameter());
     Ok(Reconstruction {
         initial_contours: contours(&initial, cams, prm, kernels)?,
         final_contours: contours(&mesh, &cams_now, prm, kernels)?,

@@ -75,7 +75,7 @@ pub(super) fn similarity_stage(
     for _ in 0..max_rounds {
         let mut obs = weighted_correspondences(&mesh, cams, observed, prm, kernels, "similarity")?;
         for o in obs.iter_mut().filter(|o| on_rim[o.vertex as usize]) {
-            o.weight *= prm.similarity_rim_weight;
+            o.weight *= prm.placement.rim_weight;
         }
         let (moved, shift, info) =
             similarity_step(&mesh, cams, &obs, prm, &sim_lm, about, &mut placement)?;
@@ -83,7 +83,7 @@ pub(super) fn similarity_stage(
         rounds += 1;
         iterations += info.iterations;
         last = obs;
-        if shift < prm.similarity_tol_mm {
+        if shift < prm.placement.tol_mm {
             break;
         }
     }

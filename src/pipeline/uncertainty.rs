@@ -113,10 +113,8 @@ fn resampled_diameters(
         });
     }
     let noise_px = up.noise_px.unwrap_or(rec.log.reprojection_rms_px).max(0.5);
-    let one_round = ReconParams {
-        correspondence_updates: 1,
-        ..prm.clone()
-    };
+    let mut one_round = prm.clone();
+    one_round.deformation.correspondence_updates = 1;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(up.seed);
     let normal = Normal::new(0.0, noise_px).map_err(|_| ReconError::Param {
         field: "uncertainty noise_px",
@@ -178,9 +176,9 @@ pub fn cup_report(
     sorted.sort_by(f64::total_cmp);
     let plus_minus = 0.5 * (quantile_sorted(&sorted, 0.975) - quantile_sorted(&sorted, 0.025));
     let diameter = rec.sphere.diameter();
-    let chosen = prm.catalogue.nearest(diameter).catalogue_mm;
+    let chosen = prm.cup.catalogue.nearest(diameter).catalogue_mm;
     let mut probabilities: Vec<SizeProbability> = Vec::new();
-    let sizes = &prm.catalogue.sizes_mm;
+    let sizes = &prm.cup.catalogue.sizes_mm;
     // The chosen size and its two neighbours are always listed, then any other size drawn.
     if let Some(k) = sizes.iter().position(|&s| s == chosen) {
         for &s in &sizes[k.saturating_sub(1)..(k + 2).min(sizes.len())] {
@@ -191,7 +189,7 @@ pub fn cup_report(
         }
     }
     for d in &diam {
-        let s = prm.catalogue.nearest(*d).catalogue_mm;
+        let s = prm.cup.catalogue.nearest(*d).catalogue_mm;
         match probabilities.iter_mut().find(|p| p.size_mm == s) {
             Some(p) => p.probability += 1.0 / n,
             None => probabilities.push(SizeProbability {

@@ -74,11 +74,11 @@ impl StudyMethod {
             ..base.clone()
         };
         if self.paper() {
-            p.limb_start = false;
-            p.similarity_rounds = 0;
-            p.mirrored_start = false;
-            p.orientation_rounds = 0;
-            p.sphere_prior = 0.0;
+            p.placement.limb_start = false;
+            p.placement.rounds = 0;
+            p.placement.mirrored_start = false;
+            p.deformation.orientation_rounds = 0;
+            p.deformation.sphere_prior = 0.0;
         }
         p
     }
@@ -126,10 +126,13 @@ mod tests {
         );
         let paper = StudyMethod::IcpPaper.params(&base);
         assert_eq!(paper.method, Method::Icp);
-        assert!(!paper.limb_start && !paper.mirrored_start);
-        assert_eq!((paper.similarity_rounds, paper.orientation_rounds), (0, 0));
-        assert_eq!(paper.sphere_prior, 0.0);
+        assert!(!paper.placement.limb_start && !paper.placement.mirrored_start);
+        assert_eq!(
+            (paper.placement.rounds, paper.deformation.orientation_rounds),
+            (0, 0)
+        );
+        assert_eq!(paper.deformation.sphere_prior, 0.0);
         assert_eq!(paper.weights, base.weights);
-        assert_eq!(paper.graph, base.graph);
+        assert_eq!(paper.deformation.graph, base.deformation.graph);
     }
 }

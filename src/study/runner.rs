@@ -271,7 +271,7 @@ mod tests {
         };
         assert_eq!(field(shard), "shard");
         let mut params = StudyConfig::default();
-        params.params.limb_scale_mm = f64::NAN;
+        params.params.placement.limb_scale_mm = f64::NAN;
         assert_eq!(field(params), "params");
         // The runner refuses it too, before any run (no tick).
         let truth = crate::sim::phantom(&Default::default()).mesh;

@@ -5,8 +5,8 @@ use acetab::case::run_case;
 use acetab::contours::ContourSource;
 use acetab::correspond::Method;
 use acetab::engine::{BackendChoice, Kernels};
-use acetab::pipeline::ReconParams;
 use acetab::pipeline::UncertaintyParams;
+use acetab::pipeline::{CupParams, ReconParams};
 use acetab::report::CupCatalogue;
 use std::path::PathBuf;
 
@@ -56,7 +56,7 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
     let catalogue = CupCatalogue::parse(&catalogue).map_err(|e| format!("--catalogue: {e}"))?;
     let prm = ReconParams {
         method,
-        catalogue,
+        cup: CupParams { catalogue },
         contour_source: contours,
         pose: refine_poses.then(acetab::solve::PoseParams::default),
         ..Default::default()

@@ -8,7 +8,7 @@ use acetab::contours::ContourSource;
 use acetab::engine::gpu::GpuBatcher;
 use acetab::engine::{BackendChoice, Kernels};
 use acetab::io::fill_dir_atomically;
-use acetab::pipeline::ReconParams;
+use acetab::pipeline::{DeformationParams, ReconParams};
 use acetab::sim::SimSetup;
 use acetab::study::{
     run_study_with, tasks, write_examples, write_tables, StudyConfig, StudyMethod,
@@ -108,7 +108,10 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
                 obs: w_obs,
                 ..Default::default()
             },
-            coarse_graph_nodes: coarse_nodes,
+            deformation: DeformationParams {
+                coarse_graph_nodes: coarse_nodes,
+                ..Default::default()
+            },
             ..Default::default()
         },
         ..Default::default()
@@ -167,7 +170,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         "shard": shard, "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),
         "contours": format!("{:?}", cfg.params.contour_source),
         "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
-        "w_obs": cfg.params.weights.obs, "coarse_nodes": cfg.params.coarse_graph_nodes,
+        "w_obs": cfg.params.weights.obs, "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
     });
     fill_dir_atomically(
         &out,
