@@ -1,9 +1,11 @@
 //! One whole reconstruction of the phantom (level 3, seed 1), SRVF correspondences.
 
+use acetab::engine::Kernels;
 use acetab::pipeline::{reconstruct, ReconParams};
 use acetab::sim::XrayGeometry;
 use acetab::sim::{phantom, PhantomParams};
 use acetab::sim::{simulate_case, NoiseLevel};
+use acetab::template::Template;
 use criterion::{criterion_group, criterion_main, Criterion};
 
 fn bench(c: &mut Criterion) {
@@ -17,10 +19,11 @@ fn bench(c: &mut Criterion) {
     )
     .unwrap();
     let prm = ReconParams::default();
+    let template = Template::standard();
     let mut g = c.benchmark_group("reconstruct");
     g.sample_size(10);
     g.bench_function("phantom_level3", |b| {
-        b.iter(|| reconstruct(&sim.cameras, &sim.observed, &sim.init, &prm).unwrap())
+        b.iter(|| reconstruct(&sim.input(&template), &prm, Kernels::Cpu).unwrap())
     });
     g.finish();
 }

@@ -6,11 +6,12 @@
 
 use acetab::engine::gpu::Gpu;
 use acetab::engine::Kernels;
-use acetab::pipeline::{reconstruct_with, ReconParams};
+use acetab::pipeline::{reconstruct, ReconParams};
 use acetab::report::accuracy;
 use acetab::sim::XrayGeometry;
 use acetab::sim::{phantom, PhantomParams};
 use acetab::sim::{simulate_case, NoiseLevel};
+use acetab::template::Template;
 use std::process::ExitCode;
 
 /// The host's own device: any adapter the environment allows (WGPU_BACKEND, WGPU_ADAPTER_NAME).
@@ -129,10 +130,9 @@ fn main() -> ExitCode {
         )
         .map_err(|e| e.to_string())?;
         let t = std::time::Instant::now();
-        let rec = reconstruct_with(
-            &sim.cameras,
-            &sim.observed,
-            &sim.init,
+        let template = Template::standard();
+        let rec = reconstruct(
+            &sim.input(&template),
             &ReconParams::default(),
             Kernels::Gpu(&gpu),
         )

@@ -11,6 +11,7 @@
 //!
 //! Run: cargo run --release --example error_zones -- [--levels 1,3,5] [--runs 4] MESH...
 
+use acetab::engine::Kernels;
 use acetab::io::read_mesh;
 use acetab::report::accuracy_samples;
 use acetab::report::SurfaceQuery;
@@ -90,7 +91,7 @@ fn zones(path: &str, levels: &[u32], runs: usize) -> Result<String, String> {
     let mut count = [0usize; BANDS];
     let mut done = 0;
     for task in tasks(&cfg) {
-        let (row, run) = run_one(&truth, &task, &cfg);
+        let (row, run) = run_one(&truth, &task, &cfg, Kernels::Cpu);
         let Some(run) = run else {
             return Err(format!(
                 "level {} run {}: {}",

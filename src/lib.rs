@@ -48,9 +48,9 @@ pub use engine::gpu::{Gpu, GpuDevice, GpuError};
 pub use engine::{BackendChoice, Kernels};
 pub use geom::{Curve, Mesh, Sphere};
 pub use pipeline::{
-    cup_report, reconstruct, reconstruct_with, CupReport, ReconError, ReconParams, Reconstruction,
+    cup_report, reconstruct, CupReport, Input, ReconError, ReconParams, Reconstruction,
     UncertaintyParams,
 };
 pub use report::{CupCatalogue, CupSize};
-pub use template::Placement;
+pub use template::{Placement, Template};
 pub use views::{Camera, Intrinsics};

@@ -1,6 +1,9 @@
 //! Whole-pipeline checks on the phantom and, when ../shared is present, on a real acetabulum.
 
+use acetab::engine::Kernels;
+use acetab::pipeline::Input;
 use acetab::report::accuracy;
+use acetab::template::Template;
 
 use acetab::io::read_mesh;
 use acetab::pipeline::{reconstruct, DeformationParams, PlacementParams, ReconParams};
@@ -11,7 +14,7 @@ use std::path::Path;
 
 #[test]
 fn phantom_level_1_reaches_sub_millimetre_accuracy() {
-    let (r, _, _) = run_demo(2, 1, &ReconParams::default()).unwrap();
+    let (r, _, _) = run_demo(2, 1, &ReconParams::default(), Kernels::Cpu).unwrap();
     println!(
         "seed 2 level 1: MAE {:.3} mm, cup error {:+.2} mm",
         r.mae_mm, r.cup_error_mm
@@ -22,7 +25,7 @@ fn phantom_level_1_reaches_sub_millimetre_accuracy() {
 
 #[test]
 fn phantom_level_3_stays_under_one_and_a_half_millimetres() {
-    let (r, _, _) = run_demo(2, 3, &ReconParams::default()).unwrap();
+    let (r, _, _) = run_demo(2, 3, &ReconParams::default(), Kernels::Cpu).unwrap();
     println!(
         "seed 2 level 3: MAE {:.3} mm, cup error {:+.2} mm",
         r.mae_mm, r.cup_error_mm
@@ -47,6 +50,7 @@ fn the_accuracy_measure_rejects_an_unfitted_template() {
             },
             ..Default::default()
         },
+        Kernels::Cpu,
     )
     .unwrap();
     assert!(r.initial_mae_mm > 5.0, "start MAE {}", r.initial_mae_mm);
@@ -63,7 +67,7 @@ fn a_coarse_graph_changes_only_the_rounds_before_the_last() {
             },
             ..Default::default()
         };
-        let (r, _, _) = run_demo(2, 1, &prm).unwrap();
+        let (r, _, _) = run_demo(2, 1, &prm, Kernels::Cpu).unwrap();
         (r.mae_mm, r.cup_error_mm)
     };
     // One round is the last round: the full graph either way, so the same numbers exactly.
@@ -90,7 +94,12 @@ fn far_start_mae() -> (f64, f64) {
     let mut init = sim.init.clone();
     init.center += nalgebra::Vector3::new(150.0, -200.0, 150.0);
     init.radius *= 2.5;
-    let rec = reconstruct(&sim.cameras, &sim.observed, &init, &ReconParams::default()).unwrap();
+    let template = Template::standard();
+    let input = Input {
+        init: &init,
+        ..sim.input(&template)
+    };
+    let rec = reconstruct(&input, &ReconParams::default(), Kernels::Cpu).unwrap();
     assert!(rec.log.limb_sphere.is_some());
     (
         accuracy(&truth, &rec.mesh).mae_mm,
@@ -129,13 +138,9 @@ fn shared_real_acetabulum_levels_1_and_3() {
             3,
         )
         .unwrap();
-        let rec = reconstruct(
-            &sim.cameras,
-            &sim.observed,
-            &sim.init,
-            &ReconParams::default(),
-        )
-        .unwrap();
+        let template = Template::standard();
+        let rec =
+            reconstruct(&sim.input(&template), &ReconParams::default(), Kernels::Cpu).unwrap();
         let acc = accuracy(&truth, &rec.mesh);
         println!(
             "m2_rhip level {level}: MAE {:.3} mm, cup {:.2} vs {:.2} mm",
@@ -170,7 +175,8 @@ fn m1_rhip_run(
         acetab::study::run_seed(1, level, run),
     )
     .unwrap();
-    let rec = reconstruct(&sim.cameras, &sim.observed, &sim.init, prm).unwrap();
+    let template = Template::standard();
+    let rec = reconstruct(&sim.input(&template), prm, Kernels::Cpu).unwrap();
     Some((accuracy(&truth, &rec.mesh).mae_mm, rec.log.orientations))
 }
 

@@ -256,10 +256,11 @@ fn srvf_dp_back_pointers_equal_the_twin_exactly() {
 fn whole_reconstruction_on_the_gpu_matches_the_cpu() {
     with_gpu(|gpu| {
         use acetab::engine::Kernels;
-        use acetab::pipeline::{reconstruct_with, ReconParams};
+        use acetab::pipeline::{reconstruct, ReconParams};
         use acetab::report::accuracy;
         use acetab::sim::{phantom, PhantomParams};
         use acetab::sim::{simulate_case, NoiseLevel};
+        use acetab::template::Template;
         let truth = phantom(&PhantomParams::default()).mesh;
         let sim = simulate_case(
             &truth,
@@ -270,16 +271,10 @@ fn whole_reconstruction_on_the_gpu_matches_the_cpu() {
         )
         .unwrap();
         let prm = ReconParams::default();
-        let cpu =
-            reconstruct_with(&sim.cameras, &sim.observed, &sim.init, &prm, Kernels::Cpu).unwrap();
-        let gpu_r = reconstruct_with(
-            &sim.cameras,
-            &sim.observed,
-            &sim.init,
-            &prm,
-            Kernels::Gpu(gpu),
-        )
-        .unwrap();
+        let template = Template::standard();
+        let input = sim.input(&template);
+        let cpu = reconstruct(&input, &prm, Kernels::Cpu).unwrap();
+        let gpu_r = reconstruct(&input, &prm, Kernels::Gpu(gpu)).unwrap();
         let (a, b) = (
             accuracy(&truth, &cpu.mesh).mae_mm,
             accuracy(&truth, &gpu_r.mesh).mae_mm,
@@ -320,7 +315,7 @@ fn study_runs_batched_on_the_gpu_match_the_cpu() {
         use acetab::engine::gpu::GpuBatcher;
         use acetab::engine::Kernels;
         use acetab::sim::{phantom, PhantomParams};
-        use acetab::study::{run_study_with, StudyConfig};
+        use acetab::study::{run_study, StudyConfig};
         let truth = phantom(&PhantomParams::default()).mesh;
         let cfg = StudyConfig {
             levels: vec![1],
@@ -330,10 +325,9 @@ fn study_runs_batched_on_the_gpu_match_the_cpu() {
             ..Default::default()
         };
         let batcher = GpuBatcher::new(gpu, 2, std::time::Duration::from_millis(5));
-        let (cpu, _) = run_study_with(&truth, &cfg, &|| {}, Kernels::Cpu).unwrap();
-        let (single, _) = run_study_with(&truth, &cfg, &|| {}, Kernels::Gpu(gpu)).unwrap();
-        let (batched, _) =
-            run_study_with(&truth, &cfg, &|| {}, Kernels::Batched(&batcher)).unwrap();
+        let (cpu, _) = run_study(&truth, &cfg, &|| {}, Kernels::Cpu).unwrap();
+        let (single, _) = run_study(&truth, &cfg, &|| {}, Kernels::Gpu(gpu)).unwrap();
+        let (batched, _) = run_study(&truth, &cfg, &|| {}, Kernels::Batched(&batcher)).unwrap();
         let (req, disp) = batcher.counts();
         eprintln!("{req} requests in {disp} dispatches");
         for ((c, s), b) in cpu.iter().zip(&single).zip(&batched) {

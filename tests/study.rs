@@ -1,6 +1,7 @@
 //! The study runner: results do not depend on the thread count, shards merge to the unsharded
 //! table, and the output folder holds what the README promises.
 
+use acetab::engine::Kernels;
 use acetab::pipeline::ReconParams;
 use acetab::sim::{phantom, PhantomParams};
 use acetab::study::StudyMethod;
@@ -10,7 +11,6 @@ use acetab::study::{
 
 fn quick() -> StudyConfig {
     let mut params = ReconParams::default();
-    params.template.vertices = 700;
     params.placement.rounds = 4;
     params.deformation.correspondence_updates = 1;
     params.correspond.srvf.samples = 64;
@@ -21,6 +21,10 @@ fn quick() -> StudyConfig {
         methods: vec![StudyMethod::Srvf, StudyMethod::Icp],
         seed: 11,
         threads: 1,
+        template: acetab::template::TemplateParams {
+            vertices: 700,
+            ..Default::default()
+        },
         params,
         ..Default::default()
     }
@@ -51,7 +55,7 @@ fn strip(rows: &[Row]) -> String {
 fn threads_and_shards_give_the_same_table() {
     let truth = small_phantom();
     let cfg = quick();
-    let (one, examples) = run_study(&truth, &cfg, &|| {}).unwrap();
+    let (one, examples) = run_study(&truth, &cfg, &|| {}, Kernels::Cpu).unwrap();
     assert_eq!(one.len(), 8);
     let (two, _) = run_study(
         &truth,
@@ -60,6 +64,7 @@ fn threads_and_shards_give_the_same_table() {
             ..cfg.clone()
         },
         &|| {},
+        Kernels::Cpu,
     )
     .unwrap();
     assert_eq!(strip(&one), strip(&two));
@@ -75,6 +80,7 @@ fn threads_and_shards_give_the_same_table() {
                 ..cfg.clone()
             },
             &|| {},
+            Kernels::Cpu,
         )
         .unwrap();
         let d = base.join(format!("shard{i}"));
@@ -120,7 +126,7 @@ fn paper_protocol_runs_only_the_deformation_and_keeps_its_name() {
         methods: vec![StudyMethod::Icp, StudyMethod::IcpPaper],
         ..quick()
     };
-    let (rows, examples) = run_study(&truth, &cfg, &|| {}).unwrap();
+    let (rows, examples) = run_study(&truth, &cfg, &|| {}, Kernels::Cpu).unwrap();
     let [ours, paper] = [&rows[0], &rows[1]];
     assert_eq!(
         (ours.method, paper.method),

@@ -3,7 +3,8 @@
 //! file, the field and the value.
 
 use crate::geom::{signed_area, Curve};
-use crate::template::Placement;
+use crate::pipeline::Input;
+use crate::template::{Placement, Template};
 use crate::views::{Camera, Intrinsics};
 use nalgebra::{Matrix3, Point2, Point3, Rotation3, Unit, Vector3};
 use serde::{Deserialize, Serialize};
@@ -126,6 +127,18 @@ fn field_err(
 
 /// Largest coordinate magnitude accepted anywhere (mm or px): beyond it the input is absurd.
 const ABSURD: f64 = 1e7;
+
+impl Case {
+    /// The reconstruction's input: this case's views, outlines and start, with `template`.
+    pub fn input<'a>(&'a self, template: &'a Template) -> Input<'a> {
+        Input {
+            cameras: &self.cameras,
+            observed: &self.observed,
+            init: &self.init,
+            template,
+        }
+    }
+}
 
 impl CaseFile {
     /// Read and validate.

@@ -7,9 +7,10 @@ use crate::case::{CaseError, CaseFile};
 use crate::engine::Kernels;
 use crate::io::{write_ply, MeshIoError};
 use crate::pipeline::{cup_report, CupReport, UncertaintyParams};
-use crate::pipeline::{reconstruct_with, ReconError, ReconParams};
+use crate::pipeline::{reconstruct, ReconError, ReconParams};
 #[cfg(feature = "plots")]
 use crate::report::plots::{overlay, PlotError};
+use crate::template::Template;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
@@ -69,10 +70,9 @@ pub fn run_case(
         path: path.to_path_buf(),
         source,
     };
-    let rec = reconstruct_with(&case.cameras, &case.observed, &case.init, prm, kernels)
-        .map_err(recon_err)?;
-    let cup =
-        cup_report(&rec, &rec.cameras, &case.observed, prm, kernels, up).map_err(recon_err)?;
+    let template = Template::standard();
+    let rec = reconstruct(&case.input(&template), prm, kernels).map_err(recon_err)?;
+    let cup = cup_report(&rec, &case.observed, prm, kernels, up).map_err(recon_err)?;
     let seconds = t.elapsed().as_secs_f64();
 
     let write_err = |p: &Path, source| CaseRunError::Write {

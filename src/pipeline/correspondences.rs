@@ -3,44 +3,74 @@
 
 use super::{ReconError, ReconParams};
 use crate::contours::ModelContour;
-use crate::correspond::correspond;
-use crate::correspond::Observation;
+use crate::correspond::{correspond, Observation};
 use crate::engine::Kernels;
-use crate::geom::Curve;
-use crate::geom::Mesh;
+use crate::geom::{Curve, Mesh};
 use crate::views::Camera;
 
-pub(super) fn contours(
-    mesh: &Mesh,
-    cams: &[Camera],
-    prm: &ReconParams,
-    kernels: Kernels,
-) -> Result<Vec<ModelContour>, ReconError> {
-    Ok(kernels.contours(mesh, cams, prm.contour_source)?)
+/// What every stage of one reconstruction reads: the views as given, the observed outlines, the
+/// settings and the kernels.
+#[derive(Clone, Copy)]
+pub(super) struct Ctx<'a> {
+    pub(super) cams: &'a [Camera],
+    pub(super) observed: &'a [Vec<Curve>],
+    pub(super) prm: &'a ReconParams,
+    pub(super) kernels: Kernels<'a>,
 }
 
-pub(super) fn all_correspondences(
-    mesh: &Mesh,
-    cams: &[Camera],
-    observed: &[Vec<Curve>],
-    prm: &ReconParams,
-    kernels: Kernels,
-) -> Result<Vec<Observation>, ReconError> {
-    let model = contours(mesh, cams, prm, kernels)?;
-    let mut out = Vec::new();
-    for (view, curves) in observed.iter().enumerate() {
-        for (ci, curve) in curves.iter().enumerate() {
-            let o = correspond(prm.method, view, &model[view], curve, &prm.correspond).map_err(
-                |source| ReconError::Correspond {
-                    view,
-                    contour: ci,
-                    source,
-                },
-            )?;
-            out.extend(o);
-        }
+impl Ctx<'_> {
+    /// The model contour of `mesh` in each of `cams`.
+    pub(super) fn contours(
+        &self,
+        mesh: &Mesh,
+        cams: &[Camera],
+    ) -> Result<Vec<ModelContour>, ReconError> {
+        Ok(self.kernels.contours(mesh, cams, self.prm.contour_source)?)
     }
-    Ok(out)
+
+    /// Correspondences of `mesh` seen in `cams` with every observed outline.
+    fn all_correspondences(
+        &self,
+        mesh: &Mesh,
+        cams: &[Camera],
+    ) -> Result<Vec<Observation>, ReconError> {
+        let prm = self.prm;
+        let model = self.contours(mesh, cams)?;
+        let mut out = Vec::new();
+        for (view, curves) in self.observed.iter().enumerate() {
+            for (ci, curve) in curves.iter().enumerate() {
+                let o = correspond(prm.method, view, &model[view], curve, &prm.correspond)
+                    .map_err(|source| ReconError::Correspond {
+                        view,
+                        contour: ci,
+                        source,
+                    })?;
+                out.extend(o);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Correspondences in every view with their robust weights; too few is an error of
+    /// `stage`.
+    pub(super) fn correspondences(
+        &self,
+        mesh: &Mesh,
+        cams: &[Camera],
+        stage: &'static str,
+    ) -> Result<Vec<Observation>, ReconError> {
+        let mut obs = self.all_correspondences(mesh, cams)?;
+        if self.prm.robust {
+            robust_weights(mesh, cams, &mut obs);
+        }
+        if obs.len() < MIN_CORRESPONDENCES {
+            return Err(ReconError::TooFewCorrespondences {
+                stage,
+                count: obs.len(),
+            });
+        }
+        Ok(obs)
+    }
 }
 
 /// Cauchy weights w = 1 / (1 + (r / c)^2) on the current reprojection residuals, c = 2 robust SDs
@@ -104,25 +134,3 @@ pub(super) fn rms_motion(a: &Mesh, b: &Mesh) -> f64 {
 
 /// Fewest correspondences a solve accepts.
 pub(super) const MIN_CORRESPONDENCES: usize = 12;
-
-/// Correspondences in every view with their robust weights; too few is an error of `stage`.
-pub(super) fn weighted_correspondences(
-    mesh: &Mesh,
-    cams: &[Camera],
-    observed: &[Vec<Curve>],
-    prm: &ReconParams,
-    kernels: Kernels,
-    stage: &'static str,
-) -> Result<Vec<Observation>, ReconError> {
-    let mut obs = all_correspondences(mesh, cams, observed, prm, kernels)?;
-    if prm.robust {
-        robust_weights(mesh, cams, &mut obs);
-    }
-    if obs.len() < MIN_CORRESPONDENCES {
-        return Err(ReconError::TooFewCorrespondences {
-            stage,
-            count: obs.len(),
-        });
-    }
-    Ok(obs)
-}

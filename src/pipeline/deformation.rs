@@ -1,14 +1,12 @@
 //! Stage B: the embedded deformation graph with its sphere prior, solved on correspondences that
 //! stay fixed until the deformation settles and are then recomputed.
 
-use super::correspondences::{check_finite, rms_motion, rms_px, weighted_correspondences};
-use super::placement::refine_poses;
+use super::correspondences::{check_finite, rms_motion, rms_px, Ctx};
+use super::placement::Poses;
 use super::{ReconError, ReconParams};
 use crate::correspond::Method;
 use crate::correspond::Observation;
-use crate::engine::Kernels;
 use crate::geom::fit_sphere_robust;
-use crate::geom::Curve;
 use crate::geom::Mesh;
 use crate::solve::SpherePrior;
 use crate::solve::{
@@ -19,26 +17,15 @@ use crate::template::Placement;
 use crate::views::Camera;
 use nalgebra::Point3;
 
-/// What every stage-B solve of one reconstruction shares.
-pub(super) struct StageB<'a> {
-    pub(super) cams: &'a [Camera],
-    pub(super) observed: &'a [Vec<Curve>],
-    pub(super) prm: &'a ReconParams,
-    pub(super) kernels: Kernels<'a>,
-    pub(super) pose_center: Point3<f64>,
-    /// Correspondence rounds in all, and the solver settings of each round's solve.
+/// Stage B's schedule: correspondence rounds in all, and the solver settings of each round's
+/// solve.
+pub(super) struct StageB {
     pub(super) rounds: usize,
     pub(super) lm: LmParams,
 }
 
-impl<'a> StageB<'a> {
-    pub(super) fn new(
-        cams: &'a [Camera],
-        observed: &'a [Vec<Curve>],
-        prm: &'a ReconParams,
-        kernels: Kernels<'a>,
-        pose_center: Point3<f64>,
-    ) -> Self {
+impl StageB {
+    pub(super) fn new(prm: &ReconParams) -> Self {
         let (rounds, lm) = match prm.method {
             Method::Srvf => (
                 prm.deformation.correspondence_updates.max(1),
@@ -52,15 +39,70 @@ impl<'a> StageB<'a> {
                 },
             ),
         };
-        StageB {
-            cams,
-            observed,
-            prm,
-            kernels,
-            pose_center,
-            rounds,
-            lm,
+        StageB { rounds, lm }
+    }
+}
+
+/// What one ED solve is: the graph's settings, the solver's, and the stage it belongs to (named
+/// in errors).
+pub(super) struct EdRound<'a> {
+    pub(super) graph: &'a GraphParams,
+    pub(super) lm: &'a LmParams,
+    pub(super) stage: &'static str,
+}
+
+/// What one surface's ED solves carry from one to the next: the sphere prior's sphere (starts as
+/// the template's) and the symbolic factorisation.
+#[derive(Default)]
+pub(super) struct EdState {
+    pub(super) prior_sphere: Option<(Point3<f64>, f64)>,
+    pub(super) symbolic: SymbolicCache,
+}
+
+impl EdState {
+    /// One ED solve on fixed correspondences `obs` in views `cams`, a graph with `round.graph`'s
+    /// settings built on `mesh`: the deformed mesh.
+    pub(super) fn solve(
+        &mut self,
+        ctx: &Ctx,
+        round: &EdRound,
+        cams: &[Camera],
+        mesh: &Mesh,
+        obs: &[Observation],
+    ) -> Result<(Mesh, LmInfo), ReconError> {
+        let prm = ctx.prm;
+        let graph = DeformationGraph::new(mesh, round.graph);
+        let mut problem = EdProblem::new(&graph, cams, obs, prm.weights.clone());
+        let prior = &prm.deformation;
+        if prior.sphere_prior > 0.0 && self.prior_sphere.is_none() {
+            self.prior_sphere = fit_sphere_robust(&mesh.vertices)
+                .ok()
+                .map(|s| (s.center_point(), s.radius));
         }
+        if prior.sphere_prior > 0.0 && self.prior_sphere.is_some() {
+            // Every k-th vertex, weighted k-fold: the same energy at a fraction of the rows.
+            let n = mesh.vertex_count();
+            let k = n.div_ceil(prior.sphere_prior_vertices.max(1)).max(1);
+            problem.sphere = Some(SpherePrior {
+                weight: prior.sphere_prior * k as f64,
+                vertices: (0..n as u32).step_by(k).collect(),
+            });
+        }
+        let at = self.prior_sphere.unwrap_or((Point3::origin(), 0.0));
+        let (x, info) =
+            levenberg_marquardt_cached(&problem, problem.start(at), round.lm, &mut self.symbolic)
+                .map_err(|source| ReconError::Solve {
+                stage: round.stage,
+                source,
+            })?;
+        let nodes = graph.node_count() * crate::solve::NODE_PARAMS;
+        if problem.sphere.is_some() {
+            let b = &x[nodes..];
+            self.prior_sphere = Some((Point3::new(b[0], b[1], b[2]), b[3]));
+        }
+        let out = mesh.with_vertices(ctx.kernels.deform(&graph, &x[..nodes])?);
+        check_finite(&out)?;
+        Ok((out, info))
     }
 }
 
@@ -69,71 +111,46 @@ pub(super) struct Deformation {
     pub(super) mesh: Mesh,
     /// The last round's correspondences.
     pub(super) obs: Vec<Observation>,
-    /// The sphere prior's sphere: starts as the template's, carried from solve to solve.
-    pub(super) prior_sphere: Option<(Point3<f64>, f64)>,
-    pub(super) symbolic: SymbolicCache,
+    pub(super) state: EdState,
     pub(super) converged: bool,
     /// ICP stopped: an iteration moved the surface by less than `icp_tol_mm`.
     pub(super) settled: bool,
     pub(super) rounds: usize,
     pub(super) gn_iterations: usize,
-    pub(super) cams_now: Vec<Camera>,
-    pub(super) pose_x: Vec<f64>,
+    pub(super) poses: Poses,
 }
 
 impl Deformation {
-    pub(super) fn new(
-        mesh: Mesh,
-        placement: &Placement,
-        cams_now: Vec<Camera>,
-        pose_x: Vec<f64>,
-    ) -> Self {
+    pub(super) fn new(mesh: Mesh, placement: &Placement, poses: Poses) -> Self {
         Deformation {
             mesh,
             obs: Vec::new(),
-            prior_sphere: Some((placement.center, placement.radius)),
-            symbolic: SymbolicCache::default(),
+            state: EdState {
+                prior_sphere: Some((placement.center, placement.radius)),
+                symbolic: SymbolicCache::default(),
+            },
             converged: true,
             settled: false,
             rounds: 0,
             gn_iterations: 0,
-            cams_now,
-            pose_x,
+            poses,
         }
     }
 
     /// Reprojection RMS (px) of the last round's correspondences.
     pub(super) fn rms_px(&self) -> f64 {
-        rms_px(&self.mesh, &self.cams_now, &self.obs)
+        rms_px(&self.mesh, &self.poses.cams_now, &self.obs)
     }
 
     /// Run rounds until `upto` have been run in all (or ICP has settled).
-    pub(super) fn advance(&mut self, b: &StageB<'_>, upto: usize) -> Result<(), ReconError> {
-        let prm = b.prm;
+    pub(super) fn advance(&mut self, ctx: &Ctx, b: &StageB, upto: usize) -> Result<(), ReconError> {
+        let prm = ctx.prm;
         while self.rounds < upto && !self.settled {
-            self.obs = weighted_correspondences(
-                &self.mesh,
-                &self.cams_now,
-                b.observed,
-                prm,
-                b.kernels,
-                "deformation",
-            )?;
-            if let Some(pp) = &prm.pose {
-                // The views' corrections first, on these correspondences and the current
-                // shape; then the shape with the corrected views: both lower the one joint
-                // energy.
-                self.gn_iterations += refine_poses(
-                    &self.mesh,
-                    &b.pose_center,
-                    b.cams,
-                    &self.obs,
-                    pp,
-                    prm,
-                    &mut self.pose_x,
-                    &mut self.cams_now,
-                )?;
-            }
+            self.obs = ctx.correspondences(&self.mesh, &self.poses.cams_now, "deformation")?;
+            // With pose refinement, the views' corrections first, on these correspondences and
+            // the current shape; then the shape with the corrected views: both lower the one
+            // joint energy.
+            self.gn_iterations += self.poses.refine(ctx, &self.mesh, &self.obs)?;
             let coarse;
             let graph = match prm.deformation.coarse_graph_nodes {
                 Some(nodes) if self.rounds + 1 < b.rounds => {
@@ -145,18 +162,14 @@ impl Deformation {
                 }
                 _ => &prm.deformation.graph,
             };
-            let (deformed, info) = ed_solve(
-                &self.mesh,
+            let round = EdRound {
                 graph,
-                &self.cams_now,
-                &self.obs,
-                prm,
-                &b.lm,
-                b.kernels,
-                "deformation",
-                &mut self.prior_sphere,
-                &mut self.symbolic,
-            )?;
+                lm: &b.lm,
+                stage: "deformation",
+            };
+            let (deformed, info) =
+                self.state
+                    .solve(ctx, &round, &self.poses.cams_now, &self.mesh, &self.obs)?;
             let moved = rms_motion(&self.mesh, &deformed);
             self.mesh = deformed;
             self.rounds += 1;
@@ -168,83 +181,28 @@ impl Deformation {
     }
 }
 
-/// One ED solve on fixed correspondences, a graph with `graph`'s settings built on `mesh`: the
-/// deformed mesh.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn ed_solve(
+/// One more ED round from an already reconstructed mesh, in the views `ctx.cams`:
+/// correspondences recomputed once against `ctx.observed`, each observation's weight multiplied
+/// by `reweight` (the bootstrap's draws), the graph rebuilt on `mesh` and solved. Used to
+/// measure how the result moves when the inputs are resampled. Returns the new mesh and the
+/// round's correspondences with their robust weights (without the bootstrap's factors), as
+/// `Reconstruction::observations` are kept, so that the cup estimator (`cup_spheres`) sees the
+/// resample as it sees the result.
+pub(super) fn resolve_from(
+    ctx: &Ctx,
     mesh: &Mesh,
-    graph: &GraphParams,
-    cams: &[Camera],
-    obs: &[Observation],
-    prm: &ReconParams,
-    lm: &LmParams,
-    kernels: Kernels,
-    stage: &'static str,
-    sphere: &mut Option<(Point3<f64>, f64)>,
-    symbolic: &mut SymbolicCache,
-) -> Result<(Mesh, LmInfo), ReconError> {
-    let graph = DeformationGraph::new(mesh, graph);
-    let mut problem = EdProblem::new(&graph, cams, obs, prm.weights.clone());
-    if prm.deformation.sphere_prior > 0.0 && sphere.is_none() {
-        *sphere = fit_sphere_robust(&mesh.vertices)
-            .ok()
-            .map(|s| (s.center_point(), s.radius));
-    }
-    if prm.deformation.sphere_prior > 0.0 && sphere.is_some() {
-        // Every k-th vertex, weighted k-fold: the same energy at a fraction of the rows.
-        let n = mesh.vertex_count();
-        let k = n
-            .div_ceil(prm.deformation.sphere_prior_vertices.max(1))
-            .max(1);
-        problem.sphere = Some(SpherePrior {
-            weight: prm.deformation.sphere_prior * k as f64,
-            vertices: (0..n as u32).step_by(k).collect(),
-        });
-    }
-    let at = sphere.unwrap_or((Point3::origin(), 0.0));
-    let (x, info) = levenberg_marquardt_cached(&problem, problem.start(at), lm, symbolic)
-        .map_err(|source| ReconError::Solve { stage, source })?;
-    let nodes = graph.node_count() * crate::solve::NODE_PARAMS;
-    if problem.sphere.is_some() {
-        let b = &x[nodes..];
-        *sphere = Some((Point3::new(b[0], b[1], b[2]), b[3]));
-    }
-    let out = mesh.with_vertices(kernels.deform(&graph, &x[..nodes])?);
-    check_finite(&out)?;
-    Ok((out, info))
-}
-
-/// One more ED round from an already reconstructed mesh: correspondences recomputed once against
-/// `observed`, each observation's weight multiplied by `reweight` (the bootstrap's draws), the
-/// graph rebuilt on `mesh` and solved. Used to measure how the result moves when the inputs are
-/// resampled. Returns the new mesh and the round's correspondences with their robust weights
-/// (without the bootstrap's factors), as `Reconstruction::observations` are kept, so that the
-/// cup estimator (`cup_spheres`) sees the resample as it sees the result.
-pub fn resolve_from(
-    mesh: &Mesh,
-    cams: &[Camera],
-    observed: &[Vec<Curve>],
-    prm: &ReconParams,
-    kernels: Kernels,
     reweight: &mut dyn FnMut(usize) -> f64,
 ) -> Result<(Mesh, Vec<Observation>), ReconError> {
-    let obs = weighted_correspondences(mesh, cams, observed, prm, kernels, "resampling")?;
+    let obs = ctx.correspondences(mesh, ctx.cams, "resampling")?;
     let mut drawn = obs.clone();
     for (k, o) in drawn.iter_mut().enumerate() {
         o.weight *= reweight(k);
     }
-    let mut sphere = None;
-    let (out, _) = ed_solve(
-        mesh,
-        &prm.deformation.graph,
-        cams,
-        &drawn,
-        prm,
-        &prm.lm,
-        kernels,
-        "resampling",
-        &mut sphere,
-        &mut SymbolicCache::default(),
-    )?;
+    let round = EdRound {
+        graph: &ctx.prm.deformation.graph,
+        lm: &ctx.prm.lm,
+        stage: "resampling",
+    };
+    let (out, _) = EdState::default().solve(ctx, &round, ctx.cams, mesh, &drawn)?;
     Ok((out, obs))
 }

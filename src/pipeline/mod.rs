@@ -12,30 +12,23 @@ mod placement;
 mod uncertainty;
 
 pub use cup::{cup_spheres, observed_part_sphere, CupSpheres};
-pub use deformation::resolve_from;
-pub use params::{
-    CupParams, DeformationParams, PlacementParams, ReconParams, TemplateParams,
-    MAX_TEMPLATE_VERTICES,
-};
+pub use params::{CupParams, DeformationParams, PlacementParams, ReconParams};
 pub use uncertainty::{cup_report, CupReport, SizeProbability, UncertaintyParams};
 
 use crate::contours::ModelContour;
 use crate::correspond::srvf::SrvfError;
 use crate::correspond::Observation;
 use crate::engine::{KernelError, Kernels};
-use crate::geom::Curve;
-use crate::geom::Mesh;
-use crate::geom::{Sphere, SphereFitError};
+use crate::geom::{Curve, Mesh, Sphere, SphereFitError};
 use crate::report::CupSize;
-use crate::solve::limb_sphere;
-use crate::solve::SolveError;
-use crate::template::{spherical_cap, Placement};
+use crate::solve::{limb_sphere, SolveError};
+use crate::template::{Placement, Template, TemplateError};
 use crate::views::Camera;
-use correspondences::{contours, rms_px, weighted_correspondences};
+use correspondences::{rms_px, Ctx};
 use deformation::{Deformation, StageB};
-use nalgebra::Vector3;
+use nalgebra::Point3;
 use placement::{
-    mirrored_axis, refine_poses, similarity_lm, similarity_stage, similarity_step,
+    mirrored_axis, similarity_lm, similarity_stage, similarity_step, Poses, StageA,
     MIRROR_PROBE_ROUNDS, MIRROR_SWITCH,
 };
 
@@ -63,6 +56,8 @@ pub enum ReconError {
     Sphere(#[from] SphereFitError),
     #[error("views ({views}) and observed contour sets ({observed}) differ in number")]
     Mismatch { views: usize, observed: usize },
+    #[error("template: {0}")]
+    Template(#[from] TemplateError),
     /// A setting outside what the method can run with (see `ReconParams::validate`).
     #[error("setting {field} = {value}: must be {expected}")]
     Param {
@@ -121,36 +116,51 @@ pub struct Reconstruction {
     pub cameras: Vec<Camera>,
 }
 
-/// Reconstruct from cameras and observed contours (per view, one or more), starting from `init`,
-/// with every kernel on the CPU.
-pub fn reconstruct(
-    cams: &[Camera],
-    observed: &[Vec<Curve>],
-    init: &Placement,
-    prm: &ReconParams,
-) -> Result<Reconstruction, ReconError> {
-    reconstruct_with(cams, observed, init, prm, Kernels::Cpu)
+/// One reconstruction's inputs: the views, the outlines observed in each (one or more a view),
+/// where the template starts, and the template itself.
+#[derive(Clone, Copy, Debug)]
+pub struct Input<'a> {
+    pub cameras: &'a [Camera],
+    pub observed: &'a [Vec<Curve>],
+    pub init: &'a Placement,
+    pub template: &'a Template,
 }
 
-/// As `reconstruct`, with the model contours and the deformation on the given kernels.
-pub fn reconstruct_with(
-    cams: &[Camera],
-    observed: &[Vec<Curve>],
-    init: &Placement,
+/// Reconstruct: the method's stages in order, each kernel on `kernels` (`Kernels::Cpu`, or the
+/// caller's GPU).
+pub fn reconstruct(
+    input: &Input,
     prm: &ReconParams,
     kernels: Kernels,
 ) -> Result<Reconstruction, ReconError> {
     prm.validate()?;
-    if cams.len() != observed.len() {
+    check_views(input, prm)?;
+    let ctx = Ctx {
+        cams: input.cameras,
+        observed: input.observed,
+        prm,
+        kernels,
+    };
+    let mut log = SolveLog::default();
+    let start = limb_start(&ctx, input.init, &mut log);
+    let placed = place(&ctx, input.template, &start, &mut log)?;
+    let posed = refine_views(&ctx, input.template, placed.best, &mut log)?;
+    let deformed = deform(&ctx, posed, placed.rivals, &mut log)?;
+    finish(&ctx, input, deformed, log)
+}
+
+/// As many observed outline sets as views, and a pose reference that is one of the views.
+fn check_views(input: &Input, prm: &ReconParams) -> Result<(), ReconError> {
+    if input.cameras.len() != input.observed.len() {
         return Err(ReconError::Mismatch {
-            views: cams.len(),
-            observed: observed.len(),
+            views: input.cameras.len(),
+            observed: input.observed.len(),
         });
     }
     if let Some(pp) = prm
         .pose
         .as_ref()
-        .filter(|pp| pp.reference_view >= cams.len())
+        .filter(|pp| pp.reference_view >= input.cameras.len())
     {
         return Err(ReconError::Param {
             field: "pose.reference_view",
@@ -158,37 +168,55 @@ pub fn reconstruct_with(
             expected: "the index of one of the views",
         });
     }
-    let unit = spherical_cap(
-        1.0,
-        prm.template.vertices,
-        prm.template.polar_deg.to_radians(),
-    );
-    let initial = init.place(&unit);
-    let mut log = SolveLog::default();
-    let mut start = init.clone();
-    // The limb sphere needs the views' poses as given; with pose refinement it is left out.
+    Ok(())
+}
+
+/// Where stage A starts: the given placement, or its axis on the limb sphere.
+struct Start {
+    placement: Placement,
+    /// Stage A turns the cap about the sphere's centre only.
+    about: Option<Point3<f64>>,
+}
+
+/// Stage 0: the template on the sphere the outlines' limbs define (the given axis kept). The
+/// limb sphere needs the views' poses as given; with pose refinement it is left out.
+fn limb_start(ctx: &Ctx, init: &Placement, log: &mut SolveLog) -> Start {
+    let prm = ctx.prm;
+    let mut placement = init.clone();
     if prm.placement.limb_start && prm.pose.is_none() {
-        if let Ok(ls) = limb_sphere(cams, observed, prm.placement.limb_scale_mm) {
-            start.center = ls.center;
-            start.radius = ls.radius;
+        if let Ok(ls) = limb_sphere(ctx.cams, ctx.observed, prm.placement.limb_scale_mm) {
+            placement.center = ls.center;
+            placement.radius = ls.radius;
             log.limb_sphere = Some([ls.center.x, ls.center.y, ls.center.z, ls.radius]);
         }
     }
     let rotation_only = prm.placement.rotation_only && log.limb_sphere.is_some();
-    let mut on_rim = vec![false; unit.vertex_count()];
-    for [a, b] in unit.boundary_edges() {
-        on_rim[a as usize] = true;
-        on_rim[b as usize] = true;
+    Start {
+        about: rotation_only.then_some(placement.center),
+        placement,
     }
-    let about = rotation_only.then_some(start.center);
+}
 
-    // Stage A: similarity, correspondences recomputed each round. When the sphere is known the
-    // axis mirrored through the first view's image plane is probed too: an acetabulum opening
-    // forwards and one opening backwards by as much cast nearly the same outline in a frontal
-    // view, and only the oblique views tell them apart. The mirrored one replaces the given
-    // start when it reprojects clearly better (by the factor MIRROR_SWITCH) and is dropped when
-    // clearly worse; in between, the rigid cap cannot tell them apart and both go on to stage B
-    // (see `DeformationParams::orientation_rounds`).
+/// What stage A settled on, and the mirrored orientation when the outlines leave it open.
+struct Placed {
+    best: StageA,
+    rivals: Vec<(&'static str, Mesh, Placement)>,
+}
+
+/// Stage A: similarity, correspondences recomputed each round. When the sphere is known the
+/// axis mirrored through the first view's image plane is probed too: an acetabulum opening
+/// forwards and one opening backwards by as much cast nearly the same outline in a frontal
+/// view, and only the oblique views tell them apart. The mirrored one replaces the given start
+/// when it reprojects clearly better (by the factor MIRROR_SWITCH) and is dropped when clearly
+/// worse; in between, the rigid cap cannot tell them apart and both go on to stage B (see
+/// `DeformationParams::orientation_rounds`).
+fn place(
+    ctx: &Ctx,
+    template: &Template,
+    start: &Start,
+    log: &mut SolveLog,
+) -> Result<Placed, ReconError> {
+    let prm = ctx.prm;
     // The similarity stage fixes only a handful of parameters: coarser SRVF curves do.
     let mut coarse = prm.clone();
     let srvf = &mut coarse.correspond.srvf;
@@ -196,45 +224,41 @@ pub fn reconstruct_with(
     srvf.seed_candidates = srvf
         .seed_candidates
         .min(prm.placement.seed_candidates.max(1));
-    // Stage A from `mesh` (the template at `placement`), its work added to the log.
+    let coarse_ctx = Ctx {
+        prm: &coarse,
+        ..*ctx
+    };
+    let unit = template.mesh();
+    // Stage A from `placement`, its work added to the log.
     let stage = |mesh: Mesh, placement: Placement, max_rounds: usize, log: &mut SolveLog| {
         let r = similarity_stage(
-            mesh, cams, observed, &coarse, kernels, &on_rim, about, max_rounds, placement,
+            &coarse_ctx,
+            template.on_rim(),
+            mesh,
+            placement,
+            start.about,
+            max_rounds,
         )?;
         log.similarity_rounds += r.rounds;
         log.gn_iterations += r.iterations;
         Ok::<_, ReconError>(r)
     };
-    let mut best = stage(
-        start.place(&unit),
-        start.clone(),
-        prm.placement.rounds,
-        &mut log,
-    )?;
-    // The mirrored orientation when the outlines leave it open: carried through stage B beside
-    // the start's (see `DeformationParams::orientation_rounds`).
-    let mut rivals: Vec<(&'static str, Mesh, Placement)> = Vec::new();
-    if let Some(axis) =
-        mirrored_axis(&start, cams).filter(|_| rotation_only && prm.placement.mirrored_start)
-    {
-        let mirrored = Placement {
-            axis,
-            ..start.clone()
-        };
+    let s = &start.placement;
+    let mut best = stage(s.place(unit), s.clone(), prm.placement.rounds, log)?;
+    let mut rivals = Vec::new();
+    let mirrored = mirrored_axis(s, ctx.cams)
+        .filter(|_| start.about.is_some() && prm.placement.mirrored_start);
+    if let Some(axis) = mirrored {
+        let mirrored = Placement { axis, ..s.clone() };
         // A few rounds tell a clearly wrong orientation from a right one; the mirrored start
         // goes on to convergence unless it is clearly worse.
-        let probe = stage(
-            mirrored.place(&unit),
-            mirrored,
-            MIRROR_PROBE_ROUNDS,
-            &mut log,
-        )?;
+        let probe = stage(mirrored.place(unit), mirrored, MIRROR_PROBE_ROUNDS, log)?;
         let clear = probe.score < best.score * MIRROR_SWITCH;
         let open = !clear
             && prm.deformation.orientation_rounds > 0
             && probe.score < best.score / MIRROR_SWITCH;
         if clear || open {
-            let settled = stage(probe.mesh, probe.placement, prm.placement.rounds, &mut log)?;
+            let settled = stage(probe.mesh, probe.placement, prm.placement.rounds, log)?;
             if clear {
                 best = settled;
             } else {
@@ -242,48 +266,56 @@ pub fn reconstruct_with(
             }
         }
     }
-    let (mut mesh, mut placement) = (best.mesh, best.placement);
-    let sim_lm = similarity_lm(prm);
+    Ok(Placed { best, rivals })
+}
 
-    // Stage A': with pose refinement, similarity and per-view pose corrections alternate on
-    // correspondences recomputed each round, from where stage A settled.
-    let pose_center = crate::geom::centroid(&mesh.vertices);
-    let mut pose_x = vec![0.0; 6 * cams.len()];
-    let mut cams_now: Vec<Camera> = cams.to_vec();
-    if let Some(pp) = &prm.pose {
+/// Where stage B starts: the placed cap and the views' corrections so far.
+struct Posed {
+    mesh: Mesh,
+    placement: Placement,
+    poses: Poses,
+}
+
+/// Stage A': with pose refinement, similarity and per-view pose corrections alternate on
+/// correspondences recomputed each round, from where stage A settled. Without it, the views
+/// stay as given.
+fn refine_views(
+    ctx: &Ctx,
+    template: &Template,
+    placed: StageA,
+    log: &mut SolveLog,
+) -> Result<Posed, ReconError> {
+    let prm = ctx.prm;
+    let (mut mesh, mut placement) = (placed.mesh, placed.placement);
+    let mut poses = Poses::none(crate::geom::centroid(&mesh.vertices), ctx.cams);
+    if prm.pose.is_some() {
+        let sim_lm = similarity_lm(prm);
         for _ in 0..prm.placement.rounds {
-            let mut obs = weighted_correspondences(
-                &mesh,
-                &cams_now,
-                observed,
-                prm,
-                kernels,
-                "pose refinement",
-            )?;
-            for o in obs.iter_mut().filter(|o| on_rim[o.vertex as usize]) {
+            let mut obs = ctx.correspondences(&mesh, &poses.cams_now, "pose refinement")?;
+            for o in obs
+                .iter_mut()
+                .filter(|o| template.on_rim()[o.vertex as usize])
+            {
                 o.weight *= prm.placement.rim_weight;
             }
-            let before = pose_x.clone();
-            let it = refine_poses(
-                &mesh,
-                &pose_center,
-                cams,
-                &obs,
-                pp,
-                prm,
-                &mut pose_x,
-                &mut cams_now,
-            )?;
-            log.gn_iterations += it;
+            let before = poses.x.clone();
+            log.gn_iterations += poses.refine(ctx, &mesh, &obs)?;
             // The full similarity here: the limb sphere was fitted with the uncorrected views,
             // so centre and size must follow the corrections.
-            let (moved, shift, info) =
-                similarity_step(&mesh, &cams_now, &obs, prm, &sim_lm, None, &mut placement)?;
+            let (moved, shift, info) = similarity_step(
+                &mesh,
+                &poses.cams_now,
+                &obs,
+                prm,
+                &sim_lm,
+                None,
+                &mut placement,
+            )?;
             mesh = moved;
             log.gn_iterations += info.iterations;
             let pose_step = before
                 .iter()
-                .zip(&pose_x)
+                .zip(&poses.x)
                 .map(|(a, b)| (a - b).abs())
                 .fold(0.0, f64::max);
             if shift < prm.placement.tol_mm && pose_step < 1e-4 {
@@ -291,24 +323,37 @@ pub fn reconstruct_with(
             }
         }
     }
+    Ok(Posed {
+        mesh,
+        placement,
+        poses,
+    })
+}
 
-    // Stage B: embedded deformation (with the per-view pose corrections when asked for).
-    let ctx = StageB::new(cams, observed, prm, kernels, pose_center);
-    let mut run = Deformation::new(mesh, &placement, cams_now, pose_x);
+/// Stage B: embedded deformation (with the per-view pose corrections when asked for). With a
+/// rival orientation from stage A, each candidate deforms for a few rounds and the one that
+/// then reprojects best goes on: stage A's rigid cap cannot tell mirror-image orientations
+/// apart where the acetabulum is not a cap, but the deformed surface of a wrong one cannot
+/// follow the oblique views' outlines.
+fn deform(
+    ctx: &Ctx,
+    posed: Posed,
+    rivals: Vec<(&'static str, Mesh, Placement)>,
+    log: &mut SolveLog,
+) -> Result<Deformation, ReconError> {
+    let b = StageB::new(ctx.prm);
+    let center = posed.poses.center;
+    let mut run = Deformation::new(posed.mesh, &posed.placement, posed.poses);
     if !rivals.is_empty() {
-        // Each candidate deforms for a few rounds; the one that then reprojects best goes on.
-        // Stage A's rigid cap cannot tell mirror-image orientations apart where the acetabulum
-        // is not a cap, but the deformed surface of a wrong one cannot follow the oblique views'
-        // outlines.
-        let k = prm.deformation.orientation_rounds.min(ctx.rounds);
-        run.advance(&ctx, k)?;
+        let k = ctx.prm.deformation.orientation_rounds.min(b.rounds);
+        run.advance(ctx, &b, k)?;
         log.orientations.push(OrientationTrial {
             source: "stage A",
             rms_px: run.rms_px(),
         });
         for (source, m, p) in rivals {
-            let mut other = Deformation::new(m, &p, cams.to_vec(), vec![0.0; 6 * cams.len()]);
-            other.advance(&ctx, k)?;
+            let mut other = Deformation::new(m, &p, Poses::none(center, ctx.cams));
+            other.advance(ctx, &b, k)?;
             let rms_px = other.rms_px();
             log.orientations.push(OrientationTrial { source, rms_px });
             if rms_px < run.rms_px() {
@@ -317,38 +362,40 @@ pub fn reconstruct_with(
             log.gn_iterations += other.gn_iterations;
         }
     }
-    run.advance(&ctx, ctx.rounds)?;
+    run.advance(ctx, &b, b.rounds)?;
     log.correspondence_updates += run.rounds;
     log.gn_iterations += run.gn_iterations;
+    Ok(run)
+}
+
+/// The result: the cup sphere fitted to the observed part, the contours before and after, and
+/// the log.
+fn finish(
+    ctx: &Ctx,
+    input: &Input,
+    run: Deformation,
+    mut log: SolveLog,
+) -> Result<Reconstruction, ReconError> {
     let Deformation {
         mesh,
         obs,
         converged,
-        cams_now,
-        pose_x,
+        poses,
         ..
     } = run;
-    log.pose_corrections = if prm.pose.is_some() {
-        pose_x
-            .chunks(6)
-            .map(|c| {
-                let deg = Vector3::new(c[0], c[1], c[2]).norm().to_degrees();
-                let mm = Vector3::new(c[3], c[4], c[5]).norm();
-                [deg, mm]
-            })
-            .collect()
-    } else {
-        Vec::new()
-    };
+    if ctx.prm.pose.is_some() {
+        log.pose_corrections = poses.sizes();
+    }
     log.converged = converged;
-    log.reprojection_rms_px = rms_px(&mesh, &cams_now, &obs);
+    log.reprojection_rms_px = rms_px(&mesh, &poses.cams_now, &obs);
     log.correspondences = obs.len();
     let spheres = cup_spheres(&mesh, &obs)?;
     let (sphere, surface_sphere) = (spheres.cup, spheres.surface);
-    let cup = prm.cup.catalogue.nearest(sphere.diameter());
+    let cup = ctx.prm.cup.catalogue.nearest(sphere.diameter());
+    let initial = input.init.place(input.template.mesh());
     Ok(Reconstruction {
-        initial_contours: contours(&initial, cams, prm, kernels)?,
-        final_contours: contours(&mesh, &cams_now, prm, kernels)?,
+        initial_contours: ctx.contours(&initial, ctx.cams)?,
+        final_contours: ctx.contours(&mesh, &poses.cams_now)?,
         mesh,
         initial,
         sphere,
@@ -356,7 +403,7 @@ pub fn reconstruct_with(
         cup,
         log,
         observations: obs,
-        cameras: cams_now,
+        cameras: poses.cams_now,
     })
 }
 
@@ -379,7 +426,8 @@ mod tests {
             }),
             ..Default::default()
         };
-        let r = reconstruct(&sim.cameras, &sim.observed, &sim.init, &with_reference(3));
+        let template = Template::standard();
+        let r = reconstruct(&sim.input(&template), &with_reference(3), Kernels::Cpu);
         assert!(
             matches!(
                 r,
@@ -391,7 +439,7 @@ mod tests {
             "{r:?}"
         );
         // Companion: the last view is a view.
-        let ok = reconstruct(&sim.cameras, &sim.observed, &sim.init, &with_reference(2));
+        let ok = reconstruct(&sim.input(&template), &with_reference(2), Kernels::Cpu);
         assert!(ok.is_ok(), "{:?}", ok.err());
     }
 }

@@ -11,8 +11,6 @@ use crate::solve::{EdWeights, GraphParams, LmParams, PoseParams};
 pub struct ReconParams {
     /// How correspondences are found (default SRVF).
     pub method: Method,
-    /// Stage 1: the template cap.
-    pub template: TemplateParams,
     /// Stage 3: model contours from alpha shapes (default) or rasterised silhouettes.
     pub contour_source: ContourSource,
     /// Stage 4: the correspondence settings of every method.
@@ -31,24 +29,6 @@ pub struct ReconParams {
     pub deformation: DeformationParams,
     /// The cup: its catalogue.
     pub cup: CupParams,
-}
-
-/// The template cap (stage 1).
-#[derive(Clone, Debug, PartialEq)]
-pub struct TemplateParams {
-    /// Resolution (default 2,500 vertices).
-    pub vertices: usize,
-    /// Polar extent of the cap, degrees (default 90: the hemisphere).
-    pub polar_deg: f64,
-}
-
-impl Default for TemplateParams {
-    fn default() -> Self {
-        TemplateParams {
-            vertices: 2500,
-            polar_deg: 90.0,
-        }
-    }
 }
 
 /// Stage 0 (the limb sphere) and stage A (the rigid cap turned onto the outlines).
@@ -157,7 +137,6 @@ impl Default for ReconParams {
     fn default() -> Self {
         ReconParams {
             method: Method::Srvf,
-            template: TemplateParams::default(),
             contour_source: ContourSource::AlphaShape,
             correspond: CorrespondParams::default(),
             robust: true,
@@ -171,14 +150,11 @@ impl Default for ReconParams {
     }
 }
 
-/// Most template vertices a reconstruction takes (the default is 2,500).
-pub const MAX_TEMPLATE_VERTICES: usize = 200_000;
-
 impl ReconParams {
     /// Check the settings a reconstruction cannot run with: a non-finite or negative weight,
-    /// tolerance or scale, a template cap that is not a cap (polar extent outside (0, 180)
-    /// degrees), a template too large to build. `reconstruct` calls it first; the error names
-    /// the field and its value.
+    /// tolerance or scale, a normal-angle test that is not an angle. `reconstruct` calls it
+    /// first; the error names the field and its value. (The standard template's settings are
+    /// checked by `Template::cap`.)
     pub fn validate(&self) -> Result<(), ReconError> {
         fn bad(field: &'static str, value: impl ToString, expected: &'static str) -> ReconError {
             ReconError::Param {
@@ -211,17 +187,6 @@ impl ReconParams {
             if !(v.is_finite() && v > 0.0) {
                 return Err(bad(field, v, "finite and > 0"));
             }
-        }
-        let polar = self.template.polar_deg;
-        if !(polar > 0.0 && polar < 180.0) {
-            return Err(bad("template.polar_deg", polar, "in (0, 180) degrees"));
-        }
-        if self.template.vertices > MAX_TEMPLATE_VERTICES {
-            return Err(bad(
-                "template.vertices",
-                self.template.vertices,
-                "at most 200,000",
-            ));
         }
         if !self.correspond.outlier_k.is_finite() {
             return Err(bad(
@@ -262,22 +227,6 @@ mod tests {
                 "placement.limb_scale_mm",
                 Box::new(|p| p.placement.limb_scale_mm = -1.0),
             ),
-            (
-                "template.polar_deg",
-                Box::new(|p| p.template.polar_deg = 360.0),
-            ),
-            (
-                "template.polar_deg",
-                Box::new(|p| p.template.polar_deg = 0.0),
-            ),
-            (
-                "template.polar_deg",
-                Box::new(|p| p.template.polar_deg = f64::NAN),
-            ),
-            (
-                "template.vertices",
-                Box::new(|p| p.template.vertices = usize::MAX),
-            ),
             ("weights.obs", Box::new(|p| p.weights.obs = f64::NAN)),
             ("weights.reg", Box::new(|p| p.weights.reg = f64::INFINITY)),
             (
@@ -313,8 +262,6 @@ mod tests {
         }
         // Companion: settings at the edges of what is allowed pass.
         let mut edge = ReconParams::default();
-        edge.template.polar_deg = 179.0;
-        edge.template.vertices = MAX_TEMPLATE_VERTICES;
         edge.placement.limb_scale_mm = 0.0;
         edge.deformation.sphere_prior = 0.0;
         assert!(edge.validate().is_ok());

@@ -1,16 +1,14 @@
 //! Stage A: the template turned (or moved and scaled) as a rigid cap onto the outlines, the
 //! mirrored orientation probed beside it, and the per-view pose corrections of stage A'.
 
-use super::correspondences::{check_finite, residuals_px, weighted_correspondences};
+use super::correspondences::{check_finite, residuals_px, Ctx};
 use super::{ReconError, ReconParams};
 use crate::correspond::Observation;
-use crate::engine::Kernels;
-use crate::geom::Curve;
 use crate::geom::Mesh;
 use crate::solve::Problem;
 use crate::solve::{
-    apply_similarity, corrected_camera, levenberg_marquardt, LmInfo, LmParams, PoseParams,
-    PoseProblem, SimilarityProblem,
+    apply_similarity, corrected_camera, levenberg_marquardt, LmInfo, LmParams, PoseProblem,
+    SimilarityProblem,
 };
 use crate::template::Placement;
 use crate::views::Camera;
@@ -55,30 +53,28 @@ pub(super) fn mirrored_axis(
         .filter(|m| (m.into_inner() - a).norm() > 1e-3)
 }
 
-/// Stage A from `mesh` (the template at `placement`): similarity (or rotation about `about`)
-/// solves on correspondences recomputed each round until the cap settles.
-#[allow(clippy::too_many_arguments)]
+/// Stage A from `mesh` (the template at `placement`, `on_rim` marking its rim): similarity (or
+/// rotation about `about`) solves on correspondences recomputed each round until the cap
+/// settles, at most `max_rounds`.
 pub(super) fn similarity_stage(
-    mut mesh: Mesh,
-    cams: &[Camera],
-    observed: &[Vec<Curve>],
-    prm: &ReconParams,
-    kernels: Kernels,
+    ctx: &Ctx,
     on_rim: &[bool],
+    mut mesh: Mesh,
+    mut placement: Placement,
     about: Option<Point3<f64>>,
     max_rounds: usize,
-    mut placement: Placement,
 ) -> Result<StageA, ReconError> {
+    let prm = ctx.prm;
     let sim_lm = similarity_lm(prm);
     let (mut rounds, mut iterations) = (0, 0);
     let mut last = Vec::new();
     for _ in 0..max_rounds {
-        let mut obs = weighted_correspondences(&mesh, cams, observed, prm, kernels, "similarity")?;
+        let mut obs = ctx.correspondences(&mesh, ctx.cams, "similarity")?;
         for o in obs.iter_mut().filter(|o| on_rim[o.vertex as usize]) {
             o.weight *= prm.placement.rim_weight;
         }
         let (moved, shift, info) =
-            similarity_step(&mesh, cams, &obs, prm, &sim_lm, about, &mut placement)?;
+            similarity_step(&mesh, ctx.cams, &obs, prm, &sim_lm, about, &mut placement)?;
         mesh = moved;
         rounds += 1;
         iterations += info.iterations;
@@ -87,7 +83,7 @@ pub(super) fn similarity_stage(
             break;
         }
     }
-    let mut r = residuals_px(&mesh, cams, &last);
+    let mut r = residuals_px(&mesh, ctx.cams, &last);
     r.sort_by(f64::total_cmp);
     let score = r.get(r.len() / 2).copied().unwrap_or(f64::INFINITY);
     Ok(StageA {
@@ -145,40 +141,72 @@ pub(super) fn similarity_step(
     Ok((out, shift, info))
 }
 
-/// One pose solve on fixed correspondences and shape; updates the corrections and the cameras.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn refine_poses(
-    mesh: &Mesh,
-    center: &Point3<f64>,
-    cams: &[Camera],
-    obs: &[Observation],
-    pp: &PoseParams,
-    prm: &ReconParams,
-    pose_x: &mut Vec<f64>,
-    cams_now: &mut Vec<Camera>,
-) -> Result<usize, ReconError> {
-    let pose = PoseProblem::new(
-        &mesh.vertices,
-        *center,
-        cams,
-        obs,
-        pp,
-        prm.weights.tangential,
-    );
-    let (x, info) = levenberg_marquardt(&pose, pose_x.clone(), &prm.lm).map_err(|source| {
-        ReconError::Solve {
-            stage: "pose refinement",
-            source,
+/// The per-view pose corrections (stage A' and, with `pose`, stage B): six parameters a view
+/// (rotation vector, translation) about `center`, and the views they make.
+#[derive(Clone, Debug)]
+pub(super) struct Poses {
+    pub(super) center: Point3<f64>,
+    pub(super) x: Vec<f64>,
+    pub(super) cams_now: Vec<Camera>,
+}
+
+impl Poses {
+    /// No correction yet: the views as given.
+    pub(super) fn none(center: Point3<f64>, cams: &[Camera]) -> Self {
+        Poses {
+            center,
+            x: vec![0.0; 6 * cams.len()],
+            cams_now: cams.to_vec(),
         }
-    })?;
-    if x.iter().any(|v| !v.is_finite()) {
-        return Err(ReconError::Diverged {
-            what: "a pose correction is not finite".into(),
-        });
     }
-    *pose_x = x;
-    *cams_now = (0..cams.len())
-        .map(|k| corrected_camera(&cams[k], center, &pose_x[6 * k..6 * k + 6]))
-        .collect();
-    Ok(info.iterations)
+
+    /// One pose solve on fixed correspondences and shape (`ctx.prm.pose`'s settings; nothing
+    /// without them); updates the corrections and the views. The solver's iterations.
+    pub(super) fn refine(
+        &mut self,
+        ctx: &Ctx,
+        mesh: &Mesh,
+        obs: &[Observation],
+    ) -> Result<usize, ReconError> {
+        let Some(pp) = &ctx.prm.pose else {
+            return Ok(0);
+        };
+        let pose = PoseProblem::new(
+            &mesh.vertices,
+            self.center,
+            ctx.cams,
+            obs,
+            pp,
+            ctx.prm.weights.tangential,
+        );
+        let (x, info) =
+            levenberg_marquardt(&pose, self.x.clone(), &ctx.prm.lm).map_err(|source| {
+                ReconError::Solve {
+                    stage: "pose refinement",
+                    source,
+                }
+            })?;
+        if x.iter().any(|v| !v.is_finite()) {
+            return Err(ReconError::Diverged {
+                what: "a pose correction is not finite".into(),
+            });
+        }
+        self.x = x;
+        self.cams_now = (0..ctx.cams.len())
+            .map(|k| corrected_camera(&ctx.cams[k], &self.center, &self.x[6 * k..6 * k + 6]))
+            .collect();
+        Ok(info.iterations)
+    }
+
+    /// Per view, the size of the correction: degrees and mm.
+    pub(super) fn sizes(&self) -> Vec<[f64; 2]> {
+        self.x
+            .chunks(6)
+            .map(|c| {
+                let deg = Vector3::new(c[0], c[1], c[2]).norm().to_degrees();
+                let mm = Vector3::new(c[3], c[4], c[5]).norm();
+                [deg, mm]
+            })
+            .collect()
+    }
 }

@@ -6,12 +6,13 @@
 //! the +- and, per catalogue size, the share of resamples whose nearest size it is. Seeded; the
 //! seed is in the report.
 
+use super::correspondences::Ctx;
+use super::deformation::resolve_from;
 use crate::correspond::Observation;
 use crate::engine::Kernels;
 use crate::geom::Curve;
 use crate::geom::{mean_sd, quantile_sorted};
-use crate::pipeline::{cup_spheres, resolve_from, ReconError, ReconParams, Reconstruction};
-use crate::views::Camera;
+use crate::pipeline::{cup_spheres, ReconError, ReconParams, Reconstruction};
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Exp1, Normal};
 use serde::Serialize;
@@ -94,14 +95,11 @@ impl CupReport {
 /// correspondences.
 type CupEstimator<'a> = &'a dyn Fn(&crate::geom::Mesh, &[Observation]) -> Result<f64, ReconError>;
 
-/// The diameters of `up.samples` resamples (see the module comment), each measured by `cup`, and
-/// the contour noise SD used.
+/// The diameters of `up.samples` resamples of `rec` (see the module comment; `ctx.cams` are the
+/// views the result was fitted with), each measured by `cup`, and the contour noise SD used.
 fn resampled_diameters(
     rec: &Reconstruction,
-    cams: &[Camera],
-    observed: &[Vec<Curve>],
-    prm: &ReconParams,
-    kernels: Kernels,
+    ctx: &Ctx,
     up: &UncertaintyParams,
     cup: CupEstimator,
 ) -> Result<(Vec<f64>, f64), ReconError> {
@@ -113,7 +111,7 @@ fn resampled_diameters(
         });
     }
     let noise_px = up.noise_px.unwrap_or(rec.log.reprojection_rms_px).max(0.5);
-    let mut one_round = prm.clone();
+    let mut one_round = ctx.prm.clone();
     one_round.deformation.correspondence_updates = 1;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(up.seed);
     let normal = Normal::new(0.0, noise_px).map_err(|_| ReconError::Param {
@@ -123,7 +121,8 @@ fn resampled_diameters(
     })?;
     let mut diam = Vec::with_capacity(up.samples);
     for _ in 0..up.samples.max(1) {
-        let jittered: Vec<Vec<Curve>> = observed
+        let jittered: Vec<Vec<Curve>> = ctx
+            .observed
             .iter()
             .map(|cs| {
                 cs.iter()
@@ -145,31 +144,35 @@ fn resampled_diameters(
             .collect();
         let mut sub = rand_chacha::ChaCha8Rng::seed_from_u64(rng.next_u64());
         let mut reweight = |_k: usize| -> f64 { Exp1.sample(&mut sub) };
-        let (mesh, obs) = resolve_from(
-            &rec.mesh,
-            cams,
-            &jittered,
-            &one_round,
-            kernels,
-            &mut reweight,
-        )?;
+        let resample = Ctx {
+            observed: &jittered,
+            prm: &one_round,
+            ..*ctx
+        };
+        let (mesh, obs) = resolve_from(&resample, &rec.mesh, &mut reweight)?;
         diam.push(cup(&mesh, &obs)?);
     }
     Ok((diam, noise_px))
 }
 
-/// Resample and re-solve `samples` times (see the module comment).
+/// Resample and re-solve `rec`, reconstructed from `observed` with `prm`, `up.samples` times in
+/// the views it was fitted with (`rec.cameras`; see the module comment).
 pub fn cup_report(
     rec: &Reconstruction,
-    cams: &[Camera],
     observed: &[Vec<Curve>],
     prm: &ReconParams,
     kernels: Kernels,
     up: &UncertaintyParams,
 ) -> Result<CupReport, ReconError> {
+    let ctx = Ctx {
+        cams: &rec.cameras,
+        observed,
+        prm,
+        kernels,
+    };
     // The same estimator as the reported cup (`Reconstruction::sphere`).
     let cup = |m: &crate::geom::Mesh, o: &[Observation]| Ok(cup_spheres(m, o)?.cup.diameter());
-    let (diam, noise_px) = resampled_diameters(rec, cams, observed, prm, kernels, up, &cup)?;
+    let (diam, noise_px) = resampled_diameters(rec, &ctx, up, &cup)?;
     let n = diam.len() as f64;
     let (_, sd) = mean_sd(&diam, true);
     let mut sorted = diam.clone();
@@ -218,6 +221,7 @@ mod tests {
     use crate::case::CaseFile;
     use crate::geom::fit_sphere_robust;
     use crate::pipeline::reconstruct;
+    use crate::template::Template;
     use std::path::Path;
 
     /// Does the reported diameter stand among its resamples: inside their range and within one
@@ -239,10 +243,10 @@ mod tests {
         let mut case = CaseFile::load(&path).expect("the shipped example case loads");
         case.init.axis = nalgebra::Vector3::z_axis();
         let prm = ReconParams::default();
-        let rec = reconstruct(&case.cameras, &case.observed, &case.init, &prm).unwrap();
+        let template = Template::standard();
+        let rec = reconstruct(&case.input(&template), &prm, Kernels::Cpu).unwrap();
         let up = UncertaintyParams::default();
-        let report =
-            cup_report(&rec, &rec.cameras, &case.observed, &prm, Kernels::Cpu, &up).unwrap();
+        let report = cup_report(&rec, &case.observed, &prm, Kernels::Cpu, &up).unwrap();
         assert_eq!(report.diameter_mm, rec.sphere.diameter());
         assert!(
             stands_among(report.diameter_mm, &report.resampled_mm),
@@ -254,16 +258,13 @@ mod tests {
         let whole = |m: &crate::geom::Mesh, _: &[Observation]| {
             Ok(fit_sphere_robust(&m.vertices)?.diameter())
         };
-        let (other, _) = resampled_diameters(
-            &rec,
-            &rec.cameras,
-            &case.observed,
-            &prm,
-            Kernels::Cpu,
-            &up,
-            &whole,
-        )
-        .unwrap();
+        let ctx = Ctx {
+            cams: &rec.cameras,
+            observed: &case.observed,
+            prm: &prm,
+            kernels: Kernels::Cpu,
+        };
+        let (other, _) = resampled_diameters(&rec, &ctx, &up, &whole).unwrap();
         assert!(!stands_among(report.diameter_mm, &other), "{other:?}");
     }
 }

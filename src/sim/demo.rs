@@ -4,11 +4,12 @@
 use crate::engine::Kernels;
 use crate::geom::Mesh;
 use crate::io::MeshIoError;
-use crate::pipeline::{reconstruct_with, ReconError, ReconParams, Reconstruction};
+use crate::pipeline::{reconstruct, ReconError, ReconParams, Reconstruction};
 use crate::report::accuracy;
 use crate::sim::XrayGeometry;
 use crate::sim::{phantom, PhantomParams};
 use crate::sim::{simulate_case, NoiseLevel, SimError};
+use crate::template::Template;
 use serde::Serialize;
 
 /// What `acetab demo` reports.
@@ -49,17 +50,9 @@ pub enum DemoError {
     },
 }
 
-/// Simulate the default phantom at `level`, reconstruct, and measure.
+/// Simulate the default phantom at `level`, reconstruct from the standard template with the
+/// kernels on `kernels`, and measure.
 pub fn run_demo(
-    seed: u64,
-    level: u32,
-    prm: &ReconParams,
-) -> Result<(DemoReport, Mesh, Reconstruction), DemoError> {
-    run_demo_with(seed, level, prm, Kernels::Cpu)
-}
-
-/// As `run_demo`, with the model contours and deformation on the given kernels.
-pub fn run_demo_with(
     seed: u64,
     level: u32,
     prm: &ReconParams,
@@ -69,7 +62,8 @@ pub fn run_demo_with(
     let truth = phantom(&PhantomParams::default()).mesh;
     let sim = simulate_case(&truth, &XrayGeometry::default(), 2.0, &noise, seed)?;
     let start = std::time::Instant::now();
-    let rec = reconstruct_with(&sim.cameras, &sim.observed, &sim.init, prm, kernels)?;
+    let template = Template::standard();
+    let rec = reconstruct(&sim.input(&template), prm, kernels)?;
     let seconds = start.elapsed().as_secs_f64();
     let acc = accuracy(&truth, &rec.mesh);
     let init_acc = accuracy(&truth, &rec.initial);

@@ -6,7 +6,7 @@ mod geometry;
 mod phantom;
 mod simulate;
 
-pub use demo::{run_demo, run_demo_with, DemoError, DemoReport};
+pub use demo::{run_demo, DemoError, DemoReport};
 pub use geometry::{simulated_views, GeometryError, XrayGeometry};
 pub use phantom::{phantom, radiographic_axis, try_phantom, Phantom, PhantomError, PhantomParams};
 pub use simulate::{

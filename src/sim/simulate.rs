@@ -8,8 +8,9 @@ use crate::geom::centroid;
 use crate::geom::Curve;
 use crate::geom::Mesh;
 use crate::geom::{fit_sphere, Sphere, SphereFitError};
+use crate::pipeline::Input;
 use crate::sim::{simulated_views, GeometryError, XrayGeometry};
-use crate::template::Placement;
+use crate::template::{Placement, Template};
 use crate::views::Camera;
 use nalgebra::{Point3, Rotation3, Unit, Vector3};
 use rand::SeedableRng;
@@ -54,6 +55,19 @@ pub struct SimCase {
     /// The perturbed start.
     pub init: Placement,
     pub seed: u64,
+}
+
+impl SimCase {
+    /// The reconstruction's input: this case's views, outlines and perturbed start, with
+    /// `template`.
+    pub fn input<'a>(&'a self, template: &'a Template) -> Input<'a> {
+        Input {
+            cameras: &self.cameras,
+            observed: &self.observed,
+            init: &self.init,
+            template,
+        }
+    }
 }
 
 #[derive(Debug, thiserror::Error)]

@@ -12,7 +12,7 @@ use crate::engine::Kernels;
 use crate::sim::{phantom, PhantomParams};
 use crate::sim::{simulated_views, XrayGeometry};
 use crate::solve::{DeformationGraph, GraphParams};
-use crate::study::{run_study_with, StudyConfig, StudyMethod};
+use crate::study::{run_study, StudyConfig, StudyMethod};
 use crate::template::hemisphere;
 use nalgebra::{Point2, Point3};
 use std::time::Instant;
@@ -213,7 +213,7 @@ pub fn run_bench(
         for kernels in [Kernels::Cpu, Kernels::Gpu(gpu), Kernels::Batched(&batcher)] {
             let s = Instant::now();
             let (rows, _) =
-                run_study_with(&truth, &cfg, &|| {}, kernels).map_err(|e| GpuError::Input {
+                run_study(&truth, &cfg, &|| {}, kernels).map_err(|e| GpuError::Input {
                     kernel: "study",
                     message: format!("the phantom cannot be simulated: {e}"),
                 })?;

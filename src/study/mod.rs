@@ -13,8 +13,6 @@ mod task;
 
 pub use method::StudyMethod;
 pub use outputs::{write_examples, write_tables};
-pub use runner::{
-    run_one, run_one_with, run_study, run_study_with, tasks, ExampleRun, StudyConfig,
-};
+pub use runner::{run_one, run_study, tasks, ExampleRun, StudyConfig};
 pub use table::{merge_dirs, merge_meta, read_csv, summarize, write_csv, Row, StudyError, Summary};
 pub use task::{run_seed, Task};

@@ -4,13 +4,15 @@
 //! refinement and once without; the truth's observations come from the true poses.
 
 use super::runner::Prepared;
+use crate::engine::Kernels;
 use crate::geom::pool_map;
 use crate::geom::Mesh;
-use crate::pipeline::{reconstruct, ReconParams};
+use crate::pipeline::{reconstruct, Input, ReconParams};
 use crate::report::accuracy_from;
 use crate::sim::XrayGeometry;
 use crate::sim::{perturb_poses, NoiseLevel, SimError};
 use crate::solve::PoseParams;
+use crate::template::TemplateParams;
 
 /// One case, both ways.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -88,7 +90,11 @@ fn one(shared: &Prepared, cfg: &PoseStudy, run: usize) -> PoseRow {
             pose: refine.then(|| cfg.pose.clone()),
             ..Default::default()
         };
-        match reconstruct(&cams, &sim.observed, &sim.init, &prm) {
+        let input = Input {
+            cameras: &cams,
+            ..sim.input(&shared.template)
+        };
+        match reconstruct(&input, &prm, Kernels::Cpu) {
             Ok(rec) => {
                 let mae = accuracy_from(&shared.samples, &rec.mesh).mae_mm;
                 let cup = rec.sphere.diameter() - gt;
@@ -127,7 +133,7 @@ pub fn run_pose_study(truth: &Mesh, cfg: &PoseStudy) -> Result<Vec<PoseRow>, Sim
             expected: "finite and > 0",
         });
     }
-    let shared = Prepared::new(truth, &XrayGeometry::default())?;
+    let shared = Prepared::new(truth, &XrayGeometry::default(), &TemplateParams::default())?;
     let runs: Vec<usize> = (0..cfg.runs).collect();
     Ok(pool_map(cfg.threads, &runs, |_, &k| one(&shared, cfg, k)))
 }

@@ -6,11 +6,12 @@ use super::task::{run_seed, Task};
 use crate::engine::Kernels;
 use crate::geom::pool_map;
 use crate::geom::Mesh;
-use crate::pipeline::{reconstruct_with, ReconParams, Reconstruction};
+use crate::pipeline::{reconstruct, ReconParams, Reconstruction};
 use crate::report::{accuracy_from, accuracy_samples};
 use crate::report::{DistanceStats, InteriorQuery};
 use crate::sim::XrayGeometry;
 use crate::sim::{NoiseLevel, SimCase, SimError, SimSetup};
+use crate::template::{Template, TemplateParams};
 
 /// What to run.
 #[derive(Clone, Debug)]
@@ -24,6 +25,8 @@ pub struct StudyConfig {
     pub shard: (usize, usize),
     pub noise_px: f64,
     pub geometry: XrayGeometry,
+    /// The standard template every run starts from.
+    pub template: TemplateParams,
     pub params: ReconParams,
 }
 
@@ -58,6 +61,7 @@ impl StudyConfig {
         }
         // The methods' settings are these with stages turned off: checking these covers them.
         self.params.validate()?;
+        Template::cap(&self.template).map_err(crate::pipeline::ReconError::from)?;
         Ok(())
     }
 }
@@ -73,6 +77,7 @@ impl Default for StudyConfig {
             shard: (0, 1),
             noise_px: 2.0,
             geometry: XrayGeometry::default(),
+            template: TemplateParams::default(),
             params: ReconParams::default(),
         }
     }
@@ -109,18 +114,13 @@ pub struct ExampleRun {
 }
 
 /// Run one task. A failed reconstruction is a row with `converged = false` and the error.
-pub fn run_one(truth: &Mesh, task: &Task, cfg: &StudyConfig) -> (Row, Option<ExampleRun>) {
-    run_one_with(truth, task, cfg, Kernels::Cpu)
-}
-
-/// One run with the model contours and deformation on the given kernels.
-pub fn run_one_with(
+pub fn run_one(
     truth: &Mesh,
     task: &Task,
     cfg: &StudyConfig,
     kernels: Kernels,
 ) -> (Row, Option<ExampleRun>) {
-    match Prepared::new(truth, &cfg.geometry) {
+    match Prepared::new(truth, &cfg.geometry, &cfg.template) {
         Ok(prep) => run_prepared(&prep, task, cfg, kernels),
         Err(e) => (Row::failed(task, &e.to_string()), None),
     }
@@ -130,6 +130,7 @@ pub fn run_one_with(
 /// on the truth and the truth prepared for `recon_mae_mm`.
 pub(super) struct Prepared {
     pub(super) setup: SimSetup,
+    pub(super) template: Template,
     pub(super) samples: Vec<nalgebra::Point3<f64>>,
     interior: Option<InteriorQuery>,
 }
@@ -137,8 +138,13 @@ pub(super) struct Prepared {
 impl Prepared {
     /// Fails when the truth cannot be simulated at all (no sphere fits it, the views cannot
     /// project it): every run would fail alike.
-    pub(super) fn new(truth: &Mesh, geometry: &XrayGeometry) -> Result<Prepared, SimError> {
+    pub(super) fn new(
+        truth: &Mesh,
+        geometry: &XrayGeometry,
+        template: &TemplateParams,
+    ) -> Result<Prepared, SimError> {
         Ok(Prepared {
+            template: Template::cap(template).map_err(crate::pipeline::ReconError::from)?,
             setup: SimSetup::new(truth, geometry)?,
             samples: accuracy_samples(truth),
             interior: InteriorQuery::new(truth),
@@ -167,7 +173,7 @@ fn run_prepared(
     row.gt_cup_diameter_mm = sim.truth_sphere.diameter();
     let prm = task.method.params(&cfg.params);
     let start = std::time::Instant::now();
-    let rec = match reconstruct_with(&sim.cameras, &sim.observed, &sim.init, &prm, kernels) {
+    let rec = match reconstruct(&sim.input(&prep.template), &prm, kernels) {
         Ok(r) => r,
         Err(e) => {
             row.seconds = start.elapsed().as_secs_f64();
@@ -208,21 +214,11 @@ pub fn run_study(
     truth: &Mesh,
     cfg: &StudyConfig,
     tick: &(dyn Fn() + Sync),
-) -> Result<(Vec<Row>, Vec<ExampleRun>), SimError> {
-    run_study_with(truth, cfg, tick, Kernels::Cpu)
-}
-
-/// The study with every run's kernels on `kernels` (the GPU engine is shared by the threads;
-/// wgpu serialises their submissions).
-pub fn run_study_with(
-    truth: &Mesh,
-    cfg: &StudyConfig,
-    tick: &(dyn Fn() + Sync),
     kernels: Kernels,
 ) -> Result<(Vec<Row>, Vec<ExampleRun>), SimError> {
     cfg.validate()?;
     let list = tasks(cfg);
-    let prep = Prepared::new(truth, &cfg.geometry)?;
+    let prep = Prepared::new(truth, &cfg.geometry, &cfg.template)?;
     let first_of_method =
         |k: usize| list.iter().position(|t| t.method == list[k].method) == Some(k);
     let done = pool_map(cfg.threads, &list, |k, task| {
@@ -283,7 +279,7 @@ mod tests {
         let tick = || {
             ticks.fetch_add(1, Ordering::Relaxed);
         };
-        assert!(run_study(&truth, &bad, &tick).is_err());
+        assert!(run_study(&truth, &bad, &tick, Kernels::Cpu).is_err());
         assert_eq!(ticks.load(Ordering::Relaxed), 0);
         // Companion: level 0, no noise and an empty study are allowed.
         let edge = StudyConfig {

@@ -8,7 +8,7 @@ use acetab::io::fill_dir_atomically;
 use acetab::io::write_ply;
 use acetab::pipeline::ReconParams;
 use acetab::report::write_error_ply;
-use acetab::sim::run_demo_with;
+use acetab::sim::run_demo;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -53,8 +53,7 @@ pub fn run(args: DemoArgs) -> Result<(), String> {
     let dev = open_device(backend)?;
     let engine = engine_on(&dev)?;
     let kernels = engine.as_ref().map_or(Kernels::Cpu, Kernels::Gpu);
-    let (report, truth, rec) =
-        run_demo_with(seed, level, &prm, kernels).map_err(|e| e.to_string())?;
+    let (report, truth, rec) = run_demo(seed, level, &prm, kernels).map_err(|e| e.to_string())?;
     let report_json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
     fill_dir_atomically(
         &out,

@@ -10,9 +10,7 @@ use acetab::engine::{BackendChoice, Kernels};
 use acetab::io::fill_dir_atomically;
 use acetab::pipeline::{DeformationParams, ReconParams};
 use acetab::sim::SimSetup;
-use acetab::study::{
-    run_study_with, tasks, write_examples, write_tables, StudyConfig, StudyMethod,
-};
+use acetab::study::{run_study, tasks, write_examples, write_tables, StudyConfig, StudyMethod};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 
@@ -131,8 +129,8 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         .as_ref()
         .map(|g| GpuBatcher::new(g, cfg.threads, std::time::Duration::from_millis(2)));
     let kernels = batcher.as_ref().map_or(Kernels::Cpu, Kernels::Batched);
-    let (rows, examples) = run_study_with(&truth, &cfg, &|| bar.inc(1), kernels)
-        .map_err(|e| format!("--gt {gt}: {e}"))?;
+    let (rows, examples) =
+        run_study(&truth, &cfg, &|| bar.inc(1), kernels).map_err(|e| format!("--gt {gt}: {e}"))?;
     if let Some(b) = &batcher {
         let (req, disp) = b.counts();
         eprintln!(
