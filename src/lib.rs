@@ -23,6 +23,7 @@
 // `!(x > y)` is how this crate turns away NaN along with the values that fail the test; the
 // lint's `partial_cmp` rewrite would hide that.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
+#![warn(missing_docs)]
 
 pub mod geom;
 pub mod io;

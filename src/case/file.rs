@@ -14,9 +14,13 @@ use std::path::{Path, PathBuf};
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct IntrinsicsFile {
+    /// Focal length in x, pixels.
     pub fx: f64,
+    /// Focal length in y, pixels.
     pub fy: f64,
+    /// Principal point x, pixels.
     pub cx: f64,
+    /// Principal point y, pixels.
     pub cy: f64,
 }
 
@@ -38,9 +42,12 @@ pub enum ContourKind {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ContourFile {
+    /// The rim's points, pixels, in order.
     pub points: Vec<[f64; 2]>,
+    /// Whether the rim is closed (may be left out when `kind` says it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub closed: Option<bool>,
+    /// closed, open (a part left out) or partial (an arc of a closed rim).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub kind: Option<ContourKind>,
 }
@@ -49,18 +56,23 @@ pub struct ContourFile {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ViewFile {
+    /// The view's name (AP, oblique, ...).
     #[serde(default)]
     pub name: Option<String>,
+    /// Intrinsics.
     pub k: IntrinsicsFile,
     /// World-to-camera rotation, rows.
     pub r: [[f64; 3]; 3],
     /// World-to-camera translation, mm.
     pub t: [f64; 3],
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
     /// Optional X-ray image (PNG or JPEG), relative to the case file.
     #[serde(default)]
     pub image: Option<PathBuf>,
+    /// The rim annotated in this view (one or more contours).
     pub contours: Vec<ContourFile>,
 }
 
@@ -68,7 +80,9 @@ pub struct ViewFile {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct TemplateFile {
+    /// Sphere centre, mm.
     pub center: [f64; 3],
+    /// Sphere radius, mm.
     pub radius: f64,
     /// Opening axis: from the sphere centre out through the rim plane.
     pub axis: [f64; 3],
@@ -78,35 +92,57 @@ pub struct TemplateFile {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct CaseFile {
+    /// The views.
     pub views: Vec<ViewFile>,
+    /// Where the template starts.
     pub template: TemplateFile,
 }
 
 /// A validated case, ready for reconstruction.
 #[derive(Clone, Debug)]
 pub struct Case {
+    /// The views as cameras.
     pub cameras: Vec<Camera>,
+    /// Per view, the observed outlines.
     pub observed: Vec<Vec<Curve>>,
+    /// The template's start.
     pub init: Placement,
+    /// Per view, its X-ray image, when given.
     pub images: Vec<Option<PathBuf>>,
+    /// Per view, its name.
     pub names: Vec<String>,
 }
 
 /// A case file is unusable.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum CaseError {
+    /// The case file cannot be read.
     #[error("{path}: cannot read: {source}")]
     Io {
+        /// The file.
         path: PathBuf,
+        /// Why.
         source: std::io::Error,
     },
+    /// The case file is not valid JSON of the case format.
     #[error("{path}: invalid JSON: {message}")]
-    Json { path: PathBuf, message: String },
+    Json {
+        /// The file.
+        path: PathBuf,
+        /// serde_json's message (with line and column).
+        message: String,
+    },
+    /// A field holds a value the method cannot use.
     #[error("{path}: field {field} = {value}: {reason}")]
     Field {
+        /// The file.
         path: PathBuf,
+        /// The field, as a path (views[1].k.fx).
         field: String,
+        /// Its value.
         value: String,
+        /// What it must be.
         reason: String,
     },
 }

@@ -13,20 +13,34 @@ use crate::report::plots::{overlay, PlotError};
 use crate::template::Template;
 use std::path::{Path, PathBuf};
 
+/// Why a case could not be run.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum CaseRunError {
+    /// The case file is refused.
     #[error(transparent)]
     Case(#[from] CaseError),
+    /// The reconstruction failed.
     #[error("{path}: {source}")]
-    Recon { path: PathBuf, source: ReconError },
+    Recon {
+        /// The case file.
+        path: PathBuf,
+        /// Why.
+        source: ReconError,
+    },
+    /// The reconstruction could not be written.
     #[error(transparent)]
     Mesh(#[from] MeshIoError),
+    /// An overlay could not be drawn.
     #[cfg(feature = "plots")]
     #[error(transparent)]
     Plot(#[from] PlotError),
+    /// An output file could not be written.
     #[error("{path}: cannot write: {source}")]
     Write {
+        /// The file.
         path: PathBuf,
+        /// Why.
         source: std::io::Error,
     },
 }
@@ -34,13 +48,21 @@ pub enum CaseRunError {
 /// What `run_case` returns (also written as report.json).
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct CaseRunReport {
+    /// The case file.
     pub case: String,
+    /// The correspondence method.
     pub method: String,
+    /// Where the kernels ran.
     pub backend: String,
+    /// The cup and its uncertainty.
     pub cup: CupReport,
+    /// The cup sphere.
     pub sphere: crate::geom::Sphere,
+    /// What the solver did.
     pub log: crate::pipeline::SolveLog,
+    /// Seconds for the reconstruction and the uncertainty.
     pub seconds: f64,
+    /// The files written.
     pub files: Vec<String>,
 }
 

@@ -9,14 +9,23 @@ use spade::{DelaunayTriangulation, HasPosition, Triangulation};
 
 /// Why a contour could not be formed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum ContourError {
+    /// A vertex cannot be projected.
     #[error("vertex {vertex} cannot be projected: {source}")]
     Projection {
+        /// The vertex.
         vertex: usize,
+        /// Why.
         source: ProjectionError,
     },
+    /// Too few distinct projected points for an outline.
     #[error("too few distinct projected points ({count}) for a contour")]
-    TooFewPoints { count: usize },
+    TooFewPoints {
+        /// How many.
+        count: usize,
+    },
+    /// No outline: the triangulation failed or found no simple boundary (the reason).
     #[error("the Delaunay triangulation failed: {0}")]
     Delaunay(String),
 }

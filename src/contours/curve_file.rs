@@ -3,22 +3,38 @@
 use nalgebra::Point2;
 use std::path::{Path, PathBuf};
 
+/// Why a curve file cannot be read.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum CurveFileError {
+    /// The file cannot be read.
     #[error("{path}: cannot read: {source}")]
     Io {
+        /// The file.
         path: PathBuf,
+        /// Why.
         source: std::io::Error,
     },
+    /// A line that is not a point.
     #[error("{path}: line {line}: {reason}: {text:?}")]
     Line {
+        /// The file.
         path: PathBuf,
+        /// The line.
         line: usize,
+        /// What is wrong.
         reason: String,
+        /// The line's text.
         text: String,
     },
+    /// Fewer than three points.
     #[error("{path}: {count} points; a curve needs at least 3")]
-    TooFew { path: PathBuf, count: usize },
+    TooFew {
+        /// The file.
+        path: PathBuf,
+        /// Its points.
+        count: usize,
+    },
 }
 
 /// Read x,y points. The first line may be a header (any line whose fields are not numbers).

@@ -32,6 +32,7 @@ pub enum Method {
 }
 
 impl Method {
+    /// The method's name as the command line and the tables spell it.
     pub fn name(&self) -> &'static str {
         match self {
             Method::Srvf => "srvf",
@@ -44,6 +45,7 @@ impl Method {
 /// Correspondence parameters.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CorrespondParams {
+    /// SRVF registration settings.
     pub srvf: SrvfParams,
     /// Outliers: aligned residual above median + k * 1.4826 * MAD (default k = 3).
     pub outlier_k: f64,

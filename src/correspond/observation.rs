@@ -6,8 +6,11 @@ use nalgebra::{Matrix2, Point2, Vector2};
 /// One 2D-3D correspondence: model vertex `vertex` should project onto `target` in view `view`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Observation {
+    /// The view the vertex is seen in.
     pub view: usize,
+    /// The model vertex.
     pub vertex: u32,
+    /// Where it should project, pixels.
     pub target: Point2<f64>,
     /// Robustness weight in [0, 1] (multiplies the squared residual).
     pub weight: f64,

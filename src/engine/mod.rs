@@ -17,10 +17,14 @@ use crate::solve::DeformationGraph;
 use crate::views::{Camera, ProjectionError};
 use nalgebra::{Point2, Point3};
 
-/// The user's choice on the command line.
+/// The user's choice on the command line: `Cpu` (f64, the reference), `Gpu` (the WGSL
+/// kernels) or `Auto`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
+// The two plain choices are documented above: a doc comment on them would become help text in
+// the command line's --help.
+#[allow(missing_docs)]
 pub enum BackendChoice {
     Cpu,
     Gpu,
@@ -31,7 +35,9 @@ pub enum BackendChoice {
 /// The kernels a reconstruction calls.
 #[derive(Clone, Copy)]
 pub enum Kernels<'g> {
+    /// Every kernel on the CPU.
     Cpu,
+    /// The GPU kernels on the caller's device.
     Gpu(&'g Gpu<'g>),
     /// The GPU, with requests merged across concurrent runs (the study's GPU path).
     Batched(&'g GpuBatcher<'g>),
@@ -39,17 +45,26 @@ pub enum Kernels<'g> {
 
 /// Why a kernel call failed.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum KernelError {
+    /// The GPU kernel failed.
     #[error("GPU: {0}")]
     Gpu(#[from] GpuError),
+    /// No model contour could be found in a view.
     #[error("view {view}: model contour: {source}")]
-    Contour { view: usize, source: ContourError },
+    Contour {
+        /// The view.
+        view: usize,
+        /// Why.
+        source: ContourError,
+    },
 }
 
 /// Silhouette texture size (texels per side).
 pub const SILHOUETTE_TEXELS: u32 = 512;
 
 impl Kernels<'_> {
+    /// "cpu" or "gpu".
     pub fn name(&self) -> &'static str {
         match self {
             Kernels::Cpu => "cpu",
@@ -66,10 +81,7 @@ impl Kernels<'_> {
         if let Kernels::Cpu = self {
             return Ok(graph.deform(x));
         }
-        let b = DeformBatch::from_graphs(&[(graph, x)]).map_err(|e| GpuError::Input {
-            kernel: "deform",
-            message: e.to_string(),
-        })?;
+        let b = DeformBatch::from_graphs(&[(graph, x)]).map_err(GpuError::from)?;
         let displacement = match self {
             Kernels::Batched(g) => g.deform(b)?,
             Kernels::Gpu(g) => g.deform(&b)?,

@@ -11,6 +11,7 @@ pub struct Knn3 {
 }
 
 impl Knn3 {
+    /// A k-d tree over the points (kiddo).
     pub fn new(points: &[Point3<f64>]) -> Knn3 {
         let entries: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
         let tree = if entries.is_empty() {

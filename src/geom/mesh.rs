@@ -5,6 +5,7 @@ use nalgebra::{Point3, Vector3};
 /// An indexed triangle mesh in millimetres with per-vertex normals.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
+    /// Vertex positions, mm.
     pub vertices: Vec<Point3<f64>>,
     /// Counter-clockwise triangles (outward normal by the right-hand rule).
     pub triangles: Vec<[u32; 3]>,
@@ -14,21 +15,37 @@ pub struct Mesh {
 
 /// Why a mesh cannot be used.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum MeshError {
+    /// No triangles.
     #[error("mesh has no triangles")]
     Empty,
     #[error(
         "triangle {triangle} refers to vertex {index}, but the mesh has {vertex_count} vertices"
     )]
+    /// A triangle indexes a vertex that does not exist.
     IndexOutOfRange {
+        /// The triangle.
         triangle: usize,
+        /// The vertex index.
         index: u32,
+        /// Vertices in the mesh.
         vertex_count: usize,
     },
+    /// A vertex coordinate is NaN or infinite.
     #[error("vertex {index} has a non-finite coordinate ({value})")]
-    NonFinite { index: usize, value: f64 },
+    NonFinite {
+        /// The vertex.
+        index: usize,
+        /// The coordinate.
+        value: f64,
+    },
+    /// The triangles have no area.
     #[error("mesh is degenerate: total area {area} mm^2")]
-    Degenerate { area: f64 },
+    Degenerate {
+        /// Their total area, mm^2.
+        area: f64,
+    },
 }
 
 impl Mesh {
@@ -64,6 +81,7 @@ impl Mesh {
         Ok(mesh)
     }
 
+    /// Number of vertices.
     pub fn vertex_count(&self) -> usize {
         self.vertices.len()
     }

@@ -5,7 +5,9 @@ use nalgebra::Point2;
 /// An observed or model curve in pixels; `closed` joins the last point to the first.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Curve {
+    /// The points, in order, pixels.
     pub points: Vec<Point2<f64>>,
+    /// Whether the last point joins the first.
     pub closed: bool,
 }
 
@@ -64,6 +66,7 @@ pub struct ClosedPolyline<'a> {
 }
 
 impl<'a> ClosedPolyline<'a> {
+    /// Arc-length parametrisation of the closed polyline through `points`.
     pub fn new(points: &'a [Point2<f64>]) -> Self {
         let cum = cumulative(points, true);
         let total = cum[cum.len() - 1];

@@ -6,25 +6,33 @@ use nalgebra::{Matrix4, Point3, Vector3, Vector4};
 /// A sphere in mm.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Sphere {
+    /// Centre (x, y, z), mm.
     pub center: [f64; 3],
+    /// Radius, mm.
     pub radius: f64,
     /// RMS of |p - c| - r over the fitted points.
     pub rms: f64,
 }
 
 impl Sphere {
+    /// Twice the radius.
     pub fn diameter(&self) -> f64 {
         2.0 * self.radius
     }
+    /// The centre as a point.
     pub fn center_point(&self) -> Point3<f64> {
         Point3::new(self.center[0], self.center[1], self.center[2])
     }
 }
 
+/// Why no sphere could be fitted.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum SphereFitError {
+    /// Fewer than four points.
     #[error("a sphere needs at least 4 points, got {0}")]
     TooFewPoints(usize),
+    /// The points are coplanar or coincide.
     #[error("the points are degenerate (coplanar or coincident); no unique sphere")]
     Degenerate,
 }

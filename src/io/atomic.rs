@@ -85,7 +85,7 @@ mod tests {
         assert!(r.is_err());
         assert!(!out.exists());
         assert_eq!(
-            std::fs::read_dir(&root).unwrap().count(),
+            std::fs::read_dir(root).unwrap().count(),
             0,
             "no staging left"
         );
@@ -102,7 +102,7 @@ mod tests {
         r.unwrap();
         assert!(out.join("a.csv").is_file() && out.join("sub/b.png").is_file());
         assert_eq!(
-            std::fs::read_dir(&root).unwrap().count(),
+            std::fs::read_dir(root).unwrap().count(),
             1,
             "only out remains"
         );
@@ -116,7 +116,7 @@ mod tests {
         write_atomic(&p, b"one").unwrap();
         write_atomic(&p, b"two").unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"two");
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        assert_eq!(std::fs::read_dir(dir).unwrap().count(), 1);
         assert!(write_atomic(&dir.join("missing/x.txt"), b"x").is_err());
         assert_eq!(std::fs::read_dir(dir).unwrap().count(), 1);
         #[cfg(unix)]

@@ -8,22 +8,42 @@ use std::path::{Path, PathBuf};
 
 /// A mesh file could not be read or written.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum MeshIoError {
+    /// The file cannot be read or written.
     #[error("{path}: cannot read: {source}")]
     Io {
+        /// The file.
         path: PathBuf,
+        /// Why.
         source: std::io::Error,
     },
+    /// The file is not valid in its format.
     #[error("{path}: not a valid {format} file: {reason}")]
     Parse {
+        /// The file.
         path: PathBuf,
+        /// STL, PLY or OBJ.
         format: &'static str,
+        /// What is wrong.
         reason: String,
     },
+    /// An extension that is not .stl, .ply or .obj.
     #[error("{path}: unsupported mesh extension {ext:?} (use .stl, .ply or .obj)")]
-    Extension { path: PathBuf, ext: String },
+    Extension {
+        /// The file.
+        path: PathBuf,
+        /// Its extension.
+        ext: String,
+    },
+    /// The file's mesh is unusable.
     #[error("{path}: {source}")]
-    Mesh { path: PathBuf, source: MeshError },
+    Mesh {
+        /// The file.
+        path: PathBuf,
+        /// Why its mesh is unusable.
+        source: MeshError,
+    },
 }
 
 /// An RGB colour per vertex, for error maps.

@@ -113,9 +113,7 @@ pub(super) fn check_finite(mesh: &Mesh) -> Result<(), ReconError> {
         .iter()
         .position(|v| !v.coords.iter().all(|c| c.is_finite()))
     {
-        return Err(ReconError::Diverged {
-            what: format!("vertex {i} is not finite"),
-        });
+        return Err(ReconError::NonFiniteVertex { vertex: i });
     }
     Ok(())
 }

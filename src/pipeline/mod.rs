@@ -34,35 +34,71 @@ use placement::{
 
 /// Why a reconstruction failed.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum ReconError {
+    /// A kernel (model contour, deformation) failed.
     #[error("{0}")]
     Kernel(#[from] KernelError),
+    /// Correspondences could not be found for an observed contour.
     #[error("view {view}, contour {contour}: correspondence: {source}")]
     Correspond {
+        /// The view.
         view: usize,
+        /// The contour's index in that view.
         contour: usize,
+        /// Why.
         source: SrvfError,
     },
+    /// Fewer correspondences than a solve needs (MIN_CORRESPONDENCES).
     #[error("{stage}: too few correspondences ({count}) to solve")]
-    TooFewCorrespondences { stage: &'static str, count: usize },
+    TooFewCorrespondences {
+        /// The stage.
+        stage: &'static str,
+        /// How many there were.
+        count: usize,
+    },
+    /// The solver failed.
     #[error("{stage}: solver: {source}")]
     Solve {
+        /// The stage.
         stage: &'static str,
+        /// Why.
         source: SolveError,
     },
-    #[error("the solver diverged: {what}")]
-    Diverged { what: String },
+    /// A solve left a vertex NaN or infinite.
+    #[error("the solver diverged: vertex {vertex} is not finite")]
+    NonFiniteVertex {
+        /// The first such vertex.
+        vertex: usize,
+    },
+    /// A pose refinement left a view's correction NaN or infinite.
+    #[error("the solver diverged: the pose correction of view {view} is not finite")]
+    NonFinitePose {
+        /// The view.
+        view: usize,
+    },
+    /// No cup sphere could be fitted to the result.
     #[error("cup sphere fit: {0}")]
     Sphere(#[from] SphereFitError),
+    /// The number of views and of observed outline sets differ.
     #[error("views ({views}) and observed contour sets ({observed}) differ in number")]
-    Mismatch { views: usize, observed: usize },
+    Mismatch {
+        /// Views.
+        views: usize,
+        /// Observed outline sets.
+        observed: usize,
+    },
+    /// The template cannot be used.
     #[error("template: {0}")]
     Template(#[from] TemplateError),
     /// A setting outside what the method can run with (see `ReconParams::validate`).
     #[error("setting {field} = {value}: must be {expected}")]
     Param {
+        /// The setting, as a path into ReconParams.
         field: &'static str,
+        /// Its value.
         value: String,
+        /// What it must be.
         expected: &'static str,
     },
 }
@@ -70,12 +106,17 @@ pub enum ReconError {
 /// What the solver did.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct SolveLog {
+    /// Stage A rounds (correspondences recomputed each).
     pub similarity_rounds: usize,
+    /// Stage B correspondence rounds.
     pub correspondence_updates: usize,
+    /// Gauss-Newton (LM) iterations over all solves.
     pub gn_iterations: usize,
+    /// The last solve converged (for the ICP baselines: always).
     pub converged: bool,
     /// Final reprojection RMS over the last correspondences, pixels.
     pub reprojection_rms_px: f64,
+    /// Correspondences of the last round.
     pub correspondences: usize,
     /// Per view, the size of the pose correction found (degrees, mm); empty without refinement.
     pub pose_corrections: Vec<[f64; 2]>,
@@ -91,13 +132,16 @@ pub struct SolveLog {
 pub struct OrientationTrial {
     /// "stage A" (its result) or "mirrored" (the mirrored start, settled by stage A).
     pub source: &'static str,
+    /// Its reprojection RMS, pixels.
     pub rms_px: f64,
 }
 
 /// The result.
 #[derive(Clone, Debug)]
 pub struct Reconstruction {
+    /// The reconstructed surface.
     pub mesh: Mesh,
+    /// The template at the given start.
     pub initial: Mesh,
     /// The cup sphere: fitted (robustly) to the part of the reconstructed surface the X-rays
     /// observe, the vertices the last correspondences tie to the outlines (see
@@ -105,10 +149,13 @@ pub struct Reconstruction {
     pub sphere: Sphere,
     /// The sphere fitted (robustly) to every reconstructed vertex.
     pub surface_sphere: Sphere,
+    /// The cup's nearest catalogue size.
     pub cup: CupSize,
+    /// What the solver did.
     pub log: SolveLog,
     /// Model contours of the initial and final meshes per view.
     pub initial_contours: Vec<ModelContour>,
+    /// Model contours of the final mesh per view.
     pub final_contours: Vec<ModelContour>,
     /// Correspondences of the last round.
     pub observations: Vec<Observation>,
@@ -120,9 +167,13 @@ pub struct Reconstruction {
 /// where the template starts, and the template itself.
 #[derive(Clone, Copy, Debug)]
 pub struct Input<'a> {
+    /// The views.
     pub cameras: &'a [Camera],
+    /// Per view, the observed outlines (one or more).
     pub observed: &'a [Vec<Curve>],
+    /// Where the template starts.
     pub init: &'a Placement,
+    /// The template (`Template::standard()` for the paper's hemisphere).
     pub template: &'a Template,
 }
 

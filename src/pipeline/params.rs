@@ -44,6 +44,7 @@ pub struct PlacementParams {
     /// than `tol_mm` (default 0.5 mm: centre shift + radius change + axis turn times the
     /// radius).
     pub rounds: usize,
+    /// See `rounds`.
     pub tol_mm: f64,
     /// Weight of correspondences on the template's rim (default 0.1). A real acetabulum is
     /// shallower than a hemisphere and notched, so its rim outline is not the hemisphere's; the
@@ -83,6 +84,7 @@ impl Default for PlacementParams {
 /// Stage B: the embedded deformation graph with its sphere prior.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DeformationParams {
+    /// The graph's settings.
     pub graph: GraphParams,
     /// For SRVF: correspondence computations (default 3; each followed by GN until the
     /// deformation settles, the graph rebuilt on the latest shape).

@@ -186,10 +186,8 @@ impl Poses {
                     source,
                 }
             })?;
-        if x.iter().any(|v| !v.is_finite()) {
-            return Err(ReconError::Diverged {
-                what: "a pose correction is not finite".into(),
-            });
+        if let Some(k) = x.iter().position(|v| !v.is_finite()) {
+            return Err(ReconError::NonFinitePose { view: k / 6 });
         }
         self.x = x;
         self.cams_now = (0..ctx.cams.len())

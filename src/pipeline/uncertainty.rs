@@ -22,6 +22,7 @@ use serde::Serialize;
 pub struct UncertaintyParams {
     /// Resamples (default 16).
     pub samples: usize,
+    /// Seed of the resampling (reported).
     pub seed: u64,
     /// Contour noise SD in pixels; None: the fit's reprojection RMS (at least 0.5 px).
     pub noise_px: Option<f64>,
@@ -40,7 +41,9 @@ impl Default for UncertaintyParams {
 /// One catalogue size and the share of resamples that chose it.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct SizeProbability {
+    /// The catalogue size, mm.
     pub size_mm: f64,
+    /// Share of the resamples whose nearest size it is.
     pub probability: f64,
 }
 
@@ -53,12 +56,16 @@ pub struct CupReport {
     pub catalogue_mm: f64,
     /// SD of the resampled diameters, and the half-width of their central 95 % range.
     pub sd_mm: f64,
+    /// See `sd_mm`.
     pub plus_minus_mm: f64,
     /// The chosen size and its neighbours in the catalogue, with their probabilities (all sizes
     /// any resample chose are listed).
     pub probabilities: Vec<SizeProbability>,
+    /// Resamples drawn.
     pub samples: usize,
+    /// Their seed.
     pub seed: u64,
+    /// Contour noise SD used, pixels.
     pub noise_px: f64,
     /// The resampled diameters, in draw order.
     pub resampled_mm: Vec<f64>,

@@ -11,9 +11,13 @@ use std::path::Path;
 /// point on its triangles); `sd_mm`, `p95_mm` its SD and 95th percentile.
 #[derive(Clone, Debug, Serialize)]
 pub struct Accuracy {
+    /// Mean distance, mm.
     pub mae_mm: f64,
+    /// SD of the distances, mm.
     pub sd_mm: f64,
+    /// 95th percentile, mm.
     pub p95_mm: f64,
+    /// Largest distance, mm.
     pub max_mm: f64,
 }
 

@@ -3,6 +3,7 @@
 /// Outer diameters on offer, mm (default 40 to 70 in 2 mm steps).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CupCatalogue {
+    /// Cup outer diameters on offer, mm, ascending.
     pub sizes_mm: Vec<f64>,
 }
 
@@ -17,7 +18,9 @@ impl Default for CupCatalogue {
 /// A chosen size.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct CupSize {
+    /// The fitted diameter, mm.
     pub diameter_mm: f64,
+    /// The nearest size in the catalogue, mm.
     pub catalogue_mm: f64,
 }
 

@@ -12,14 +12,20 @@ use rand::{RngExt, SeedableRng};
 /// Mean, SD and 95th percentile of a set of distances (mm).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct DistanceStats {
+    /// Mean, mm.
     pub mean: f64,
+    /// SD (dividing by n), mm.
     pub sd: f64,
+    /// 95th percentile (nearest rank), mm.
     pub p95: f64,
+    /// Largest, mm.
     pub max: f64,
+    /// How many distances.
     pub count: usize,
 }
 
 impl DistanceStats {
+    /// The statistics of the distances `d` (all zero for none).
     pub fn from(d: &[f64]) -> DistanceStats {
         if d.is_empty() {
             return DistanceStats::default();
@@ -44,6 +50,7 @@ pub struct SurfaceQuery {
 }
 
 impl SurfaceQuery {
+    /// Closest-point queries against `mesh` (None for a mesh parry cannot take).
     pub fn new(mesh: &Mesh) -> Option<SurfaceQuery> {
         let v: Vec<PVec> = mesh
             .vertices
@@ -124,6 +131,7 @@ pub struct InteriorQuery {
 }
 
 impl InteriorQuery {
+    /// Distance queries to `to`'s triangles (None for a mesh parry cannot take).
     pub fn new(to: &Mesh) -> Option<InteriorQuery> {
         let query = SurfaceQuery::new(to)?;
         let border = to
@@ -134,6 +142,7 @@ impl InteriorQuery {
         Some(InteriorQuery { query, border })
     }
 
+    /// From each vertex of `from` to the surface, mm.
     pub fn distances(&self, from: &Mesh) -> Vec<f64> {
         from.vertices
             .iter()

@@ -11,13 +11,22 @@ use std::sync::OnceLock;
 
 /// A picture could not be made.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum PlotError {
+    /// No TrueType font could be loaded (the paths tried).
     #[error("no TrueType font found (looked at ACETAB_FONT and {0}); install fonts-dejavu-core")]
     NoFont(String),
+    /// plotters or the PNG encoder failed (their message).
     #[error("drawing failed: {0}")]
     Draw(String),
+    /// The picture could not be written.
     #[error("{path}: {reason}")]
-    File { path: PathBuf, reason: String },
+    File {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
 }
 
 const FONT_PATHS: [&str; 3] = [

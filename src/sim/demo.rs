@@ -15,37 +15,60 @@ use serde::Serialize;
 /// What `acetab demo` reports.
 #[derive(Clone, Debug, Serialize)]
 pub struct DemoReport {
+    /// The seed of every draw.
     pub seed: u64,
+    /// The start's noise level (0-5).
     pub level: u32,
+    /// The correspondence method.
     pub method: String,
+    /// Contour noise SD, pixels.
     pub contour_noise_px: f64,
+    /// Mean truth -> result distance, mm.
     pub mae_mm: f64,
+    /// Its SD, mm.
     pub sd_mm: f64,
+    /// Its 95th percentile, mm.
     pub p95_mm: f64,
+    /// The cup sphere's diameter, mm.
     pub cup_diameter_mm: f64,
+    /// Its nearest catalogue size, mm.
     pub cup_catalogue_mm: f64,
+    /// The truth's sphere diameter, mm.
     pub gt_cup_diameter_mm: f64,
+    /// Cup minus truth, mm.
     pub cup_error_mm: f64,
+    /// Mean distance of the start, mm.
     pub initial_mae_mm: f64,
+    /// Seconds for the reconstruction.
     pub seconds: f64,
     /// Where the kernels ran: "cpu" or "gpu".
     pub backend: String,
+    /// What the solver did.
     pub log: crate::pipeline::SolveLog,
 }
 
+/// Why the demo failed.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum DemoError {
+    /// A noise level outside 0..=5.
     #[error("noise level {0} is not one of 0..5")]
     Level(u32),
+    /// The phantom could not be simulated.
     #[error(transparent)]
     Sim(#[from] SimError),
+    /// The reconstruction failed.
     #[error(transparent)]
     Recon(#[from] ReconError),
+    /// An output mesh could not be written.
     #[error(transparent)]
     Io(#[from] MeshIoError),
+    /// An output file could not be written.
     #[error("{path}: cannot write: {source}")]
     Write {
+        /// The file.
         path: std::path::PathBuf,
+        /// Why.
         source: std::io::Error,
     },
 }

@@ -8,9 +8,13 @@ use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 /// X-ray geometry in mm and pixels.
 #[derive(Clone, Debug, PartialEq)]
 pub struct XrayGeometry {
+    /// Source to detector, mm.
     pub source_to_detector: f64,
+    /// Source to the object's centre, mm.
     pub source_to_object: f64,
+    /// Detector pixel size, mm.
     pub pixel_size: f64,
+    /// Image width and height, pixels.
     pub image_size: u32,
     /// Rotation of each view about the world z axis, degrees (0 = antero-posterior).
     pub angles_deg: Vec<f64>,
@@ -20,8 +24,11 @@ pub struct XrayGeometry {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("X-ray geometry: {field} = {value}: must be {expected}")]
 pub struct GeometryError {
+    /// The setting.
     pub field: &'static str,
+    /// Its value.
     pub value: String,
+    /// What it must be.
     pub expected: &'static str,
 }
 

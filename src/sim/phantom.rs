@@ -17,14 +17,18 @@ pub struct PhantomParams {
     /// Acetabular notch: azimuthal width (centred on the inferior rim) and the polar angle where
     /// the cut starts. A notch that would remove every triangle is not cut.
     pub notch_width_deg: f64,
+    /// Polar angle where the notch starts.
     pub notch_start_deg: f64,
     /// Fossa: a depression of this depth (mm, away from the centre) with this angular radius,
     /// centred this far from the pole towards the notch.
     pub fossa_depth: f64,
+    /// Fossa's angular radius.
     pub fossa_radius_deg: f64,
+    /// Fossa's distance from the pole towards the notch.
     pub fossa_offset_deg: f64,
     /// Radiographic anteversion and inclination of the opening axis (Murray's definitions).
     pub anteversion_deg: f64,
+    /// Radiographic inclination, degrees.
     pub inclination_deg: f64,
     /// Sphere centre in the world (x lateral, y anterior, z superior).
     pub center: Point3<f64>,
@@ -54,6 +58,7 @@ impl Default for PhantomParams {
 /// A generated phantom: the surface and the hemisphere it was built around.
 #[derive(Clone, Debug)]
 pub struct Phantom {
+    /// The surface.
     pub mesh: Mesh,
     /// The undeformed sphere's centre, radius and opening axis.
     pub placement: Placement,
@@ -70,8 +75,11 @@ pub fn radiographic_axis(anteversion_deg: f64, inclination_deg: f64) -> Unit<Vec
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("phantom: {field} = {value}: must be {expected}")]
 pub struct PhantomError {
+    /// The setting.
     pub field: &'static str,
+    /// Its value.
     pub value: String,
+    /// What it must be.
     pub expected: &'static str,
 }
 

@@ -20,8 +20,11 @@ use rand_distr::{Distribution, Normal};
 /// scale factor s (scale = exp(N(0, ln s))).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct NoiseLevel {
+    /// Rotation SD, rad.
     pub rotation_sd: f64,
+    /// Translation SD per axis, mm.
     pub translation_sd: f64,
+    /// Scale factor s.
     pub scale: f64,
 }
 
@@ -47,13 +50,17 @@ impl NoiseLevel {
 /// A simulated case.
 #[derive(Clone, Debug)]
 pub struct SimCase {
+    /// The views.
     pub cameras: Vec<Camera>,
+    /// Per view, the noisy observed outline.
     pub observed: Vec<Vec<Curve>>,
     /// The hemisphere fitted to the truth (before perturbation).
     pub truth_placement: Placement,
+    /// The truth's sphere.
     pub truth_sphere: Sphere,
     /// The perturbed start.
     pub init: Placement,
+    /// The seed of this case's draws.
     pub seed: u64,
 }
 
@@ -70,23 +77,38 @@ impl SimCase {
     }
 }
 
+/// Why a truth cannot be simulated or a setting is refused.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum SimError {
+    /// No sphere fits the ground truth.
     #[error("ground truth sphere fit: {0}")]
     Sphere(#[from] SphereFitError),
+    /// The ground truth's outer side could not be cut out.
     #[error("ground truth outer side: {0}")]
     Surface(crate::geom::MeshError),
+    /// The ground truth casts no outline in a view.
     #[error("ground truth contour in view {view}: {source}")]
-    Contour { view: usize, source: ContourError },
+    Contour {
+        /// The view.
+        view: usize,
+        /// Why.
+        source: ContourError,
+    },
+    /// The simulated view geometry is unusable.
     #[error("{0}")]
     Geometry(#[from] GeometryError),
     /// A simulation setting no draw can be made with.
     #[error("{field} = {value}: must be {expected}")]
     Setting {
+        /// The setting.
         field: &'static str,
+        /// Its value.
         value: String,
+        /// What it must be.
         expected: &'static str,
     },
+    /// The reconstruction settings are refused.
     #[error("reconstruction settings: {0}")]
     Params(#[from] crate::pipeline::ReconError),
 }
@@ -193,8 +215,11 @@ pub fn perturb(
 /// the truth's noise-free outlines. `case` adds one run's noise and start.
 #[derive(Clone, Debug)]
 pub struct SimSetup {
+    /// The hemisphere fitted to the truth.
     pub placement: Placement,
+    /// The truth's sphere.
     pub sphere: Sphere,
+    /// The views, aimed at its centre.
     pub cameras: Vec<Camera>,
     /// The truth's alpha-shape outline per view, before noise.
     pub outlines: Vec<Vec<nalgebra::Point2<f64>>>,
@@ -203,6 +228,7 @@ pub struct SimSetup {
 }
 
 impl SimSetup {
+    /// The set-up of `truth` in `geometry`'s views.
     pub fn new(truth: &Mesh, geometry: &XrayGeometry) -> Result<SimSetup, SimError> {
         geometry.validate()?;
         let (placement, sphere) = fit_placement(truth)?;

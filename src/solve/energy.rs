@@ -25,8 +25,11 @@ use nalgebra::Point3;
 /// Energy weights.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EdWeights {
+    /// w_rot, on E_rot (the graph's affine maps near rotations).
     pub rot: f64,
+    /// w_reg, on E_reg (neighbouring nodes agree).
     pub reg: f64,
+    /// w_obs, on E_obs (projections onto their targets).
     pub obs: f64,
     /// Weight of the reprojection error along the observed contour relative to across it.
     pub tangential: f64,
@@ -45,9 +48,13 @@ impl Default for EdWeights {
 
 /// The ED problem over a graph, the cameras and fixed correspondences.
 pub struct EdProblem<'a> {
+    /// The graph being solved for.
     pub graph: &'a DeformationGraph,
+    /// The views.
     pub cameras: &'a [Camera],
+    /// The fixed correspondences.
     pub observations: &'a [Observation],
+    /// The energy's weights.
     pub weights: EdWeights,
     /// Pixels per millimetre per view (divides the reprojection residual).
     pub px_per_mm: Vec<f64>,
@@ -64,6 +71,7 @@ pub struct EdProblem<'a> {
 pub struct SpherePrior {
     /// Weight per vertex (mm^-2 like E_reg's).
     pub weight: f64,
+    /// The vertices that carry the prior.
     pub vertices: Vec<u32>,
 }
 
@@ -150,6 +158,7 @@ impl EdProblem<'_> {
 }
 
 impl<'a> EdProblem<'a> {
+    /// The problem over `graph` with correspondences `observations` in `cameras`.
     pub fn new(
         graph: &'a DeformationGraph,
         cameras: &'a [Camera],

@@ -39,6 +39,7 @@ pub const NODE_PARAMS: usize = 12;
 /// The graph: node positions, E_reg neighbourhoods, and per-vertex skinning weights.
 #[derive(Clone, Debug)]
 pub struct DeformationGraph {
+    /// Node positions, mm.
     pub nodes: Vec<Point3<f64>>,
     /// Mesh vertex each node was sampled at.
     pub node_vertex: Vec<usize>,
@@ -147,6 +148,7 @@ impl DeformationGraph {
         }
     }
 
+    /// Number of nodes.
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }

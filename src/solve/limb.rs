@@ -13,7 +13,9 @@ use nalgebra::{Matrix4, Point3, Vector3, Vector4};
 /// A sphere found from the outlines.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LimbSphere {
+    /// Centre, mm.
     pub center: Point3<f64>,
+    /// Radius, mm.
     pub radius: f64,
     /// The inside scale the fit ended on (the noise floor), mm.
     pub scale_mm: f64,
@@ -23,15 +25,26 @@ pub struct LimbSphere {
 
 /// Why no sphere came out.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum LimbError {
+    /// Fewer than two views with outline points.
     #[error("sphere from outlines: needs at least two views with outline points, got {views}")]
-    TooFewViews { views: usize },
+    TooFewViews {
+        /// Views with points.
+        views: usize,
+    },
+    /// The views' centroid rays do not meet (parallel views).
     #[error("sphere from outlines: the outlines' centroid rays do not meet (parallel views)")]
     Degenerate,
+    /// The fit left the finite numbers.
     #[error("sphere from outlines: the fit did not stay finite")]
     NotFinite,
+    /// A noise floor that is not finite and >= 0.
     #[error("sphere from outlines: the noise floor {value} mm must be finite and >= 0")]
-    Scale { value: f64 },
+    Scale {
+        /// The floor, mm.
+        value: f64,
+    },
 }
 
 /// Most halvings of the inside scale (from half the radius, 64 reach 1e-19 of it).

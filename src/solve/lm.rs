@@ -5,7 +5,9 @@ use super::normal::{LinearSolveError, Linearization, SymbolicCache};
 
 /// A least-squares problem min sum r(x)^2.
 pub trait Problem {
+    /// Parameters per block.
     fn block_size(&self) -> usize;
+    /// Number of blocks.
     fn n_blocks(&self) -> usize;
     /// Residuals at x, with the Jacobian when `jacobian` is set.
     fn linearize(&self, x: &[f64], jacobian: bool) -> Linearization;
@@ -42,15 +44,18 @@ impl Default for LmParams {
 /// What the solver did.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct LmInfo {
+    /// Accepted steps.
     pub iterations: usize,
     /// Cost before the first step, then after each accepted step (never rising).
     pub costs: Vec<f64>,
     /// Stopped because the relative decrease fell below `rel_tol` or lambda ran out.
     pub converged: bool,
+    /// Steps rejected (the cost rose; the damping was raised).
     pub rejected_steps: usize,
 }
 
 impl LmInfo {
+    /// The cost at the end.
     pub fn final_cost(&self) -> f64 {
         *self.costs.last().unwrap_or(&f64::NAN)
     }
@@ -58,12 +63,20 @@ impl LmInfo {
 
 /// Why the solver stopped without an answer.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum SolveError {
+    /// The cost is NaN or infinite at the start.
     #[error("the cost is not finite ({cost}) at the starting point")]
-    NonFiniteStart { cost: f64 },
+    NonFiniteStart {
+        /// The cost.
+        cost: f64,
+    },
+    /// The normal equations could not be solved.
     #[error("linear solve failed at iteration {iteration}: {source}")]
     Linear {
+        /// The LM iteration.
         iteration: usize,
+        /// Why.
         source: LinearSolveError,
     },
 }

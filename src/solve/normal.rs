@@ -13,8 +13,11 @@ use std::collections::HashMap;
 /// Residuals r and a Jacobian J stored row by row, each row as (block, bs values) pairs.
 #[derive(Clone, Debug)]
 pub struct Linearization {
+    /// Parameters per block.
     pub block_size: usize,
+    /// Number of blocks.
     pub n_blocks: usize,
+    /// Residuals.
     pub r: Vec<f64>,
     row_start: Vec<usize>,
     block_ids: Vec<u32>,
@@ -22,6 +25,7 @@ pub struct Linearization {
 }
 
 impl Linearization {
+    /// An empty linearisation with `n_blocks` blocks of `block_size` parameters.
     pub fn new(block_size: usize, n_blocks: usize) -> Self {
         Linearization {
             block_size,
@@ -55,6 +59,7 @@ impl Linearization {
         self.r.iter().map(|x| x * x).sum()
     }
 
+    /// Number of parameters.
     pub fn n_params(&self) -> usize {
         self.block_size * self.n_blocks
     }
@@ -180,18 +185,27 @@ impl BlockIndex {
 /// H = J^T J by blocks (row block >= column block) and g = J^T r.
 #[derive(Clone, Debug)]
 pub struct NormalEquations {
+    /// Parameters per block.
     pub block_size: usize,
+    /// Number of parameters.
     pub n: usize,
     keys: Vec<((u32, u32), usize)>,
     blocks: Vec<f64>,
+    /// The gradient J^T r.
     pub g: Vec<f64>,
 }
 
 /// Numeric failure of a linear solve.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum LinearSolveError {
+    /// The normal matrix is not positive definite (raise the damping).
     #[error("normal matrix not positive definite at pivot {pivot}")]
-    NotPositiveDefinite { pivot: usize },
+    NotPositiveDefinite {
+        /// The pivot where the factorisation stopped.
+        pivot: usize,
+    },
+    /// faer's factorisation failed (its message).
     #[error("sparse factorisation failed: {0}")]
     Faer(String),
 }
@@ -204,6 +218,7 @@ pub struct SymbolicCache {
     entry: Option<CachedPattern>,
     /// Solves that reused the kept factorisation, and solves that computed a new one.
     pub hits: usize,
+    /// Solves that computed a new factorisation.
     pub misses: usize,
 }
 

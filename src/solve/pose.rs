@@ -62,16 +62,23 @@ impl PoseParams {
 
 /// The pose problem on fixed points and correspondences; x = 6 per view (omega, tau).
 pub struct PoseProblem<'a> {
+    /// The shape's points, mm.
     pub points: &'a [Point3<f64>],
+    /// The point the views' rotations turn about.
     pub center: Point3<f64>,
+    /// The views as given.
     pub cameras: &'a [Camera],
+    /// The fixed correspondences.
     pub observations: &'a [Observation],
+    /// The corrections' prior.
     pub prm: &'a PoseParams,
+    /// Weight of the residual along the contour.
     pub tangential: f64,
     px_per_mm: Vec<f64>,
 }
 
 impl<'a> PoseProblem<'a> {
+    /// The problem of the corrections of `cameras` about `center`.
     pub fn new(
         points: &'a [Point3<f64>],
         center: Point3<f64>,

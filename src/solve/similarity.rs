@@ -13,14 +13,20 @@ use crate::correspond::Observation;
 use crate::views::Camera;
 use nalgebra::{Point3, Rotation3, Vector3};
 
+/// Parameters of the full similarity: rotation vector, translation, log scale.
 pub const SIM_PARAMS: usize = 7;
 
 /// The similarity problem on fixed correspondences.
 pub struct SimilarityProblem<'a> {
+    /// The points at rest, mm.
     pub rest: &'a [Point3<f64>],
+    /// The point the similarity turns and scales about.
     pub center: Point3<f64>,
+    /// The views.
     pub cameras: &'a [Camera],
+    /// The fixed correspondences.
     pub observations: &'a [Observation],
+    /// Per view, pixels per mm at `center` (turns E_obs into mm).
     pub px_per_mm: Vec<f64>,
     /// Along-contour weight of the reprojection error (see `Observation::residual_frame`).
     pub tangential: f64,
@@ -41,6 +47,7 @@ pub fn apply_similarity(x: &[f64], center: &Point3<f64>, pts: &[Point3<f64>]) ->
 }
 
 impl<'a> SimilarityProblem<'a> {
+    /// The problem over `rest` (about its centroid) with correspondences `observations`.
     pub fn new(
         rest: &'a [Point3<f64>],
         cameras: &'a [Camera],

@@ -20,9 +20,13 @@ use std::time::Instant;
 /// One line of the table.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct BenchRow {
+    /// The kernel.
     pub kernel: String,
+    /// The problem size.
     pub size: String,
+    /// The CPU twin's median, ms.
     pub cpu_ms: f64,
+    /// The GPU's median, ms.
     pub gpu_ms: f64,
     /// cpu_ms / gpu_ms (above 1: the GPU path is faster).
     pub ratio: f64,
@@ -31,16 +35,24 @@ pub struct BenchRow {
 /// Study throughput on one backend.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Throughput {
+    /// Where the kernels ran.
     pub backend: String,
+    /// Runs.
     pub runs: usize,
+    /// Seconds.
     pub seconds: f64,
+    /// Runs per second.
     pub runs_per_second: f64,
 }
 
+/// What `acetab bench` measured.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct BenchReport {
+    /// The adapter.
     pub adapter: String,
+    /// Each kernel against its twin.
     pub kernels: Vec<BenchRow>,
+    /// Study throughput per backend.
     pub study: Vec<Throughput>,
 }
 
@@ -51,9 +63,11 @@ pub struct BenchParams {
     pub mesh_sizes: Vec<usize>,
     /// DP batch sizes (problems of `dp_samples` samples).
     pub dp_batches: Vec<usize>,
+    /// Samples per DP problem.
     pub dp_samples: usize,
     /// Study runs per backend (phantom, srvf, level 3); 0 skips the study.
     pub study_runs: usize,
+    /// Worker threads of the study.
     pub threads: usize,
     /// Repetitions per timing (the median is reported).
     pub repeats: usize,
@@ -94,13 +108,25 @@ fn row(kernel: &str, size: String, cpu_ms: f64, gpu_ms: f64) -> BenchRow {
     }
 }
 
+/// Why the bench stopped.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BenchError {
+    /// A kernel failed on the device (or its batch was refused).
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+    /// The study on the phantom could not run.
+    #[error("the study on the phantom: {0}")]
+    Study(#[from] crate::sim::SimError),
+}
+
 /// Run every measurement; `progress` gets one line per finished row.
 pub fn run_bench(
     gpu: &Gpu,
     adapter: &str,
     p: &BenchParams,
     progress: &dyn Fn(&str),
-) -> Result<BenchReport, GpuError> {
+) -> Result<BenchReport, BenchError> {
     let mut rows = Vec::new();
     let geometry = XrayGeometry::default();
     for &nv in &p.mesh_sizes {
@@ -110,11 +136,7 @@ pub fn run_bench(
         for (k, v) in x.iter_mut().enumerate() {
             *v += 0.01 * ((k % 7) as f64 - 3.0);
         }
-        let batch =
-            cdeform::DeformBatch::from_graphs(&[(&graph, &x)]).map_err(|e| GpuError::Input {
-                kernel: "deform",
-                message: e.to_string(),
-            })?;
+        let batch = cdeform::DeformBatch::from_graphs(&[(&graph, &x)]).map_err(GpuError::from)?;
         let size = format!("{} vertices", mesh.vertex_count());
         let c = median_ms(p.repeats, || {
             std::hint::black_box(cdeform::deform(&batch));
@@ -183,10 +205,7 @@ pub fn run_bench(
             .iter()
             .map(|(a, b)| (&a[..], &b[..]))
             .collect();
-        let batch = cdp::DpBatch::new(&pairs, &steps).map_err(|e| GpuError::Input {
-            kernel: "srvf_dp",
-            message: e.to_string(),
-        })?;
+        let batch = cdp::DpBatch::new(&pairs, &steps).map_err(GpuError::from)?;
         let c = median_ms(p.repeats, || {
             std::hint::black_box(cdp::dp_tables(&batch));
             Ok(())
@@ -212,11 +231,7 @@ pub fn run_bench(
         );
         for kernels in [Kernels::Cpu, Kernels::Gpu(gpu), Kernels::Batched(&batcher)] {
             let s = Instant::now();
-            let (rows, _) =
-                run_study(&truth, &cfg, &|| {}, kernels).map_err(|e| GpuError::Input {
-                    kernel: "study",
-                    message: format!("the phantom cannot be simulated: {e}"),
-                })?;
+            let (rows, _) = run_study(&truth, &cfg, &|| {}, kernels)?;
             let seconds = s.elapsed().as_secs_f64();
             study.push(Throughput {
                 backend: match kernels {

@@ -12,11 +12,17 @@ use crate::pipeline::ReconParams;
 /// w_obs E_obs and nothing else.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum StudyMethod {
+    /// SRVF, through every stage.
     Srvf,
+    /// ICP, through every stage.
     Icp,
+    /// ICP-NormVec, through every stage.
     IcpNormvec,
+    /// SRVF, the paper's protocol (the deformation alone).
     SrvfPaper,
+    /// ICP, the paper's protocol.
     IcpPaper,
+    /// ICP-NormVec, the paper's protocol.
     IcpNormvecPaper,
 }
 

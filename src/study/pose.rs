@@ -17,25 +17,40 @@ use crate::template::TemplateParams;
 /// One case, both ways.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct PoseRow {
+    /// The run.
     pub run: usize,
+    /// Its seed.
     pub seed: u64,
+    /// MAE without pose refinement, mm.
     pub mae_without_mm: f64,
+    /// MAE with it, mm.
     pub mae_with_mm: f64,
+    /// Cup error without, mm.
     pub cup_error_without_mm: f64,
+    /// Cup error with, mm.
     pub cup_error_with_mm: f64,
     /// Size of the corrections found per view (degrees, mm).
     pub corrections: Vec<[f64; 2]>,
+    /// Why the run failed (empty when it did not).
     pub error: String,
 }
 
+/// The pose study's settings.
 #[derive(Clone, Debug)]
 pub struct PoseStudy {
+    /// Runs.
     pub runs: usize,
+    /// Study seed.
     pub seed: u64,
+    /// The start's noise level.
     pub level: u32,
+    /// Pose error of the oblique views, degrees.
     pub deg: f64,
+    /// Pose error of the oblique views, mm.
     pub mm: f64,
+    /// Worker threads.
     pub threads: usize,
+    /// The refinement's settings.
     pub pose: PoseParams,
 }
 

@@ -16,17 +16,25 @@ use crate::template::{Template, TemplateParams};
 /// What to run.
 #[derive(Clone, Debug)]
 pub struct StudyConfig {
+    /// Noise levels of the start.
     pub levels: Vec<u32>,
+    /// Runs per level and method.
     pub runs: usize,
+    /// Methods.
     pub methods: Vec<StudyMethod>,
+    /// Study seed (each run's is derived from it).
     pub seed: u64,
+    /// Worker threads (the results do not depend on it).
     pub threads: usize,
     /// (index, count): this process runs the tasks whose position modulo count is index.
     pub shard: (usize, usize),
+    /// Contour noise SD, pixels.
     pub noise_px: f64,
+    /// The simulated views.
     pub geometry: XrayGeometry,
     /// The standard template every run starts from.
     pub template: TemplateParams,
+    /// The reconstruction settings (each method turns stages off).
     pub params: ReconParams,
 }
 
@@ -108,8 +116,11 @@ pub fn tasks(cfg: &StudyConfig) -> Vec<Task> {
 
 /// A run kept for its pictures and mesh.
 pub struct ExampleRun {
+    /// The run.
     pub task: Task,
+    /// Its simulated case.
     pub sim: SimCase,
+    /// Its reconstruction.
     pub recon: Reconstruction,
 }
 

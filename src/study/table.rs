@@ -10,28 +10,44 @@ use std::path::{Path, PathBuf};
 /// One run's result. Metrics are NaN for a run that failed (`error` says why).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Row {
+    /// The method.
     pub method: StudyMethod,
+    /// The start's noise level.
     pub level: u32,
+    /// The run.
     pub run: usize,
+    /// Its seed.
     pub seed: u64,
+    /// Mean truth -> result distance, mm.
     pub mae_mm: f64,
+    /// Its SD, mm.
     pub sd_mm: f64,
+    /// Its 95th percentile, mm.
     pub p95_mm: f64,
+    /// Mean result -> truth distance over the truth's interior, mm.
     pub recon_mae_mm: f64,
+    /// The cup sphere's diameter, mm.
     pub cup_diameter_mm: f64,
+    /// The truth's sphere diameter, mm.
     pub gt_cup_diameter_mm: f64,
     /// The sphere fitted to the whole reconstructed surface (the cup uses its observed part).
     pub surface_fit_diameter_mm: f64,
     /// The sphere fitted to the outlines' limbs before any deformation (NaN when not used).
     pub limb_diameter_mm: f64,
+    /// The last solve converged.
     pub converged: bool,
+    /// LM iterations.
     pub iterations: usize,
+    /// Stage B correspondence rounds.
     pub correspondence_updates: usize,
+    /// Seconds for the reconstruction.
     pub seconds: f64,
+    /// Why the run failed (empty when it did not).
     pub error: String,
 }
 
 impl Row {
+    /// A failed run of `t` with the reason.
     pub fn failed(t: &Task, error: &str) -> Row {
         Row {
             method: t.method,
@@ -54,6 +70,7 @@ impl Row {
         }
     }
 
+    /// Cup minus truth, mm.
     pub fn cup_error_mm(&self) -> f64 {
         self.cup_diameter_mm - self.gt_cup_diameter_mm
     }
@@ -66,36 +83,58 @@ impl Row {
 
 /// Problems with study files.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum StudyError {
+    /// A study file cannot be read.
     #[error("{path}: cannot read: {source}")]
     Read {
+        /// The file.
         path: PathBuf,
+        /// Why.
         source: std::io::Error,
     },
+    /// A study file cannot be written.
     #[error("{path}: cannot write: {source}")]
     Write {
+        /// The file.
         path: PathBuf,
+        /// Why.
         source: std::io::Error,
     },
+    /// A runs.csv line that is not a run.
     #[error("{path}: line {line}: {reason}")]
     Parse {
+        /// The file.
         path: PathBuf,
+        /// The line (1 is the header).
         line: usize,
+        /// What is wrong.
         reason: String,
     },
+    /// Two shards of different studies.
     #[error("{path}: study field {field:?} is {value}, but {first} has {expected}: not shards of one study")]
     Mismatch {
+        /// The shard.
         path: PathBuf,
+        /// The study setting that differs.
         field: String,
+        /// Its value there.
         value: String,
+        /// The first shard.
         first: PathBuf,
+        /// Its value in the first shard.
         expected: String,
     },
+    /// The same run in two shards.
     #[error("run {method} level {level} run {run} appears in more than one shard ({path})")]
     Duplicate {
+        /// The run's method.
         method: String,
+        /// Its level.
         level: u32,
+        /// Its number.
         run: usize,
+        /// The second shard.
         path: PathBuf,
     },
 }
@@ -291,21 +330,32 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
 /// Per method and level.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Summary {
+    /// The method.
     pub method: StudyMethod,
+    /// The start's noise level.
     pub level: u32,
+    /// Runs.
     pub runs: usize,
+    /// Runs whose last solve converged.
     pub converged: usize,
+    /// Runs that failed.
     pub failed: usize,
+    /// Mean MAE, mm.
     pub mae_mean: f64,
+    /// SD of the MAE (dividing by n), mm.
     pub mae_sd: f64,
+    /// Mean cup error, mm.
     pub cup_error_mean: f64,
+    /// SD of the cup error, mm.
     pub cup_error_sd: f64,
     /// Runs with |cup diameter - truth| <= 1 mm.
     pub cup_within_1mm: usize,
     /// The same for the whole-surface sphere fit and for the limb sphere (None, null in JSON,
     /// when no run had a limb sphere: the paper's protocol and pose refinement skip stage 0).
     pub surface_fit_within_1mm: usize,
+    /// See `surface_fit_within_1mm`.
     pub limb_within_1mm: Option<usize>,
+    /// Median seconds per run.
     pub median_seconds: f64,
 }
 

@@ -5,9 +5,13 @@ use super::method::StudyMethod;
 /// One run to do.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Task {
+    /// The method.
     pub method: StudyMethod,
+    /// The start's noise level.
     pub level: u32,
+    /// The run.
     pub run: usize,
+    /// Its seed.
     pub seed: u64,
 }
 

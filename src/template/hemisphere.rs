@@ -7,8 +7,11 @@ use nalgebra::{Point3, Rotation3, Unit, Vector3};
 /// through the rim plane, i.e. away from the dome).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Placement {
+    /// Centre of the sphere, mm.
     pub center: Point3<f64>,
+    /// Radius, mm.
     pub radius: f64,
+    /// Opening axis (unit), from the centre out through the rim plane.
     pub axis: Unit<Vector3<f64>>,
 }
 

@@ -5,27 +5,41 @@ use nalgebra::{Matrix2x3, Point2, Point3, Rotation3, Vector3};
 /// Pixel intrinsics: focal lengths and principal point in pixels.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Intrinsics {
+    /// Focal length in x, pixels.
     pub fx: f64,
+    /// Focal length in y, pixels.
     pub fy: f64,
+    /// Principal point x, pixels.
     pub cx: f64,
+    /// Principal point y, pixels.
     pub cy: f64,
 }
 
 /// One view: intrinsics, pose (world -> camera) and image size in pixels.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
+    /// Intrinsics K.
     pub k: Intrinsics,
+    /// Rotation R from the world (patient) frame to the camera frame.
     pub r: Rotation3<f64>,
+    /// Translation t, mm: p ~ K (R P + t).
     pub t: Vector3<f64>,
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
 }
 
 /// A point could not be projected.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum ProjectionError {
+    /// The point is not in front of the source.
     #[error("point is behind or on the camera plane (depth {depth} mm)")]
-    BehindCamera { depth: f64 },
+    BehindCamera {
+        /// Its depth along the view axis, mm.
+        depth: f64,
+    },
 }
 
 /// Smallest depth (mm) accepted in front of the source.

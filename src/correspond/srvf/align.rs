@@ -32,6 +32,7 @@ pub struct SrvfParams {
     /// Rotation/DP alternations at most (default 3); stops earlier when the energy falls by less
     /// than `rel_tol` (default 1e-4) of itself.
     pub max_alternations: usize,
+    /// See `max_alternations`.
     pub rel_tol: f64,
     /// Coarse-to-fine DP band half-width in cells (default 6); 0 solves every DP on the full grid.
     pub band: usize,
@@ -66,17 +67,39 @@ fn check_samples(n: usize) -> Result<(), SrvfError> {
 
 /// Why two curves cannot be aligned.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum SrvfError {
+    /// A curve with fewer than 3 points.
     #[error("curve {curve} has {count} points; at least 3 are needed")]
-    TooFewPoints { curve: &'static str, count: usize },
+    TooFewPoints {
+        /// Which curve ("a" or "b").
+        curve: &'static str,
+        /// Its points.
+        count: usize,
+    },
+    /// A curve whose points all coincide.
     #[error("curve {curve} has zero length (all points coincide)")]
-    ZeroLength { curve: &'static str },
+    ZeroLength {
+        /// Which curve.
+        curve: &'static str,
+    },
+    /// A curve with a NaN or infinite coordinate.
     #[error("curve {curve} has a non-finite coordinate at point {index}")]
-    NonFinite { curve: &'static str, index: usize },
+    NonFinite {
+        /// Which curve.
+        curve: &'static str,
+        /// The first such point.
+        index: usize,
+    },
     #[error(
         "curve {curve} is too large to measure (its length overflows; rescale the coordinates)"
     )]
-    Overflow { curve: &'static str },
+    /// A curve whose length overflows f64.
+    Overflow {
+        /// Which curve.
+        curve: &'static str,
+    },
+    /// A sample count outside MIN_SAMPLES..=MAX_SAMPLES.
     #[error("samples must be {MIN_SAMPLES} to {MAX_SAMPLES} (got {0})")]
     SampleCount(usize),
 }
@@ -98,6 +121,7 @@ pub struct Alignment {
     pub b_arclength: Vec<f64>,
     /// For each A sample, the matched point on B and its fractional vertex index in B.
     pub b_points: Vec<Point2<f64>>,
+    /// Per sample of A, the matched position along B (fractional sample index).
     pub b_index: Vec<f64>,
     /// Partial matches only: whether A was reversed to run the same way as B.
     pub reversed: bool,

@@ -7,8 +7,11 @@ use nalgebra::Point2;
 /// One problem: align B onto A.
 #[derive(Clone, Debug)]
 pub struct AlignProblem {
+    /// Curve A (the reference).
     pub a: Vec<Point2<f64>>,
+    /// Curve B (aligned onto A).
     pub b: Vec<Point2<f64>>,
+    /// Closed, open, or open against closed.
     pub kind: CurveKind,
 }
 

@@ -67,8 +67,11 @@ pub fn edge_cost(
 /// ||q1 - q2_warped||^2 (mean over samples).
 #[derive(Clone, Debug)]
 pub struct Warp {
+    /// The warp at A's samples, in B's sample units.
     pub gamma: Vec<f64>,
+    /// B's SRVF warped onto A's samples.
     pub warped: Vec<Vector2<f64>>,
+    /// The DP's energy (sum of squared SRVF differences).
     pub energy: f64,
     /// Grid nodes of the optimal path, from (0, 0) to (n-1, n-1).
     pub path: Vec<(usize, usize)>,

@@ -9,9 +9,13 @@ use nalgebra::Point3;
 /// The inputs of one batch, flattened as the kernel reads them (all meshes share V, J and m).
 #[derive(Clone, Debug, PartialEq)]
 pub struct DeformBatch {
+    /// Vertices per mesh.
     pub vertex_count: u32,
+    /// Graph nodes per mesh.
     pub node_count: u32,
+    /// Nodes each vertex follows.
     pub neighbours: u32,
+    /// Meshes in the batch.
     pub mesh_count: u32,
     /// B * V rest positions (w unused).
     pub rest: Vec<[f32; 4]>,
@@ -21,25 +25,37 @@ pub struct DeformBatch {
     pub affine: Vec<[f32; 4]>,
     /// B * V * m node indices (within the mesh) and weights.
     pub node_index: Vec<u32>,
+    /// Per vertex and neighbour, its weight.
     pub weight: Vec<f32>,
 }
 
 /// Why a batch cannot be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum DeformBatchError {
+    /// No mesh in the batch.
     #[error("the batch is empty")]
     Empty,
+    /// A mesh whose graph differs in shape from the batch's first.
     #[error("mesh {mesh}: {what} is {got}, the batch's first mesh has {expected}")]
     Shape {
+        /// The mesh's index in the batch.
         mesh: usize,
+        /// What differs (vertices, nodes, neighbours).
         what: &'static str,
+        /// Its count.
         got: usize,
+        /// The first mesh's.
         expected: usize,
     },
+    /// A parameter vector of the wrong length.
     #[error("mesh {mesh}: parameter vector has {got} values, {expected} expected")]
     Params {
+        /// The mesh's index in the batch.
         mesh: usize,
+        /// Its length.
         got: usize,
+        /// The graph's parameter count.
         expected: usize,
     },
 }

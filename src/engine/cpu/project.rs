@@ -9,11 +9,14 @@ pub const MIN_DEPTH: f32 = 1e-3;
 /// One view as the kernel reads it: rows of [R | t], then (fx, fy, cx, cy).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ViewRows {
+    /// Rows of [R | t] (keep in sync with shaders/project.wgsl).
     pub r: [[f32; 4]; 3],
+    /// fx, fy, cx, cy.
     pub k: [f32; 4],
 }
 
 impl ViewRows {
+    /// The rows of camera `c`, in f32.
     pub fn from_camera(c: &Camera) -> Self {
         let m = c.r.matrix();
         let row = |i: usize| {

@@ -7,6 +7,7 @@
 pub struct Window {
     /// Image position of the texture's top-left corner, pixels.
     pub x0: f32,
+    /// Image y of the texture's top-left corner, pixels.
     pub y0: f32,
     /// Image pixels per texel.
     pub scale: f32,

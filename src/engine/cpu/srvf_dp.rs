@@ -12,28 +12,39 @@ pub const NO_STEP: u32 = u32::MAX;
 /// One coprime step as the kernel reads it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StepEntry {
+    /// Step in A's samples.
     pub a: u32,
+    /// Step in B's samples.
     pub b: u32,
+    /// sqrt(b / a), the step's SRVF factor.
     pub sqrt_slope: f32,
+    /// First of its taps in `taps`.
     pub tap_start: u32,
 }
 
 /// One interpolation tap: sample r of step (a, b) reads q2 at l + offset + frac.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TapEntry {
+    /// Whole-sample offset along B.
     pub offset: u32,
+    /// Fraction between that sample and the next.
     pub frac: f32,
 }
 
 /// A batch of DP problems, all with n samples per curve.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DpBatch {
+    /// Samples per curve.
     pub samples: u32,
+    /// Problems in the batch.
     pub problems: u32,
     /// P * n SRVF samples of the first curve of each problem, then of the second.
     pub q1: Vec<[f32; 2]>,
+    /// Per problem, the SRVF of its second curve.
     pub q2: Vec<[f32; 2]>,
+    /// The DP steps.
     pub steps: Vec<StepEntry>,
+    /// The steps' interpolation taps.
     pub taps: Vec<TapEntry>,
     /// The step set the entries came from (for the traceback).
     pub step_set: Vec<(usize, usize)>,
@@ -41,23 +52,38 @@ pub struct DpBatch {
 
 /// Why a batch cannot be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum DpBatchError {
+    /// No problem in the batch.
     #[error("the batch is empty")]
     Empty,
+    /// Curves whose sample counts differ from the batch's.
     #[error("problem {problem}: curves have {got1} and {got2} samples; every curve needs {expected} (at least 2)")]
     Samples {
+        /// The problem's index.
         problem: usize,
+        /// Samples of its first curve.
         got1: usize,
+        /// Samples of its second curve.
         got2: usize,
+        /// The batch's sample count.
         expected: usize,
     },
+    /// A NaN or infinite SRVF sample.
     #[error("problem {problem}: non-finite SRVF sample {index}")]
-    NonFinite { problem: usize, index: usize },
+    NonFinite {
+        /// The problem's index.
+        problem: usize,
+        /// The sample.
+        index: usize,
+    },
+    /// No DP steps to take.
     #[error("the step set is empty")]
     NoSteps,
 }
 
 impl DpBatch {
+    /// A batch of `pairs` (both curves of equal sample counts) under the step set `steps`.
     pub fn new(pairs: &[CurvePair<'_>], steps: &[(usize, usize)]) -> Result<Self, DpBatchError> {
         let n = pairs.first().ok_or(DpBatchError::Empty)?.0.len();
         if steps.is_empty() {

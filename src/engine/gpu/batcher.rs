@@ -105,6 +105,7 @@ impl<'g> GpuBatcher<'g> {
         }
     }
 
+    /// The engine it submits to.
     pub fn gpu(&self) -> &'g Gpu<'g> {
         self.gpu
     }

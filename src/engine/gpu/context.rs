@@ -9,35 +9,55 @@ use std::sync::Mutex;
 
 /// Everything that can go wrong on the GPU side.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum GpuError {
     /// No adapter matched (none installed, or WGPU_ADAPTER_NAME / WGPU_BACKEND exclude all).
     #[error("no GPU adapter found ({0}); install a Vulkan driver (e.g. mesa-vulkan-drivers for lavapipe) or check WGPU_BACKEND / WGPU_ADAPTER_NAME")]
     NoAdapter(String),
+    /// The adapter refused to make a device.
     #[error("the adapter refused a device: {0}")]
     RequestDevice(String),
     /// A wgpu validation or out-of-memory error raised while running `kernel`.
     #[error("{kernel}: wgpu error: {message}")]
     Wgpu {
+        /// The kernel that was running.
         kernel: &'static str,
+        /// wgpu's message.
         message: String,
     },
+    /// Mapping a result buffer back to the host failed.
     #[error("{kernel}: reading results back failed: {message}")]
     Readback {
+        /// The kernel.
         kernel: &'static str,
+        /// wgpu's message.
         message: String,
     },
     /// A batch larger than the device allows.
     #[error("{kernel}: {what} is {value}, the device allows at most {limit}")]
     TooLarge {
+        /// The kernel.
         kernel: &'static str,
+        /// What is too large.
         what: &'static str,
+        /// Its size.
         value: u64,
+        /// The device's limit.
         limit: u64,
     },
-    /// An input the kernel cannot take (empty batch, mismatched sizes).
+    /// A deformation batch the kernel cannot take.
+    #[error("deform: {0}")]
+    DeformBatch(#[from] crate::engine::cpu::deform::DeformBatchError),
+    /// An SRVF DP batch the kernel cannot take.
+    #[error("srvf_dp: {0}")]
+    DpBatch(#[from] crate::engine::cpu::srvf_dp::DpBatchError),
+    /// An input the kernel cannot take (no vertex in front of the source, triangles that do not
+    /// index the vertices).
     #[error("{kernel}: {message}")]
     Input {
+        /// The kernel.
         kernel: &'static str,
+        /// What is wrong with the input.
         message: String,
     },
 }
@@ -46,12 +66,16 @@ pub enum GpuError {
 /// `WGPU_ADAPTER_NAME` (a substring of the adapter's name, e.g. `llvmpipe`), and
 /// `WGPU_POWER_PREF`. Without them, the first adapter wgpu offers.
 pub struct GpuDevice {
+    /// The device.
     pub device: wgpu::Device,
+    /// Its queue.
     pub queue: wgpu::Queue,
+    /// The adapter it came from.
     pub adapter: wgpu::AdapterInfo,
 }
 
 impl GpuDevice {
+    /// A device from the environment (WGPU_BACKEND, WGPU_ADAPTER_NAME; a CPU adapter such as lavapipe is taken when nothing else is asked for).
     pub fn from_env() -> Result<Self, GpuError> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle().with_env());
@@ -128,10 +152,12 @@ impl<'a> Gpu<'a> {
         })
     }
 
+    /// The borrowed device.
     pub fn device(&self) -> &wgpu::Device {
         self.device
     }
 
+    /// The borrowed queue.
     pub fn queue(&self) -> &wgpu::Queue {
         self.queue
     }

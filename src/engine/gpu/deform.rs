@@ -10,9 +10,13 @@ use crate::engine::cpu::deform::DeformBatch;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct DeformParams {
+    /// Vertices per mesh.
     pub vertex_count: u32,
+    /// Graph nodes per mesh.
     pub node_count: u32,
+    /// Nodes each vertex follows.
     pub neighbours: u32,
+    /// Meshes in the batch.
     pub mesh_count: u32,
 }
 

@@ -10,9 +10,13 @@ use crate::engine::cpu::project::ViewRows;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ProjectParams {
+    /// Vertices per mesh.
     pub vertex_count: u32,
+    /// Meshes in the batch.
     pub mesh_count: u32,
+    /// Views per mesh.
     pub view_count: u32,
+    /// Padding to 16 bytes.
     pub _pad: u32,
 }
 
@@ -20,9 +24,13 @@ pub struct ProjectParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GpuView {
+    /// First row of [R | t].
     pub r0: [f32; 4],
+    /// Second row of [R | t].
     pub r1: [f32; 4],
+    /// Third row of [R | t].
     pub r2: [f32; 4],
+    /// fx, fy, cx, cy.
     pub k: [f32; 4],
 }
 

@@ -11,9 +11,13 @@ use crate::engine::cpu::silhouette::{trace, Window};
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct SilhouetteWindow {
+    /// Image x of the texture's top-left corner, pixels.
     pub x0: f32,
+    /// Image y of the texture's top-left corner, pixels.
     pub y0: f32,
+    /// Image pixels per texel.
     pub scale: f32,
+    /// Texels per side.
     pub size: u32,
 }
 
@@ -125,9 +129,13 @@ impl SilhouetteKernel {
 /// traced loop of vertex ids.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Silhouette {
+    /// Where the texture lies in the image.
     pub window: Window,
+    /// Per texel, the id of the triangle drawn there (u32::MAX for none).
     pub ids: Vec<u32>,
+    /// Per texel, 1 on the silhouette's edge.
     pub mask: Vec<u32>,
+    /// The traced loop of vertex ids.
     pub contour: Vec<u32>,
 }
 

@@ -12,9 +12,13 @@ use crate::engine::cpu::srvf_dp::{warps_from_tables, DpBatch, StepEntry, TapEntr
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct DpParams {
+    /// Samples per curve.
     pub samples: u32,
+    /// Problems in the batch.
     pub problems: u32,
+    /// DP steps.
     pub step_count: u32,
+    /// Padding to 16 bytes.
     pub _pad: u32,
 }
 
@@ -22,9 +26,13 @@ pub struct DpParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GpuStep {
+    /// Step in A's samples.
     pub a: u32,
+    /// Step in B's samples.
     pub b: u32,
+    /// sqrt(b / a).
     pub sqrt_slope: f32,
+    /// First of its taps.
     pub tap_start: u32,
 }
 
@@ -32,7 +40,9 @@ pub struct GpuStep {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GpuTap {
+    /// Whole-sample offset along B.
     pub offset: u32,
+    /// Fraction towards the next sample.
     pub frac: f32,
 }
 
@@ -143,10 +153,7 @@ impl Gpu<'_> {
         if pairs.is_empty() {
             return Ok(Vec::new());
         }
-        let b = DpBatch::new(pairs, steps).map_err(|e| GpuError::Input {
-            kernel: "srvf_dp",
-            message: e.to_string(),
-        })?;
+        let b = DpBatch::new(pairs, steps)?;
         let (_, back) = self.srvf_dp_tables(&b)?;
         Ok(warps_from_tables(pairs, &b, &back))
     }
