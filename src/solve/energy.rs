@@ -18,6 +18,7 @@
 use super::graph::{DeformationGraph, NODE_PARAMS};
 use super::lm::Problem;
 use super::normal::Linearization;
+use super::reprojection::{behind, reprojection, Reprojection};
 use crate::correspond::Observation;
 use crate::views::Camera;
 use nalgebra::Point3;
@@ -254,25 +255,15 @@ impl Problem for EdProblem<'_> {
             let cam = &self.cameras[o.view];
             let s = wo * o.weight.sqrt() / self.px_per_mm[o.view];
             let v = g.deform_vertex(x, o.vertex as usize);
-            let projected = if jac {
-                cam.project_with_jacobian(&v).map(|(p, j)| (p, Some(j)))
-            } else {
-                cam.project(&v).map(|p| (p, None))
+            let Some(Reprojection {
+                residual: res,
+                jacobian,
+            }) = reprojection(cam, &v, o, self.weights.tangential, s, jac)
+            else {
+                behind(&mut l);
+                continue;
             };
-            let (px, jp) = match projected {
-                Ok(p) => p,
-                Err(_) => {
-                    // Behind the source: an infinite cost refuses the step that led here.
-                    for _ in 0..2 {
-                        l.push_residual(f64::INFINITY);
-                    }
-                    continue;
-                }
-            };
-            let frame = o.residual_frame(self.weights.tangential);
-            let res = frame * (px - o.target) * s;
-            let jp = jp.map(|j| frame * j);
-            match jp {
+            match jacobian {
                 None => {
                     l.push_residual(res.x);
                     l.push_residual(res.y);
@@ -285,7 +276,7 @@ impl Problem for EdProblem<'_> {
                             let d = p - g.nodes[j as usize];
                             let mut b = [0.0; NODE_PARAMS];
                             for r in 0..3 {
-                                let f = s * jp[(row, r)] * w;
+                                let f = jp[(row, r)] * w;
                                 for c in 0..3 {
                                     b[r * 3 + c] = f * d[c];
                                 }

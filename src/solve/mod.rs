@@ -8,6 +8,7 @@ mod limb;
 mod lm;
 mod normal;
 mod pose;
+mod reprojection;
 mod similarity;
 
 pub use energy::{EdProblem, EdWeights, SpherePrior};
@@ -18,4 +19,5 @@ pub use lm::{
 };
 pub use normal::{LinearSolveError, Linearization, NormalEquations, SymbolicCache};
 pub use pose::{corrected_camera, PoseParams, PoseProblem};
+pub use reprojection::{behind, reprojection, Reprojection};
 pub use similarity::{apply_similarity, full_state, SimilarityProblem, SIM_PARAMS};

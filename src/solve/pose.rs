@@ -15,6 +15,7 @@
 
 use super::lm::Problem;
 use super::normal::Linearization;
+use super::reprojection::{behind, reprojection, Reprojection};
 use crate::correspond::Observation;
 use crate::views::Camera;
 use nalgebra::{Point3, Rotation3, Vector3};
@@ -132,20 +133,20 @@ impl Problem for PoseProblem<'_> {
             let d = q * (self.points[o.vertex as usize] - self.center);
             let v = self.center + tau + d;
             let scale = o.weight.sqrt() * inv_data / self.px_per_mm[k];
-            let Ok((px, jp)) = self.cameras[k].project_with_jacobian(&v) else {
-                l.push_residual(f64::INFINITY);
-                l.push_residual(f64::INFINITY);
+            let Some(Reprojection {
+                residual: res,
+                jacobian: Some(jp),
+            }) = reprojection(&self.cameras[k], &v, o, self.tangential, scale, true)
+            else {
+                behind(&mut l);
                 continue;
             };
-            let frame = o.residual_frame(self.tangential);
-            let res = frame * (px - o.target) * scale;
-            let jp = frame * jp;
             for row in 0..2 {
                 if !jac || k == self.prm.reference_view {
                     l.push_residual(res[row]);
                     continue;
                 }
-                let jr = jp.row(row).transpose() * scale;
+                let jr = jp.row(row).transpose();
                 // Steps compose on the left (Q <- Exp(dw) Q): d v / d w = -[d]x.
                 let dw = d.cross(&jr);
                 l.push_row(

@@ -9,6 +9,7 @@
 
 use super::lm::Problem;
 use super::normal::Linearization;
+use super::reprojection::{behind, reprojection, Reprojection};
 use crate::correspond::Observation;
 use crate::views::Camera;
 use nalgebra::{Point3, Rotation3, Vector3};
@@ -93,20 +94,20 @@ impl Problem for SimilarityProblem<'_> {
             let k = o.weight.sqrt() / self.px_per_mm[o.view];
             let q = s * (r * (self.rest[o.vertex as usize] - self.center));
             let v = self.center + t + q;
-            let Ok((px, jp)) = cam.project_with_jacobian(&v) else {
-                l.push_residual(f64::INFINITY);
-                l.push_residual(f64::INFINITY);
+            let Some(Reprojection {
+                residual: res,
+                jacobian: Some(jp),
+            }) = reprojection(cam, &v, o, self.tangential, k, true)
+            else {
+                behind(&mut l);
                 continue;
             };
-            let frame = o.residual_frame(self.tangential);
-            let res = frame * (px - o.target) * k;
-            let jp = frame * jp;
             for row in 0..2 {
                 if !jac {
                     l.push_residual(res[row]);
                     continue;
                 }
-                let jr = jp.row(row).transpose() * k;
+                let jr = jp.row(row).transpose();
                 // d v / d omega = -[q]x, so d r / d omega = q x jr.
                 let dw = q.cross(&jr);
                 let d = [dw.x, dw.y, dw.z, jr.x, jr.y, jr.z, jr.dot(&q)];
