@@ -2,22 +2,11 @@
 
 use acetab::engine::Kernels;
 use acetab::pipeline::{reconstruct, ReconParams};
-use acetab::sim::XrayGeometry;
-use acetab::sim::{phantom, PhantomParams};
-use acetab::sim::{simulate_case, NoiseLevel};
 use acetab::template::Template;
 use criterion::{criterion_group, criterion_main, Criterion};
 
 fn bench(c: &mut Criterion) {
-    let truth = phantom(&PhantomParams::default()).mesh;
-    let sim = simulate_case(
-        &truth,
-        &XrayGeometry::default(),
-        2.0,
-        &NoiseLevel::level(3).unwrap(),
-        1,
-    )
-    .unwrap();
+    let (_truth, sim) = acetab::sim::phantom_case(3, 1).unwrap();
     let prm = ReconParams::default();
     let template = Template::standard();
     let mut g = c.benchmark_group("reconstruct");

@@ -8,9 +8,6 @@ use acetab::engine::gpu::Gpu;
 use acetab::engine::Kernels;
 use acetab::pipeline::{reconstruct, ReconParams};
 use acetab::report::accuracy;
-use acetab::sim::XrayGeometry;
-use acetab::sim::{phantom, PhantomParams};
-use acetab::sim::{simulate_case, NoiseLevel};
 use acetab::template::Template;
 use std::process::ExitCode;
 
@@ -120,15 +117,7 @@ fn main() -> ExitCode {
         );
         // Lend the device to acetab: its kernels compile once on it.
         let gpu = Gpu::new(&device, &queue).map_err(|e| e.to_string())?;
-        let truth = phantom(&PhantomParams::default()).mesh;
-        let sim = simulate_case(
-            &truth,
-            &XrayGeometry::default(),
-            2.0,
-            &NoiseLevel::level(3).ok_or("level")?,
-            1,
-        )
-        .map_err(|e| e.to_string())?;
+        let (truth, sim) = acetab::sim::phantom_case(3, 1).map_err(|e| e.to_string())?;
         let t = std::time::Instant::now();
         let template = Template::standard();
         let rec = reconstruct(

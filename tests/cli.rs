@@ -1,9 +1,7 @@
 //! The command line: the demo's JSON, a case file through `acetab reconstruct`, and bad input.
 
 use acetab::case::CaseFile;
-use acetab::sim::XrayGeometry;
 use acetab::sim::{phantom, PhantomParams};
-use acetab::sim::{simulate_case, NoiseLevel};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -47,15 +45,7 @@ fn tmp(tag: &str) -> Scratch {
 }
 
 fn phantom_case(dir: &Path) -> PathBuf {
-    let truth = phantom(&PhantomParams::default()).mesh;
-    let sim = simulate_case(
-        &truth,
-        &XrayGeometry::default(),
-        2.0,
-        &NoiseLevel::level(2).unwrap(),
-        4,
-    )
-    .unwrap();
+    let (_truth, sim) = acetab::sim::phantom_case(2, 4).unwrap();
     let file = CaseFile::from_parts(&sim.cameras, &sim.observed, &sim.init);
     let path = dir.join("case.json");
     std::fs::write(&path, serde_json::to_string_pretty(&file).unwrap()).unwrap();

@@ -82,15 +82,7 @@ fn a_coarse_graph_changes_only_the_rounds_before_the_last() {
 /// The phantom's level-1 case with the start moved 292 mm and scaled by 2.5: the limb sphere
 /// uses only the start's axis. Returns the MAE of the result and of the start itself.
 fn far_start_mae() -> (f64, f64) {
-    let truth = acetab::sim::phantom(&acetab::sim::PhantomParams::default()).mesh;
-    let sim = simulate_case(
-        &truth,
-        &XrayGeometry::default(),
-        2.0,
-        &NoiseLevel::level(1).unwrap(),
-        4,
-    )
-    .unwrap();
+    let (truth, sim) = acetab::sim::phantom_case(1, 4).unwrap();
     let mut init = sim.init.clone();
     init.center += nalgebra::Vector3::new(150.0, -200.0, 150.0);
     init.radius *= 2.5;

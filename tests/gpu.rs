@@ -258,18 +258,9 @@ fn whole_reconstruction_on_the_gpu_matches_the_cpu() {
         use acetab::engine::Kernels;
         use acetab::pipeline::{reconstruct, ReconParams};
         use acetab::report::accuracy;
-        use acetab::sim::{phantom, PhantomParams};
-        use acetab::sim::{simulate_case, NoiseLevel};
+
         use acetab::template::Template;
-        let truth = phantom(&PhantomParams::default()).mesh;
-        let sim = simulate_case(
-            &truth,
-            &XrayGeometry::default(),
-            2.0,
-            &NoiseLevel::level(3).unwrap(),
-            1,
-        )
-        .unwrap();
+        let (truth, sim) = acetab::sim::phantom_case(3, 1).unwrap();
         let prm = ReconParams::default();
         let template = Template::standard();
         let input = sim.input(&template);

@@ -167,12 +167,7 @@ const ABSURD: f64 = 1e7;
 impl Case {
     /// The reconstruction's input: this case's views, outlines and start, with `template`.
     pub fn input<'a>(&'a self, template: &'a Template) -> Input<'a> {
-        Input {
-            cameras: &self.cameras,
-            observed: &self.observed,
-            init: &self.init,
-            template,
-        }
+        Input::new(&self.cameras, &self.observed, &self.init, template)
     }
 }
 

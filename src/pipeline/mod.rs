@@ -177,6 +177,23 @@ pub struct Input<'a> {
     pub template: &'a Template,
 }
 
+impl<'a> Input<'a> {
+    /// The input of these views, outlines, start and template.
+    pub fn new(
+        cameras: &'a [Camera],
+        observed: &'a [Vec<Curve>],
+        init: &'a Placement,
+        template: &'a Template,
+    ) -> Self {
+        Input {
+            cameras,
+            observed,
+            init,
+            template,
+        }
+    }
+}
+
 /// Reconstruct: the method's stages in order, each kernel on `kernels` (`Kernels::Cpu`, or the
 /// caller's GPU).
 pub fn reconstruct(

@@ -8,7 +8,7 @@ use crate::pipeline::{reconstruct, ReconError, ReconParams, Reconstruction};
 use crate::report::accuracy;
 use crate::sim::XrayGeometry;
 use crate::sim::{phantom, PhantomParams};
-use crate::sim::{simulate_case, NoiseLevel, SimError};
+use crate::sim::{simulate_case, NoiseLevel, SimCase, SimError};
 use crate::template::Template;
 use serde::Serialize;
 
@@ -73,6 +73,26 @@ pub enum DemoError {
     },
 }
 
+/// Contour noise of the demonstration's simulated X-rays, pixels.
+pub const DEMO_NOISE_PX: f64 = 2.0;
+
+/// The demonstration's case, the one fixture the demo, the tests, the benches and the examples
+/// share: the default phantom in the default views with `DEMO_NOISE_PX` contour noise and a
+/// start perturbed at noise level `level` (0-5), drawn with `seed`. Returns the truth and the
+/// case.
+pub fn phantom_case(level: u32, seed: u64) -> Result<(Mesh, SimCase), DemoError> {
+    let noise = NoiseLevel::level(level).ok_or(DemoError::Level(level))?;
+    let truth = phantom(&PhantomParams::default()).mesh;
+    let sim = simulate_case(
+        &truth,
+        &XrayGeometry::default(),
+        DEMO_NOISE_PX,
+        &noise,
+        seed,
+    )?;
+    Ok((truth, sim))
+}
+
 /// Simulate the default phantom at `level`, reconstruct from the standard template with the
 /// kernels on `kernels`, and measure.
 pub fn run_demo(
@@ -81,9 +101,7 @@ pub fn run_demo(
     prm: &ReconParams,
     kernels: Kernels,
 ) -> Result<(DemoReport, Mesh, Reconstruction), DemoError> {
-    let noise = NoiseLevel::level(level).ok_or(DemoError::Level(level))?;
-    let truth = phantom(&PhantomParams::default()).mesh;
-    let sim = simulate_case(&truth, &XrayGeometry::default(), 2.0, &noise, seed)?;
+    let (truth, sim) = phantom_case(level, seed)?;
     let start = std::time::Instant::now();
     let template = Template::standard();
     let rec = reconstruct(&sim.input(&template), prm, kernels)?;
@@ -94,7 +112,7 @@ pub fn run_demo(
         seed,
         level,
         method: prm.method.name().to_string(),
-        contour_noise_px: 2.0,
+        contour_noise_px: DEMO_NOISE_PX,
         mae_mm: acc.mae_mm,
         sd_mm: acc.sd_mm,
         p95_mm: acc.p95_mm,

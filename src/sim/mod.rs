@@ -6,7 +6,7 @@ mod geometry;
 mod phantom;
 mod simulate;
 
-pub use demo::{run_demo, DemoError, DemoReport};
+pub use demo::{phantom_case, run_demo, DemoError, DemoReport, DEMO_NOISE_PX};
 pub use geometry::{simulated_views, GeometryError, XrayGeometry};
 pub use phantom::{phantom, radiographic_axis, try_phantom, Phantom, PhantomError, PhantomParams};
 pub use simulate::{

@@ -68,12 +68,7 @@ impl SimCase {
     /// The reconstruction's input: this case's views, outlines and perturbed start, with
     /// `template`.
     pub fn input<'a>(&'a self, template: &'a Template) -> Input<'a> {
-        Input {
-            cameras: &self.cameras,
-            observed: &self.observed,
-            init: &self.init,
-            template,
-        }
+        Input::new(&self.cameras, &self.observed, &self.init, template)
     }
 }
 

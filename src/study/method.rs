@@ -106,6 +106,18 @@ impl serde::Serialize for StudyMethod {
     }
 }
 
+impl<'de> serde::Deserialize<'de> for StudyMethod {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let name = String::deserialize(d)?;
+        StudyMethod::from_name(&name).ok_or_else(|| {
+            serde::de::Error::custom(format!(
+                "column \"method\": {name:?} is not a method (srvf, icp, icp-normvec, or one \
+                     of them -paper)"
+            ))
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -7,8 +7,9 @@ use crate::io::write_atomic;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
-/// One run's result. Metrics are NaN for a run that failed (`error` says why).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+/// One run's result, one line of runs.csv (csv + serde; numbers at fixed precision, 6 decimals
+/// and 4 for seconds). Metrics are NaN for a run that failed (`error` says why).
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Row {
     /// The method.
     pub method: StudyMethod,
@@ -19,20 +20,28 @@ pub struct Row {
     /// Its seed.
     pub seed: u64,
     /// Mean truth -> result distance, mm.
+    #[serde(serialize_with = "six")]
     pub mae_mm: f64,
     /// Its SD, mm.
+    #[serde(serialize_with = "six")]
     pub sd_mm: f64,
     /// Its 95th percentile, mm.
+    #[serde(serialize_with = "six")]
     pub p95_mm: f64,
     /// Mean result -> truth distance over the truth's interior, mm.
+    #[serde(serialize_with = "six")]
     pub recon_mae_mm: f64,
     /// The cup sphere's diameter, mm.
+    #[serde(serialize_with = "six")]
     pub cup_diameter_mm: f64,
     /// The truth's sphere diameter, mm.
+    #[serde(serialize_with = "six")]
     pub gt_cup_diameter_mm: f64,
     /// The sphere fitted to the whole reconstructed surface (the cup uses its observed part).
+    #[serde(serialize_with = "six")]
     pub surface_fit_diameter_mm: f64,
     /// The sphere fitted to the outlines' limbs before any deformation (NaN when not used).
+    #[serde(serialize_with = "six")]
     pub limb_diameter_mm: f64,
     /// The last solve converged.
     pub converged: bool,
@@ -41,6 +50,7 @@ pub struct Row {
     /// Stage B correspondence rounds.
     pub correspondence_updates: usize,
     /// Seconds for the reconstruction.
+    #[serde(serialize_with = "four")]
     pub seconds: f64,
     /// Why the run failed (empty when it did not).
     pub error: String,
@@ -139,38 +149,6 @@ pub enum StudyError {
     },
 }
 
-/// One line of runs.csv (csv + serde): the row with its numbers at fixed precision (6 decimals,
-/// 4 for seconds) and its method by name.
-#[derive(Serialize, serde::Deserialize)]
-struct CsvRecord {
-    method: String,
-    level: u32,
-    run: usize,
-    seed: u64,
-    #[serde(serialize_with = "six")]
-    mae_mm: f64,
-    #[serde(serialize_with = "six")]
-    sd_mm: f64,
-    #[serde(serialize_with = "six")]
-    p95_mm: f64,
-    #[serde(serialize_with = "six")]
-    recon_mae_mm: f64,
-    #[serde(serialize_with = "six")]
-    cup_diameter_mm: f64,
-    #[serde(serialize_with = "six")]
-    gt_cup_diameter_mm: f64,
-    #[serde(serialize_with = "six")]
-    surface_fit_diameter_mm: f64,
-    #[serde(serialize_with = "six")]
-    limb_diameter_mm: f64,
-    converged: bool,
-    iterations: usize,
-    correspondence_updates: usize,
-    #[serde(serialize_with = "four")]
-    seconds: f64,
-    error: String,
-}
-
 fn six<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
     s.collect_str(&format_args!("{v:.6}"))
 }
@@ -179,51 +157,22 @@ fn four<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
     s.collect_str(&format_args!("{v:.4}"))
 }
 
-impl From<&Row> for CsvRecord {
-    fn from(r: &Row) -> Self {
-        CsvRecord {
-            method: r.method.name().to_string(),
-            level: r.level,
-            run: r.run,
-            seed: r.seed,
-            mae_mm: r.mae_mm,
-            sd_mm: r.sd_mm,
-            p95_mm: r.p95_mm,
-            recon_mae_mm: r.recon_mae_mm,
-            cup_diameter_mm: r.cup_diameter_mm,
-            gt_cup_diameter_mm: r.gt_cup_diameter_mm,
-            surface_fit_diameter_mm: r.surface_fit_diameter_mm,
-            limb_diameter_mm: r.limb_diameter_mm,
-            converged: r.converged,
-            iterations: r.iterations,
-            correspondence_updates: r.correspondence_updates,
-            seconds: r.seconds,
-            error: r.error.clone(),
-        }
-    }
-}
-
-/// The header line of runs.csv: the record's field names in order.
-fn header() -> Vec<&'static str> {
-    vec![
-        "method",
-        "level",
-        "run",
-        "seed",
-        "mae_mm",
-        "sd_mm",
-        "p95_mm",
-        "recon_mae_mm",
-        "cup_diameter_mm",
-        "gt_cup_diameter_mm",
-        "surface_fit_diameter_mm",
-        "limb_diameter_mm",
-        "converged",
-        "iterations",
-        "correspondence_updates",
-        "seconds",
-        "error",
-    ]
+/// The header line of runs.csv: `Row`'s field names in order, as the csv writer writes them.
+fn header() -> csv::StringRecord {
+    let t = Task {
+        method: StudyMethod::Srvf,
+        level: 0,
+        run: 0,
+        seed: 0,
+    };
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let bytes = w
+        .serialize(Row::failed(&t, ""))
+        .ok()
+        .and_then(|_| w.into_inner().ok())
+        .unwrap_or_default();
+    let mut r = csv::Reader::from_reader(&bytes[..]);
+    r.headers().cloned().unwrap_or_default()
 }
 
 /// Write rows as CSV (an error message with commas or line breaks is quoted).
@@ -234,11 +183,10 @@ pub fn write_csv(rows: &[Row], path: &Path) -> Result<(), StudyError> {
     };
     let mut w = csv::Writer::from_writer(Vec::new());
     for r in rows {
-        w.serialize(CsvRecord::from(r))
-            .map_err(|e| werr(std::io::Error::other(e)))?;
+        w.serialize(r).map_err(|e| werr(std::io::Error::other(e)))?;
     }
     if rows.is_empty() {
-        w.write_record(header())
+        w.write_record(&header())
             .map_err(|e| werr(std::io::Error::other(e)))?;
     }
     let bytes = w.into_inner().map_err(|e| werr(e.into_error()))?;
@@ -261,10 +209,15 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
     })?;
     let want = header();
     match rd.headers() {
-        Ok(h) if h.iter().eq(want.iter().copied()) => {}
-        _ => return Err(perr(1, format!("expected the header {:?}", want.join(",")))),
+        Ok(h) if *h == want => {}
+        _ => {
+            let names: Vec<&str> = want.iter().collect();
+            return Err(perr(
+                1,
+                format!("expected the header {:?}", names.join(",")),
+            ));
+        }
     }
-    let headers = csv::StringRecord::from(want.clone());
     let mut rows = Vec::new();
     for rec in rd.records() {
         let rec = rec.map_err(|e| {
@@ -277,52 +230,29 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
             }
         })?;
         let line = rec.position().map_or(0, |p| p.line() as usize);
-        let r: CsvRecord = rec.deserialize(Some(&headers)).map_err(|e| {
+        let row: Row = rec.deserialize(Some(&want)).map_err(|e| {
             let reason = match e.kind() {
                 csv::ErrorKind::Deserialize { err, .. } => match err.field() {
-                    Some(k) => format!(
-                        "column {:?}: {:?} is not {}",
-                        want.get(k as usize).unwrap_or(&"?"),
-                        rec.get(k as usize).unwrap_or(""),
-                        match want.get(k as usize) {
-                            Some(&"converged") => "true or false",
-                            Some(
-                                &("level"
-                                | "run"
-                                | "seed"
-                                | "iterations"
-                                | "correspondence_updates"),
-                            ) => "a whole number",
+                    Some(k) => {
+                        let column = want.get(k as usize).unwrap_or("?");
+                        let expected = match column {
+                            "converged" => "true or false",
+                            "method" => "a method (srvf, icp, icp-normvec, or one of them -paper)",
+                            "level" | "run" | "seed" | "iterations" | "correspondence_updates" => {
+                                "a whole number"
+                            }
                             _ => "a number",
-                        }
-                    ),
+                        };
+                        let value = rec.get(k as usize).unwrap_or("");
+                        format!("column {column:?}: {value:?} is not {expected}")
+                    }
                     None => err.kind().to_string(),
                 },
                 other => format!("{other:?}"),
             };
             perr(line, reason)
         })?;
-        let method = StudyMethod::from_name(&r.method)
-            .ok_or_else(|| perr(line, format!("unknown method {:?}", r.method)))?;
-        rows.push(Row {
-            method,
-            level: r.level,
-            run: r.run,
-            seed: r.seed,
-            mae_mm: r.mae_mm,
-            sd_mm: r.sd_mm,
-            p95_mm: r.p95_mm,
-            recon_mae_mm: r.recon_mae_mm,
-            cup_diameter_mm: r.cup_diameter_mm,
-            gt_cup_diameter_mm: r.gt_cup_diameter_mm,
-            surface_fit_diameter_mm: r.surface_fit_diameter_mm,
-            limb_diameter_mm: r.limb_diameter_mm,
-            converged: r.converged,
-            iterations: r.iterations,
-            correspondence_updates: r.correspondence_updates,
-            seconds: r.seconds,
-            error: r.error,
-        });
+        rows.push(row);
     }
     Ok(rows)
 }
@@ -606,6 +536,22 @@ mod tests {
             merge_dirs(&[a.clone(), a.clone()]),
             Err(StudyError::Duplicate { .. })
         ));
+        let good = std::fs::read_to_string(a.join("runs.csv")).unwrap();
+        for (from, to, column) in [
+            ("\nsrvf,", "\nsfrv,", "method"),
+            (",true,", ",yes,", "converged"),
+            (",0.500000,", ",half,", "mae_mm"),
+        ] {
+            std::fs::write(b.join("runs.csv"), good.replacen(from, to, 1)).unwrap();
+            let e = read_csv(&b.join("runs.csv")).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("column {column:?}")) && e.contains("line 2"),
+                "{e}"
+            );
+        }
+        // Companion: the file as written reads back.
+        std::fs::write(b.join("runs.csv"), &good).unwrap();
+        assert_eq!(read_csv(&b.join("runs.csv")).unwrap().len(), 2);
         std::fs::write(b.join("runs.csv"), "nonsense\n").unwrap();
         assert!(matches!(
             merge_dirs(std::slice::from_ref(&b)),
