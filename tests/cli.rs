@@ -160,10 +160,15 @@ fn a_bad_case_fails_cleanly_and_writes_nothing() {
 }
 
 /// `cmd --out out` exits with 1, its error holds every needle, and `out` is not written.
-fn fails_cleanly(mut cmd: Command, out: &Path, needles: &[&str]) {
+fn fails_cleanly(cmd: Command, out: &Path, needles: &[&str]) {
+    fails_cleanly_with(cmd, out, needles, 1)
+}
+
+/// As `fails_cleanly`, with exit code `code`.
+fn fails_cleanly_with(mut cmd: Command, out: &Path, needles: &[&str], code: i32) {
     let o = cmd.arg("--out").arg(out).output().unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(1), "{needles:?}: {err}");
+    assert_eq!(o.status.code(), Some(code), "{needles:?}: {err}");
     assert!(
         needles.iter().all(|n| err.contains(n)),
         "{needles:?}: {err}"
@@ -185,13 +190,15 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
         ("--levels", "1,6", "\"6\" (expected levels 1 to 5)"),
         ("--levels", "1,,2", "cannot read \"\""),
         ("--methods", "srvf,icp,SRVF", "\"SRVF\" is listed twice"),
-        ("--runs", "4000000000", "must be 1 to 100000"),
-        ("--threads", "0", "must be 1 to 1024"),
-        ("--coarse-nodes", "1", "must be 2 to 150"),
+        ("--runs", "4000000000", "4000000000 is not in 1..=100000"),
+        ("--threads", "0", "0 is not in 1..=1024"),
+        ("--coarse-nodes", "1", "1 is not in 2..=150"),
+        ("--shard", "3/2", "expected I/N with 0 <= I < N"),
     ] {
         let mut cmd = bin();
         cmd.args(["simulate", "--gt", "phantom", flag, value]);
-        fails_cleanly(cmd, &out, &[flag, needle]);
+        // clap's value parsers refuse them: a usage error, exit 2.
+        fails_cleanly_with(cmd, &out, &[flag, needle], 2);
     }
 }
 

@@ -1,7 +1,7 @@
 //! `acetab bench`: each GPU kernel against its CPU twin at several sizes, and the study's
 //! throughput on both backends (needs a GPU adapter; lavapipe counts).
 
-use crate::common::{within, MAX_RUNS};
+use crate::common::{count_in, MAX_RUNS};
 use acetab::engine::gpu::GpuDevice;
 
 #[derive(clap::Args)]
@@ -9,10 +9,10 @@ pub struct BenchArgs {
     #[arg(long)]
     pub json: bool,
     /// Study runs per backend (0 skips the study).
-    #[arg(long, default_value_t = 6)]
+    #[arg(long, default_value_t = 6, value_parser = count_in(0, MAX_RUNS))]
     pub study_runs: usize,
     /// Repetitions per timing (the median is reported).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = count_in(1, 1000))]
     pub repeats: usize,
     /// A quick pass (one small mesh, DP batches of 1 and 4): checks the bench runs, not speed.
     #[arg(long)]
@@ -26,8 +26,6 @@ pub fn run(args: BenchArgs) -> Result<(), String> {
         repeats,
         quick,
     } = args;
-    within("--study-runs", study_runs, 0, MAX_RUNS)?;
-    within("--repeats", repeats, 1, 1000)?;
     let dev = GpuDevice::from_env().map_err(|e| format!("acetab bench: {e}"))?;
     let gpu = dev.engine().map_err(|e| e.to_string())?;
     let mut prm = acetab::study::bench::BenchParams {

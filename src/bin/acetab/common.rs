@@ -67,14 +67,13 @@ pub fn engine_on(dev: &Option<GpuDevice>) -> Result<Option<acetab::engine::gpu::
         .map_err(|e| e.to_string())
 }
 
-/// `--threads` (1 to `MAX_THREADS`), or every core.
-pub fn threads_or_all(threads: Option<usize>) -> Result<usize, String> {
-    match threads {
-        Some(n) => within("--threads", n, 1, MAX_THREADS),
-        None => Ok(std::thread::available_parallelism()
+/// `--threads` if given (clap checks 1 to `MAX_THREADS`), or every core.
+pub fn threads_or_all(threads: Option<usize>) -> usize {
+    threads.unwrap_or_else(|| {
+        std::thread::available_parallelism()
             .map(|n| n.get())
-            .unwrap_or(1)),
-    }
+            .unwrap_or(1)
+    })
 }
 
 /// Most worker threads a study takes.
@@ -82,37 +81,59 @@ pub const MAX_THREADS: usize = 1024;
 /// Most runs per level a study takes (a study's tasks are listed up front).
 pub const MAX_RUNS: usize = 100_000;
 
-/// `value` when `lo <= value <= hi`, else an error naming the flag and its range.
-pub fn within(flag: &str, value: usize, lo: usize, hi: usize) -> Result<usize, String> {
-    if (lo..=hi).contains(&value) {
-        Ok(value)
-    } else {
-        Err(format!("{flag} {value}: must be {lo} to {hi}"))
-    }
+/// A clap value parser for a count in `lo..=hi` (clap's error names the flag, the value and the
+/// range).
+pub fn count_in(lo: usize, hi: usize) -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::new().range(lo as u64..=hi as u64)
 }
 
 /// A comma-separated list without repeats; `allowed` (what the flag takes) goes into the error
 /// naming an entry that cannot be read.
-pub fn parse_list<T: PartialEq>(
+fn parse_list<T: PartialEq>(
     s: &str,
-    flag: &str,
     allowed: &str,
     f: impl Fn(&str) -> Option<T>,
 ) -> Result<Vec<T>, String> {
     let mut list: Vec<T> = Vec::new();
     for x in s.split(',').map(str::trim) {
-        let v =
-            f(x).ok_or_else(|| format!("{flag} {s:?}: cannot read {x:?} (expected {allowed})"))?;
+        let v = f(x).ok_or_else(|| format!("cannot read {x:?} (expected {allowed})"))?;
         if list.contains(&v) {
-            return Err(format!("{flag} {s:?}: {x:?} is listed twice"));
+            return Err(format!("{x:?} is listed twice"));
         }
         list.push(v);
     }
     Ok(list)
 }
 
-pub fn parse_shard(s: &str) -> Result<(usize, usize), String> {
-    let bad = || format!("--shard: expected I/N with 0 <= I < N, got {s:?}");
+/// `--levels`: noise levels, a list of 1 to 5 (clap value parser).
+#[derive(Clone, Debug)]
+pub struct Levels(pub Vec<u32>);
+
+/// Parse `--levels`.
+pub fn levels(s: &str) -> Result<Levels, String> {
+    parse_list(s, "levels 1 to 5", |x| {
+        x.parse::<u32>().ok().filter(|l| (1..=5).contains(l))
+    })
+    .map(Levels)
+}
+
+/// `--methods`: a list of study methods (clap value parser).
+#[derive(Clone, Debug)]
+pub struct Methods(pub Vec<acetab::study::StudyMethod>);
+
+/// Parse `--methods` (names in any case).
+pub fn methods(s: &str) -> Result<Methods, String> {
+    use acetab::study::StudyMethod;
+    let names = StudyMethod::ALL.map(StudyMethod::name).join(", ");
+    parse_list(s, &names, |x| {
+        StudyMethod::from_name(&x.to_ascii_lowercase())
+    })
+    .map(Methods)
+}
+
+/// `--shard I/N`, 0 <= I < N (clap value parser).
+pub fn shard(s: &str) -> Result<(usize, usize), String> {
+    let bad = || format!("expected I/N with 0 <= I < N, got {s:?}");
     let (i, n) = s.split_once('/').ok_or_else(bad)?;
     let (i, n): (usize, usize) = (
         i.trim().parse().map_err(|_| bad())?,

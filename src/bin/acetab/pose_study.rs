@@ -1,25 +1,25 @@
 //! `acetab pose-study`: pose refinement in simulation. Cases whose oblique views' poses are off
 //! by --deg and --mm, reconstructed with and without the per-view pose refinement.
 
-use crate::common::{load_truth, threads_or_all, within, MAX_RUNS};
+use crate::common::{count_in, load_truth, threads_or_all, MAX_RUNS, MAX_THREADS};
 
 #[derive(clap::Args)]
 pub struct PoseStudyArgs {
     /// Ground truth mesh or "phantom".
     #[arg(long, default_value = "phantom")]
     pub gt: String,
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, value_parser = count_in(1, MAX_RUNS))]
     pub runs: usize,
     #[arg(long, default_value_t = 2.0)]
     pub deg: f64,
     #[arg(long, default_value_t = 5.0)]
     pub mm: f64,
     /// Initialisation noise level 1..5.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=5))]
     pub level: u32,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    #[arg(long)]
+    #[arg(long, value_parser = count_in(1, MAX_THREADS))]
     pub threads: Option<usize>,
     #[arg(long)]
     pub json: bool,
@@ -41,8 +41,6 @@ pub fn run(args: PoseStudyArgs) -> Result<(), String> {
             "--deg {deg} / --mm {mm}: must be finite and non-negative"
         ));
     }
-    within("--runs", runs, 1, MAX_RUNS)?;
-    within("--level", level as usize, 1, 5)?;
     let truth = load_truth(&gt)?;
     let cfg = acetab::study::pose::PoseStudy {
         runs,
@@ -50,7 +48,7 @@ pub fn run(args: PoseStudyArgs) -> Result<(), String> {
         level,
         deg,
         mm,
-        threads: threads_or_all(threads)?,
+        threads: threads_or_all(threads),
         ..Default::default()
     };
     let t = std::time::Instant::now();

@@ -1,8 +1,8 @@
 //! `acetab simulate`: the simulation study, levels x runs x methods on a ground-truth surface.
 
 use crate::common::{
-    engine_on, io_msg, load_truth, open_device, parse_list, parse_shard, print_summary,
-    threads_or_all, within, MAX_RUNS,
+    count_in, engine_on, io_msg, levels, load_truth, methods, open_device, print_summary, shard,
+    threads_or_all, Levels, Methods, MAX_RUNS, MAX_THREADS,
 };
 use acetab::contours::ContourSource;
 use acetab::engine::gpu::GpuBatcher;
@@ -10,7 +10,7 @@ use acetab::engine::{BackendChoice, Kernels};
 use acetab::io::fill_dir_atomically;
 use acetab::pipeline::{DeformationParams, ReconParams};
 use acetab::sim::SimSetup;
-use acetab::study::{run_study, tasks, write_examples, write_tables, StudyConfig, StudyMethod};
+use acetab::study::{run_study, tasks, write_examples, write_tables, StudyConfig};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 
@@ -20,24 +20,24 @@ pub struct SimulateArgs {
     /// or "phantom".
     #[arg(long)]
     pub gt: String,
-    #[arg(long, default_value = "1,2,3,4,5")]
-    pub levels: String,
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value = "1,2,3,4,5", value_parser = levels)]
+    pub levels: Levels,
+    #[arg(long, default_value_t = 10, value_parser = count_in(1, MAX_RUNS))]
     pub runs: usize,
     /// Methods: srvf, icp, icp-normvec (every stage of ours, each on its own
     /// correspondences), and srvf-paper, icp-paper, icp-normvec-paper (the seed paper's
     /// protocol: the deformation alone, from the perturbed template).
-    #[arg(long, default_value = "srvf,icp,icp-normvec")]
-    pub methods: String,
+    #[arg(long, default_value = "srvf,icp,icp-normvec", value_parser = methods)]
+    pub methods: Methods,
     /// Study seed; each run's seed is derived from it, the level and the run number.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Worker threads (default: all cores). Results do not depend on it.
-    #[arg(long)]
+    #[arg(long, value_parser = count_in(1, MAX_THREADS))]
     pub threads: Option<usize>,
     /// Run only shard I of N (0 <= I < N), for job arrays; join with `acetab merge`.
-    #[arg(long, default_value = "0/1")]
-    pub shard: String,
+    #[arg(long, default_value = "0/1", value_parser = shard)]
+    pub shard: (usize, usize),
     /// Where the kernels run: cpu, gpu, or auto (the GPU when an adapter exists).
     #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
     pub backend: BackendChoice,
@@ -53,7 +53,7 @@ pub struct SimulateArgs {
     pub w_obs: f64,
     /// Coarse-to-fine deformation: a graph of this many nodes in every correspondence round
     /// but the last (default: the full graph throughout; see README).
-    #[arg(long)]
+    #[arg(long, value_parser = count_in(2, acetab::solve::GraphParams::default().nodes))]
     pub coarse_nodes: Option<usize>,
     #[arg(long)]
     pub out: PathBuf,
@@ -76,28 +76,18 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         coarse_nodes,
         out,
     } = args;
-    let full_graph = acetab::solve::GraphParams::default().nodes;
-    if let Some(n) = coarse_nodes {
-        within("--coarse-nodes", n, 2, full_graph)?;
-    }
-    within("--runs", runs, 1, MAX_RUNS)?;
     for (flag, w) in [("--w-rot", w_rot), ("--w-reg", w_reg), ("--w-obs", w_obs)] {
         if !(w.is_finite() && w >= 0.0) {
             return Err(format!("{flag} {w}: must be a finite non-negative weight"));
         }
     }
-    let method_names = StudyMethod::ALL.map(StudyMethod::name).join(", ");
     let cfg = StudyConfig {
-        levels: parse_list(&levels, "--levels", "levels 1 to 5", |x| {
-            x.parse::<u32>().ok().filter(|l| (1..=5).contains(l))
-        })?,
+        levels: levels.0,
         runs,
-        methods: parse_list(&methods, "--methods", &method_names, |x| {
-            StudyMethod::from_name(&x.to_ascii_lowercase())
-        })?,
+        methods: methods.0,
         seed,
-        threads: threads_or_all(threads)?,
-        shard: parse_shard(&shard)?,
+        threads: threads_or_all(threads),
+        shard,
         params: ReconParams {
             contour_source: contours,
             weights: acetab::solve::EdWeights {
@@ -165,7 +155,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         "gt": gt, "truth_cup_diameter_mm": truth_cup,
         "truth_outline_sphere_diameter_mm": outline_cup,
         "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
-        "shard": shard, "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),
+        "shard": format!("{}/{}", shard.0, shard.1), "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),
         "contours": format!("{:?}", cfg.params.contour_source),
         "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
         "w_obs": cfg.params.weights.obs, "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
