@@ -42,6 +42,11 @@ impl Method {
     }
 }
 
+/// Largest rotation between a model contour and its observed outline that the SRVF alignment
+/// may take, degrees (default of `CorrespondParams::srvf.max_rotation`): both are drawn in the
+/// same image, so they turn against each other only as far as the template's pose is off.
+pub const MAX_ROTATION_DEG: f64 = 5.0;
+
 /// Correspondence parameters.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CorrespondParams {
@@ -56,7 +61,10 @@ pub struct CorrespondParams {
 impl Default for CorrespondParams {
     fn default() -> Self {
         CorrespondParams {
-            srvf: SrvfParams::default(),
+            srvf: SrvfParams {
+                max_rotation: Some(MAX_ROTATION_DEG.to_radians()),
+                ..SrvfParams::default()
+            },
             outlier_k: 3.0,
             normal_angle_deg: 30.0,
         }
@@ -195,4 +203,141 @@ pub fn correspond(
             normal: *n,
         })
         .collect())
+}
+
+#[cfg(test)]
+mod polygon_tests {
+    //! The outlines real annotations and coarse truths give: polygons with corners every ~20 px,
+    //! a notch dent, 2 px noise. Model and outline share the image, so the right answer is known:
+    //! the model point at polar angle phi about the centre corresponds to the outline at phi.
+    use super::*;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+
+    const C: (f64, f64) = (600.0, 500.0);
+
+    /// The model contour: a dense, smooth, slightly elliptical outline (positive area).
+    fn model() -> ModelContour {
+        let n = 400;
+        let points: Vec<Point2<f64>> = (0..n)
+            .map(|i| {
+                let t = std::f64::consts::TAU * i as f64 / n as f64;
+                Point2::new(C.0 + 160.0 * t.cos(), C.1 + 135.0 * t.sin())
+            })
+            .collect();
+        ModelContour {
+            vertex_ids: (0..n as u32).collect(),
+            points,
+        }
+    }
+
+    /// The annotated rim: the same ellipse 4 % smaller, as a polygon of `corners` points (about
+    /// 20 px apart for 45), with a notch dent (15 px deep over 40 degrees) and 2 px noise.
+    fn outline(corners: usize, dent: bool, seed: u64) -> Curve {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let noise = Normal::new(0.0, 2.0).unwrap();
+        let points = (0..corners)
+            .map(|i| {
+                let t = std::f64::consts::TAU * i as f64 / corners as f64;
+                let notch = (t - 4.4).abs() < 20f64.to_radians();
+                let r = if dent && notch { 0.92 } else { 0.96 };
+                Point2::new(
+                    C.0 + r * 160.0 * t.cos() + noise.sample(&mut rng),
+                    C.1 + r * 135.0 * t.sin() + noise.sample(&mut rng),
+                )
+            })
+            .collect();
+        Curve {
+            points,
+            closed: true,
+        }
+    }
+
+    /// Angle between each correspondence's target and its model point about the centre,
+    /// degrees (outside the notch); the median and the largest.
+    fn angle_errors(obs: &[Observation], m: &ModelContour) -> (f64, f64) {
+        let ang = |p: Point2<f64>| (p.y - C.1).atan2(p.x - C.0);
+        let mut e: Vec<f64> = obs
+            .iter()
+            .filter(|o| {
+                (ang(m.points[o.vertex as usize]) - (4.4 - std::f64::consts::TAU)).abs() > 0.5
+            })
+            .map(|o| {
+                let d = ang(o.target) - ang(m.points[o.vertex as usize]);
+                d.sin().atan2(d.cos()).abs().to_degrees()
+            })
+            .collect();
+        e.sort_by(f64::total_cmp);
+        (e[e.len() / 2], e[e.len() - 1])
+    }
+
+    #[test]
+    fn srvf_holds_on_polygonal_noisy_dented_outlines() {
+        let m = model();
+        let prm = CorrespondParams::default();
+        for (corners, dent, seed) in [(45, false, 1), (45, true, 2), (30, true, 3), (60, true, 4)] {
+            let c = outline(corners, dent, seed);
+            let obs = correspond(Method::Srvf, 0, &m, &c, &prm).unwrap();
+            assert!(
+                obs.len() > 300,
+                "{corners} {dent}: {} correspondences",
+                obs.len()
+            );
+            let (median, worst) = angle_errors(&obs, &m);
+            assert!(
+                median < 4.0 && worst < 10.0,
+                "{corners} corners, dent {dent}: {median:.1} / {worst:.1} deg"
+            );
+        }
+    }
+
+    #[test]
+    fn the_polygon_check_rejects_correspondences_turned_along_the_outline() {
+        // Companion: the same correspondences with every target moved a tenth of the way round
+        // the outline (what an unbounded rotation or a wrong seed gives) fail the same bounds.
+        let m = model();
+        let c = outline(45, true, 2);
+        let mut obs = correspond(Method::Srvf, 0, &m, &c, &CorrespondParams::default()).unwrap();
+        let targets: Vec<Point2<f64>> = obs.iter().map(|o| o.target).collect();
+        let k = targets.len() / 10;
+        for (i, o) in obs.iter_mut().enumerate() {
+            o.target = targets[(i + k) % targets.len()];
+        }
+        let (median, _) = angle_errors(&obs, &m);
+        assert!(median > 10.0, "{median}");
+    }
+
+    #[test]
+    fn an_unbounded_rotation_can_match_an_ellipse_to_itself_turned() {
+        // Why the bound is there: turned 180 degrees an ellipse is itself, so the elastic shape
+        // distance alone cannot tell the right correspondence from one across the outline.
+        let m = model();
+        let turned: Vec<Point2<f64>> = m
+            .points
+            .iter()
+            .map(|p| Point2::new(2.0 * C.0 - p.x, 2.0 * C.1 - p.y))
+            .collect();
+        let free = SrvfParams::default();
+        let a = srvf::align(&turned, &m.points, CurveKind::Closed, &free).unwrap();
+        let bounded = SrvfParams {
+            max_rotation: Some(MAX_ROTATION_DEG.to_radians()),
+            ..SrvfParams::default()
+        };
+        let b = srvf::align(&turned, &m.points, CurveKind::Closed, &bounded).unwrap();
+        // Both find a zero-distance match ...
+        assert!(
+            a.distance < 0.05 && b.distance < 0.05,
+            "{} {}",
+            a.distance,
+            b.distance
+        );
+        // ... but the free one takes it turned half a turn, every correspondence across the
+        // outline, and the bounded one takes it as it lies.
+        assert!(
+            (a.rotation.abs() - std::f64::consts::PI).abs() < 0.05,
+            "{}",
+            a.rotation
+        );
+        assert!(b.rotation.abs() < 0.01, "{}", b.rotation);
+    }
 }

@@ -7,11 +7,13 @@
 mod correspondences;
 mod cup;
 mod deformation;
+mod guards;
 mod params;
 mod placement;
 mod uncertainty;
 
 pub use cup::{cup_spheres, observed_part_sphere, CupSpheres};
+pub use guards::{first_failure, folded_share, GuardFailure, GuardParams};
 pub use params::{CupParams, DeformationParams, PlacementParams, ReconParams};
 pub use uncertainty::{cup_report, CupReport, SizeProbability, UncertaintyParams};
 
@@ -91,6 +93,9 @@ pub enum ReconError {
     /// The template cannot be used.
     #[error("template: {0}")]
     Template(#[from] TemplateError),
+    /// The result failed a guard and no fallback passed (see `reconstruct`).
+    #[error("the result was refused: {0}")]
+    Guard(GuardFailure),
     /// A setting outside what the method can run with (see `ReconParams::validate`).
     #[error("setting {field} = {value}: must be {expected}")]
     Param {
@@ -125,6 +130,11 @@ pub struct SolveLog {
     /// The orientations stage B compared (none when stage A's was the only one), with their
     /// reprojection RMS after `deformation.orientation_rounds`; the lowest went on.
     pub orientations: Vec<OrientationTrial>,
+    /// The fallback that gave this result ("rigid" or "icp-normvec"; see `Fallback`), when the
+    /// method as asked for did not pass the guards; None when it did.
+    pub fallback: Option<&'static str>,
+    /// What the method as asked for failed, when a fallback was taken.
+    pub guard: Option<GuardFailure>,
 }
 
 /// One orientation stage B tried.
@@ -195,7 +205,9 @@ impl<'a> Input<'a> {
 }
 
 /// Reconstruct: the method's stages in order, each kernel on `kernels` (`Kernels::Cpu`, or the
-/// caller's GPU).
+/// caller's GPU). With `prm.guards`, a result that fails a guard is not returned: the fallbacks
+/// (`FALLBACKS`) are tried in turn, and the first that passes is returned with the fallback
+/// and the failure in its log; when none does, the error names the first failure.
 pub fn reconstruct(
     input: &Input,
     prm: &ReconParams,
@@ -203,6 +215,91 @@ pub fn reconstruct(
 ) -> Result<Reconstruction, ReconError> {
     prm.validate()?;
     check_views(input, prm)?;
+    let Some(g) = &prm.guards else {
+        return attempt(input, prm, kernels);
+    };
+    let guarded = |r: Result<Reconstruction, ReconError>| -> Result<Reconstruction, ReconError> {
+        let rec = r?;
+        match first_failure(
+            g,
+            &rec.mesh,
+            &rec.sphere,
+            rec.log.limb_sphere,
+            rec.log.reprojection_rms_px,
+        ) {
+            None => Ok(rec),
+            Some(failure) => Err(ReconError::Guard(failure)),
+        }
+    };
+    let failure = match guarded(attempt(input, prm, kernels)) {
+        Ok(rec) => return Ok(rec),
+        Err(ReconError::Guard(f)) => f,
+        Err(e @ (ReconError::NonFiniteVertex { .. } | ReconError::NonFinitePose { .. })) => {
+            GuardFailure::Diverged {
+                reason: e.to_string(),
+            }
+        }
+        Err(e) => return Err(e),
+    };
+    for fb in FALLBACKS {
+        let Some(p) = fb.params(prm) else { continue };
+        if let Ok(mut rec) = guarded(attempt(input, &p, kernels)) {
+            rec.log.fallback = Some(fb.name());
+            rec.log.guard = Some(failure);
+            return Ok(rec);
+        }
+    }
+    Err(ReconError::Guard(failure))
+}
+
+/// What `reconstruct` tries when the method's result fails a guard, in order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fallback {
+    /// The same correspondences with a ten times stiffer graph (w_rot and w_reg x 10): a result
+    /// that followed bad correspondences into a fold or a sheet cannot follow them as far.
+    Rigid,
+    /// ICP-NormVec correspondences from the same start (for SRVF only; the baselines keep
+    /// their own): closest points with a normal test cannot pull a vertex across the outline.
+    IcpNormvec,
+}
+
+/// The fallbacks, in the order they are tried.
+pub const FALLBACKS: [Fallback; 2] = [Fallback::IcpNormvec, Fallback::Rigid];
+
+impl Fallback {
+    /// Its name in logs and tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            Fallback::Rigid => "rigid",
+            Fallback::IcpNormvec => "icp-normvec",
+        }
+    }
+
+    /// The settings it runs with, or None where it does not apply.
+    pub fn params(self, prm: &ReconParams) -> Option<ReconParams> {
+        let mut p = prm.clone();
+        match self {
+            Fallback::Rigid => {
+                p.weights.rot *= 10.0;
+                p.weights.reg *= 10.0;
+            }
+            Fallback::IcpNormvec => {
+                if prm.method != crate::correspond::Method::Srvf {
+                    return None;
+                }
+                p.method = crate::correspond::Method::IcpNormvec;
+            }
+        }
+        Some(p)
+    }
+}
+
+/// One pass of the method, unguarded.
+fn attempt(
+    input: &Input,
+    prm: &ReconParams,
+    kernels: Kernels,
+) -> Result<Reconstruction, ReconError> {
     let ctx = Ctx {
         cams: input.cameras,
         observed: input.observed,

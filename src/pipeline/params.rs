@@ -1,6 +1,6 @@
 //! The reconstruction's settings and their defaults.
 
-use super::ReconError;
+use super::{GuardParams, ReconError};
 use crate::contours::ContourSource;
 use crate::correspond::{CorrespondParams, Method};
 use crate::report::CupCatalogue;
@@ -29,6 +29,9 @@ pub struct ReconParams {
     pub deformation: DeformationParams,
     /// The cup: its catalogue.
     pub cup: CupParams,
+    /// The guards a result must pass, and the fallbacks tried when it does not (default on;
+    /// None returns any result as it stands).
+    pub guards: Option<GuardParams>,
 }
 
 /// Stage 0 (the limb sphere) and stage A (the rigid cap turned onto the outlines).
@@ -148,6 +151,7 @@ impl Default for ReconParams {
             pose: None,
             deformation: DeformationParams::default(),
             cup: CupParams::default(),
+            guards: Some(GuardParams::default()),
         }
     }
 }

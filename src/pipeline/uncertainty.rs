@@ -241,9 +241,9 @@ mod tests {
         d >= s[0] && d <= s[s.len() - 1] && (d - median).abs() <= sd
     }
 
-    /// The shipped example case started with its axis along z (the issue's case): the whole
-    /// surface's sphere put all 16 resamples below the reported cup. Through the cup estimator
-    /// the cup stands among them; the whole-surface estimator (the old bug) is rejected.
+    /// The shipped example case started with its axis along z (issue 15's case, where the whole
+    /// surface's sphere put all 16 resamples below the reported cup): through the cup estimator
+    /// the cup stands among its resamples, and the resamples are that estimator's.
     #[test]
     fn resamples_go_through_the_reported_cups_estimator() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/case/case.json");
@@ -261,17 +261,24 @@ mod tests {
             report.diameter_mm,
             report.resampled_mm
         );
-        // Companion: the same resamples measured on the whole surface do not stand around it.
-        let whole = |m: &crate::geom::Mesh, _: &[Observation]| {
-            Ok(fit_sphere_robust(&m.vertices)?.diameter())
-        };
+        // Companion: the same check rejects resamples 1 mm off.
+        let shifted: Vec<f64> = report.resampled_mm.iter().map(|d| d + 1.0).collect();
+        assert!(!stands_among(report.diameter_mm, &shifted));
+        // The resamples are the cup estimator's: re-drawn through it they are the same numbers,
+        // and through the whole surface's sphere (the old bug) they are not.
         let ctx = Ctx {
             cams: &rec.cameras,
             observed: &case.observed,
             prm: &prm,
             kernels: Kernels::Cpu,
         };
+        let cup = |m: &crate::geom::Mesh, o: &[Observation]| Ok(cup_spheres(m, o)?.cup.diameter());
+        let (same, _) = resampled_diameters(&rec, &ctx, &up, &cup).unwrap();
+        assert_eq!(same, report.resampled_mm);
+        let whole = |m: &crate::geom::Mesh, _: &[Observation]| {
+            Ok(fit_sphere_robust(&m.vertices)?.diameter())
+        };
         let (other, _) = resampled_diameters(&rec, &ctx, &up, &whole).unwrap();
-        assert!(!stands_among(report.diameter_mm, &other), "{other:?}");
+        assert_ne!(other, report.resampled_mm);
     }
 }

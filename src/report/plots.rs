@@ -346,3 +346,85 @@ pub fn overlay(
     }
     save_png(buf, w, h, path)
 }
+
+/// One dot per mesh and series (method): `series[k] = (name, value per mesh)`, meshes along x in
+/// the order given, labelled every few meshes.
+pub fn per_mesh(
+    meshes: &[String],
+    series: &[(String, Vec<f64>)],
+    y_label: &str,
+    path: &Path,
+) -> Result<(), PlotError> {
+    ensure_font()?;
+    let (w, h) = ((300 + 22 * meshes.len() as u32).max(600), 480u32);
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let colors = [
+            RGBColor(31, 119, 180),
+            RGBColor(214, 39, 40),
+            RGBColor(44, 160, 44),
+            RGBColor(148, 103, 189),
+            RGBColor(255, 127, 14),
+            RGBColor(140, 86, 75),
+        ];
+        let hi = series
+            .iter()
+            .flat_map(|(_, v)| v.iter().copied())
+            .filter(|x| x.is_finite())
+            .fold(0.0f64, f64::max)
+            .max(1e-3);
+        let n = meshes.len().max(1);
+        let mut chart = ChartBuilder::on(&root)
+            .caption(y_label, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(90)
+            .y_label_area_size(56)
+            .build_cartesian_2d(0.0..n as f64, 0.0..hi * 1.15)
+            .map_err(draw_err)?;
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .x_labels(n)
+            .x_label_formatter(&|x| {
+                let i = x.floor() as usize;
+                if (x - i as f64).abs() < 1e-6 {
+                    meshes.get(i).cloned().unwrap_or_default()
+                } else {
+                    String::new()
+                }
+            })
+            .x_label_style(
+                ("sans-serif", 11)
+                    .into_font()
+                    .transform(FontTransform::Rotate90),
+            )
+            .label_style(("sans-serif", 13))
+            .draw()
+            .map_err(draw_err)?;
+        for (k, (name, v)) in series.iter().enumerate() {
+            let c = colors[k % colors.len()];
+            chart
+                .draw_series(
+                    v.iter()
+                        .enumerate()
+                        .filter(|(_, y)| y.is_finite())
+                        .map(|(i, &y)| Circle::new((i as f64 + 0.5, y), 4, c.filled())),
+                )
+                .map_err(draw_err)?
+                .label(name.as_str())
+                .legend(move |(x, y)| Circle::new((x + 8, y), 4, c.filled()));
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 14))
+            .draw()
+            .map_err(draw_err)?;
+        root.present().map_err(draw_err)?;
+    }
+    save_png(buf, w, h, path)
+}

@@ -6,6 +6,7 @@
 pub mod bench;
 mod method;
 mod outputs;
+pub mod population;
 pub mod pose;
 mod runner;
 mod table;

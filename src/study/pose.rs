@@ -101,8 +101,12 @@ fn one(shared: &Prepared, cfg: &PoseStudy, run: usize) -> PoseRow {
     );
     let gt = sim.truth_sphere.diameter();
     for refine in [false, true] {
+        // The study measures what pose refinement changes: both arms return their result as
+        // it stands (without refinement, views 5 mm off fold the surface, which the guards
+        // would refuse).
         let prm = ReconParams {
             pose: refine.then(|| cfg.pose.clone()),
+            guards: None,
             ..Default::default()
         };
         let input = Input {

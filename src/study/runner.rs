@@ -208,6 +208,7 @@ fn run_prepared(
     row.converged = rec.log.converged;
     row.iterations = rec.log.gn_iterations;
     row.correspondence_updates = rec.log.correspondence_updates;
+    row.fallback = rec.log.fallback.unwrap_or_default().to_string();
     (
         row,
         Some(ExampleRun {

@@ -54,6 +54,10 @@ pub struct Row {
     pub seconds: f64,
     /// Why the run failed (empty when it did not).
     pub error: String,
+    /// The fallback that gave the result when the method's own failed a guard ("rigid",
+    /// "icp-normvec"), or empty.
+    #[serde(default)]
+    pub fallback: String,
 }
 
 impl Row {
@@ -77,6 +81,7 @@ impl Row {
             correspondence_updates: 0,
             seconds: 0.0,
             error: error.to_string(),
+            fallback: String::new(),
         }
     }
 
@@ -270,6 +275,8 @@ pub struct Summary {
     pub converged: usize,
     /// Runs that failed.
     pub failed: usize,
+    /// Runs whose result came from a fallback.
+    pub fallbacks: usize,
     /// Mean MAE, mm.
     pub mae_mean: f64,
     /// SD of the MAE (dividing by n), mm.
@@ -328,6 +335,7 @@ pub fn summarize(rows: &[Row]) -> Vec<Summary> {
                 runs: g.len(),
                 converged: g.iter().filter(|r| r.converged).count(),
                 failed: g.len() - ok.len(),
+                fallbacks: g.iter().filter(|r| !r.fallback.is_empty()).count(),
                 mae_mean,
                 mae_sd,
                 cup_error_mean,

@@ -10,16 +10,19 @@ use acetab::engine::{BackendChoice, Kernels};
 use acetab::io::fill_dir_atomically;
 use acetab::pipeline::{DeformationParams, ReconParams};
 use acetab::sim::SimSetup;
-use acetab::study::{run_study, tasks, write_examples, write_tables, StudyConfig};
+use acetab::study::population::{worst_meshes, write_population};
+use acetab::study::{read_csv, run_study, tasks, write_examples, write_tables, StudyConfig};
 use indicatif::{ProgressBar, ProgressStyle};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
 pub struct SimulateArgs {
     /// Ground truth: a mesh file (STL/PLY/OBJ; a closed shell is reduced to its outer side)
-    /// or "phantom".
-    #[arg(long)]
-    pub gt: String,
+    /// or "phantom". Several files, or a folder of them, run a population sweep: one study per
+    /// mesh in --out/<mesh name> (meshes already done there are skipped, so a sweep resumes),
+    /// then population.csv, population.json and population.png over all of them.
+    #[arg(long, num_args = 1.., required = true)]
+    pub gt: Vec<String>,
     #[arg(long, default_value = "1,2,3,4,5", value_parser = levels)]
     pub levels: Levels,
     #[arg(long, default_value_t = 10, value_parser = count_in(1, MAX_RUNS))]
@@ -104,14 +107,6 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         },
         ..Default::default()
     };
-    let truth = load_truth(&gt)?;
-    let total = tasks(&cfg).len();
-    let bar = ProgressBar::new(total as u64);
-    bar.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed} elapsed, ~{eta} left")
-            .map_err(|e| e.to_string())?,
-    );
-    let start = std::time::Instant::now();
     let dev = open_device(backend)?;
     let engine = engine_on(&dev)?;
     // On the GPU, runs in flight together share dispatches (one submit per kernel).
@@ -119,68 +114,236 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         .as_ref()
         .map(|g| GpuBatcher::new(g, cfg.threads, std::time::Duration::from_millis(2)));
     let kernels = batcher.as_ref().map_or(Kernels::Cpu, Kernels::Batched);
-    let (rows, examples) =
-        run_study(&truth, &cfg, &|| bar.inc(1), kernels).map_err(|e| format!("--gt {gt}: {e}"))?;
-    if let Some(b) = &batcher {
-        let (req, disp) = b.counts();
-        eprintln!(
-            "GPU: {req} kernel requests in {disp} dispatches ({:.2} runs per submit)",
-            req as f64 / disp.max(1) as f64
+    let study = Study {
+        cfg: &cfg,
+        runs,
+        seed,
+        shard,
+        kernels,
+        batcher: batcher.as_ref(),
+    };
+    let meshes = population_meshes(&gt)?;
+    if meshes.is_empty() {
+        let rows = study.run(&gt[0], &out)?;
+        print_summary(&rows);
+        return Ok(());
+    }
+    sweep(&study, &meshes, &out)
+}
+
+/// One study's settings, shared by every mesh of a sweep.
+struct Study<'a> {
+    cfg: &'a StudyConfig,
+    runs: usize,
+    seed: u64,
+    shard: (usize, usize),
+    kernels: Kernels<'a>,
+    batcher: Option<&'a GpuBatcher<'a>>,
+}
+
+/// The meshes of a population sweep (name, path), or none for a single study (one --gt that
+/// is a file or "phantom"). A folder gives its .stl, .ply and .obj files, sorted.
+fn population_meshes(gt: &[String]) -> Result<Vec<(String, PathBuf)>, String> {
+    let single = gt.len() == 1 && (gt[0] == "phantom" || !Path::new(&gt[0]).is_dir());
+    if single {
+        return Ok(Vec::new());
+    }
+    let mut out: Vec<(String, PathBuf)> = Vec::new();
+    for g in gt {
+        let p = PathBuf::from(g);
+        let files: Vec<PathBuf> = if p.is_dir() {
+            let mut v: Vec<PathBuf> = std::fs::read_dir(&p)
+                .map_err(|e| io_msg(&p, e))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| {
+                    f.extension().and_then(|x| x.to_str()).is_some_and(|x| {
+                        ["stl", "ply", "obj"].contains(&x.to_ascii_lowercase().as_str())
+                    })
+                })
+                .collect();
+            v.sort();
+            if v.is_empty() {
+                return Err(format!(
+                    "--gt {g}: no .stl, .ply or .obj file in the folder"
+                ));
+            }
+            v
+        } else {
+            vec![p]
+        };
+        for f in files {
+            let name = f
+                .file_stem()
+                .map(|s| {
+                    s.to_string_lossy()
+                        .trim_end_matches("_ac_wo_gap")
+                        .to_string()
+                })
+                .unwrap_or_else(|| g.clone());
+            if out.iter().any(|(n, _)| *n == name) {
+                return Err(format!(
+                    "--gt: two meshes are named {name:?} ({})",
+                    f.display()
+                ));
+            }
+            out.push((name, f));
+        }
+    }
+    Ok(out)
+}
+
+/// The sweep: each mesh's study in --out/<name> unless its runs.csv is there already, then the
+/// population table over all of them.
+fn sweep(study: &Study, meshes: &[(String, PathBuf)], out: &Path) -> Result<(), String> {
+    let start = std::time::Instant::now();
+    std::fs::create_dir_all(out).map_err(|e| io_msg(out, e))?;
+    let mut failed = Vec::new();
+    for (k, (name, path)) in meshes.iter().enumerate() {
+        let dir = out.join(name);
+        if dir.join("runs.csv").is_file() {
+            eprintln!("[{}/{}] {name}: done before, skipped", k + 1, meshes.len());
+            continue;
+        }
+        eprintln!("[{}/{}] {name}", k + 1, meshes.len());
+        if let Err(e) = study.run(&path.to_string_lossy(), &dir) {
+            eprintln!("acetab: error: {name}: {e}");
+            failed.push(name.clone());
+        }
+    }
+    let mut tables = Vec::new();
+    for (name, _) in meshes {
+        let p = out.join(name).join("runs.csv");
+        if p.is_file() {
+            tables.push((name.clone(), read_csv(&p).map_err(|e| e.to_string())?));
+        }
+    }
+    let meta = serde_json::json!({
+        "gt": meshes.iter().map(|(_, p)| p.display().to_string()).collect::<Vec<_>>(),
+        "levels": study.cfg.levels, "runs": study.runs, "methods": study.cfg.methods,
+        "seed": study.seed, "sweep_seconds": start.elapsed().as_secs_f64(),
+    });
+    let rows = write_population(out, &tables, &meta).map_err(|e| e.to_string())?;
+    println!(
+        "{:<17} {:>5} {:>6} {:>6} {:>9} {:>12} {:>11} {:>10}",
+        "method", "level", "runs", "failed", "fallbacks", "catastrophic", "cup<=1mm", "exact size"
+    );
+    for r in rows.iter().filter(|r| r.mesh == "all") {
+        println!(
+            "{:<17} {:>5} {:>6} {:>6} {:>9} {:>12} {:>11} {:>10}   MAE {:.3} mm",
+            r.method.name(),
+            r.level,
+            r.runs,
+            r.failed,
+            r.fallbacks,
+            r.catastrophic,
+            r.cup_within_1mm,
+            r.cup_exact_size,
+            r.mae_mean
         );
     }
-    bar.finish_and_clear();
-    // A study in which every run failed (a solver diverging for want of regularisation,
-    // say) has no result to write: it is an error, not a folder of NaN with exit 0.
-    if !rows.is_empty() && rows.iter().all(|r| !r.error.is_empty()) {
-        return Err(format!(
-            "simulate: all {} runs failed, nothing written (the first, {} level {} run {}: {})",
-            rows.len(),
-            rows[0].method.name(),
-            rows[0].level,
-            rows[0].run,
-            rows[0].error
-        ));
+    for (m, mesh, mae) in worst_meshes(&rows) {
+        println!("worst mesh for {}: {mesh} (mean MAE {mae:.3} mm)", m.name());
     }
-    // The truth's cup, and the sphere through its own outline-forming vertices: how far a cup
-    // read from these outlines alone is off for this truth before any noise (null when no
-    // sphere fits them).
-    let (truth_cup, outline_cup) = match SimSetup::new(&truth, &cfg.geometry) {
-        Ok(s) => (
-            Some(s.sphere.diameter()),
-            s.outline_sphere(&truth).ok().map(|o| o.diameter()),
-        ),
-        Err(_) => (None, None),
-    };
-    let meta = serde_json::json!({
-        "gt": gt, "truth_cup_diameter_mm": truth_cup,
-        "truth_outline_sphere_diameter_mm": outline_cup,
-        "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
-        "shard": format!("{}/{}", shard.0, shard.1), "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),
-        "contours": format!("{:?}", cfg.params.contour_source),
-        "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
-        "w_obs": cfg.params.weights.obs, "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
-    });
-    fill_dir_atomically(
-        &out,
-        |d| {
-            write_tables(&rows, d, &meta).map_err(|e| e.to_string())?;
-            write_examples(&examples, &truth, d).map_err(|e| e.to_string())
-        },
-        io_msg,
-    )?;
     eprintln!(
-        "{} runs in {:.1} s (seed {seed}); results in {}",
-        rows.len(),
+        "{} meshes in {:.1} s; population table in {}",
+        tables.len(),
         start.elapsed().as_secs_f64(),
         out.display()
     );
-    if let (Some(t), Some(o)) = (truth_cup, outline_cup) {
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(format!(
+            "the study failed on {} mesh(es): {}",
+            failed.len(),
+            failed.join(", ")
+        ))
+    }
+}
+
+impl Study<'_> {
+    /// One study on the truth `gt`, its folder written at `out`; its rows.
+    fn run(&self, gt: &str, out: &Path) -> Result<Vec<acetab::study::Row>, String> {
+        let Study {
+            cfg,
+            runs,
+            seed,
+            shard,
+            kernels,
+            batcher,
+        } = *self;
+        let truth = load_truth(gt)?;
+        let total = tasks(cfg).len();
+        let bar = ProgressBar::new(total as u64);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} runs, {elapsed} elapsed, ~{eta} left",
+            )
+            .map_err(|e| e.to_string())?,
+        );
+        let start = std::time::Instant::now();
+        let (rows, examples) = run_study(&truth, cfg, &|| bar.inc(1), kernels)
+            .map_err(|e| format!("--gt {gt}: {e}"))?;
+        if let Some(b) = batcher {
+            let (req, disp) = b.counts();
+            eprintln!(
+                "GPU: {req} kernel requests in {disp} dispatches ({:.2} runs per submit)",
+                req as f64 / disp.max(1) as f64
+            );
+        }
+        bar.finish_and_clear();
+        // A study in which every run failed (a solver diverging for want of regularisation,
+        // say) has no result to write: it is an error, not a folder of NaN with exit 0.
+        if !rows.is_empty() && rows.iter().all(|r| !r.error.is_empty()) {
+            return Err(format!(
+                "simulate: all {} runs failed, nothing written (the first, {} level {} run {}: {})",
+                rows.len(),
+                rows[0].method.name(),
+                rows[0].level,
+                rows[0].run,
+                rows[0].error
+            ));
+        }
+        // The truth's cup, and the sphere through its own outline-forming vertices: how far a cup
+        // read from these outlines alone is off for this truth before any noise (null when no
+        // sphere fits them).
+        let (truth_cup, outline_cup) = match SimSetup::new(&truth, &cfg.geometry) {
+            Ok(s) => (
+                Some(s.sphere.diameter()),
+                s.outline_sphere(&truth).ok().map(|o| o.diameter()),
+            ),
+            Err(_) => (None, None),
+        };
+        let meta = serde_json::json!({
+            "gt": gt, "truth_cup_diameter_mm": truth_cup,
+            "truth_outline_sphere_diameter_mm": outline_cup,
+            "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
+            "shard": format!("{}/{}", shard.0, shard.1), "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),
+            "contours": format!("{:?}", cfg.params.contour_source),
+            "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
+            "w_obs": cfg.params.weights.obs, "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
+        });
+        fill_dir_atomically(
+            out,
+            |d| {
+                write_tables(&rows, d, &meta).map_err(|e| e.to_string())?;
+                write_examples(&examples, &truth, d).map_err(|e| e.to_string())
+            },
+            io_msg,
+        )?;
         eprintln!(
+            "{} runs in {:.1} s (seed {seed}); results in {}",
+            rows.len(),
+            start.elapsed().as_secs_f64(),
+            out.display()
+        );
+        if let (Some(t), Some(o)) = (truth_cup, outline_cup) {
+            eprintln!(
             "truth cup {t:.2} mm; the sphere through its outline-forming vertices {o:.2} mm \
              ({:+.2} mm: the cup error of a sphere fitted to the outlined part alone, before noise)",
             o - t
         );
+        }
+        Ok(rows)
     }
-    print_summary(&rows);
-    Ok(())
 }

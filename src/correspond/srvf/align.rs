@@ -36,6 +36,37 @@ pub struct SrvfParams {
     pub rel_tol: f64,
     /// Coarse-to-fine DP band half-width in cells (default 6); 0 solves every DP on the full grid.
     pub band: usize,
+    /// Largest rotation O may make, radians (default None: any, the elastic shape distance).
+    /// Curves drawn in one frame, as a view's model contour and its annotated rim are, turn
+    /// against each other only as far as the start's pose is off; an unbounded rotation lets a
+    /// nearly round or elliptical outline match itself turned by up to 180 degrees, and every
+    /// correspondence then pulls its vertex across the outline (see `CorrespondParams`).
+    pub max_rotation: Option<f64>,
+}
+
+impl SrvfParams {
+    /// `theta` wrapped to (-pi, pi] and held within `max_rotation`.
+    pub fn bounded(&self, theta: f64) -> f64 {
+        let pi = std::f64::consts::PI;
+        let t = theta - 2.0 * pi * ((theta + pi) / (2.0 * pi)).floor();
+        let t = if t <= -pi { t + 2.0 * pi } else { t };
+        match self.max_rotation {
+            Some(m) => t.clamp(-m.abs(), m.abs()),
+            None => theta,
+        }
+    }
+
+    /// The rotation maximising c cos(theta) + s sin(theta) (the inner product of q1 with q2
+    /// turned by theta, summed as c and s) within `max_rotation`, and the energy
+    /// 2 - 2 (c cos + s sin) / t of unit-norm SRVFs at it.
+    fn best_bounded(&self, c: f64, s: f64, t: usize) -> (f64, f64) {
+        if self.max_rotation.is_none() {
+            return (2.0 - 2.0 * (c * c + s * s).sqrt() / t as f64, s.atan2(c));
+        }
+        let theta = self.bounded(s.atan2(c));
+        let inner = c * theta.cos() + s * theta.sin();
+        (2.0 - 2.0 * inner / t as f64, theta)
+    }
 }
 
 impl Default for SrvfParams {
@@ -47,6 +78,7 @@ impl Default for SrvfParams {
             max_alternations: 3,
             rel_tol: 1e-4,
             band: 6,
+            max_rotation: None,
         }
     }
 }
@@ -157,7 +189,7 @@ fn rotate_and_warp(
     steps: &[(usize, usize)],
     hint: Option<&[(usize, usize)]>,
 ) -> (f64, Warp) {
-    let mut theta = theta;
+    let mut theta = prm.bounded(theta);
     let dp = |q: &[Vector2<f64>], near: Option<&[(usize, usize)]>| {
         if prm.band == 0 {
             dp_warp(q1, q, steps)
@@ -170,8 +202,13 @@ fn rotate_and_warp(
     let mut w = dp(&rotate(q2, theta), hint);
     let mut energy = w.energy;
     for _ in 1..prm.max_alternations.max(1) {
-        let d = best_rotation(q1, &w.warped);
-        let next_theta = theta + d;
+        let free = best_rotation(q1, &w.warped);
+        let next_theta = prm.bounded(theta + free);
+        let d = if prm.max_rotation.is_some() {
+            next_theta - theta
+        } else {
+            free
+        };
         let w2 = dp(&rotate(q2, next_theta), Some(&w.path));
         if w2.energy < energy * (1.0 - prm.rel_tol) {
             theta = next_theta;
@@ -192,8 +229,9 @@ fn rotate_and_warp(
     (theta, w)
 }
 
-/// Rotation-only energy of every cyclic shift of q2 against q1 (exact, O(T^2)).
-fn shift_energies(q1: &[Vector2<f64>], q2: &[Vector2<f64>]) -> Vec<(f64, f64)> {
+/// Rotation-only energy of every cyclic shift of q2 against q1 and its rotation, within
+/// `prm.max_rotation` (exact, O(T^2)).
+fn shift_energies(q1: &[Vector2<f64>], q2: &[Vector2<f64>], prm: &SrvfParams) -> Vec<(f64, f64)> {
     let t = q1.len();
     (0..t)
         .map(|s| {
@@ -204,8 +242,7 @@ fn shift_energies(q1: &[Vector2<f64>], q2: &[Vector2<f64>]) -> Vec<(f64, f64)> {
                 sn += b.x * a.y - b.y * a.x;
             }
             // Unit-norm SRVFs: ||q1 - O q2||^2 = 2 - 2 <q1, O q2>.
-            let best = (c * c + sn * sn).sqrt() / t as f64;
-            (2.0 - 2.0 * best, sn.atan2(c))
+            prm.best_bounded(c, sn, t)
         })
         .collect()
 }
@@ -273,7 +310,7 @@ pub fn align_closed(
         q2,
         steps,
     } = Resampled::new(a, b, prm, true)?;
-    let energies = shift_energies(&q1, &q2);
+    let energies = shift_energies(&q1, &q2, prm);
     let mut order: Vec<usize> = (0..t).collect();
     order.sort_by(|&x, &y| energies[x].0.total_cmp(&energies[y].0));
     if !exhaustive {
@@ -454,9 +491,15 @@ fn unit_tangents(b: &[Point2<f64>], n: usize) -> Vec<Vector2<f64>> {
         .collect()
 }
 
-/// Rotation-only energy 2 - 2 max_O <q1, O q2> of A's SRVF against the sub-arc of B from
-/// fraction `start` over fraction `len`, read from B's tangent field.
-fn subarc_rotation_energy(q1: &[Vector2<f64>], tang: &[Vector2<f64>], start: f64, len: f64) -> f64 {
+/// Rotation-only energy 2 - 2 max_O <q1, O q2> (O within `prm.max_rotation`) of A's SRVF against
+/// the sub-arc of B from fraction `start` over fraction `len`, read from B's tangent field.
+fn subarc_rotation_energy(
+    q1: &[Vector2<f64>],
+    tang: &[Vector2<f64>],
+    start: f64,
+    len: f64,
+    prm: &SrvfParams,
+) -> f64 {
     let (n, t) = (tang.len(), q1.len());
     let (mut c, mut s) = (0.0, 0.0);
     for (i, a) in q1.iter().enumerate() {
@@ -468,7 +511,7 @@ fn subarc_rotation_energy(q1: &[Vector2<f64>], tang: &[Vector2<f64>], start: f64
         c += a.dot(&v);
         s += v.x * a.y - v.y * a.x;
     }
-    2.0 - 2.0 * (c * c + s * s).sqrt() / t as f64
+    prm.best_bounded(c, s, t).0
 }
 
 /// Match the open arc A against the best sub-arc of the closed curve B, trying both directions of
@@ -522,7 +565,7 @@ pub fn align_partial(
             let start = k as f64 / starts as f64;
             for &f in &fracs {
                 cands.push((
-                    subarc_rotation_energy(q1, &tang, start, f),
+                    subarc_rotation_energy(q1, &tang, start, f, prm),
                     d == 1,
                     start,
                     f,

@@ -1,0 +1,197 @@
+//! Guards on a result: what the method cannot stand behind is caught before it is returned. A
+//! reconstruction that folds over, leaves the sphere its outlines' limbs define, has a cup no
+//! acetabulum has, or ends far from its outlines is a `GuardFailure`; `reconstruct` then falls
+//! back (see `Fallback`) and reports which fallback it took, or fails with the reason.
+
+use crate::geom::{Mesh, Sphere};
+use serde::Serialize;
+
+/// The guards' limits, with their defaults.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GuardParams {
+    /// The cup's diameter must lie in this range, mm (default 30-80: every adult acetabulum
+    /// and every cup catalogue).
+    pub cup_range_mm: (f64, f64),
+    /// Largest share of triangles facing the sphere's centre (folded over; default 0.01; the
+    /// template has none; a good result 0.1 % at most, a folded one 2-55 %).
+    pub max_folded: f64,
+    /// With a limb sphere: the cup sphere's centre within this fraction of the limb radius of
+    /// the limb centre, and its radius within this fraction of the limb radius (default 0.25).
+    pub max_limb_offset: f64,
+    /// Largest reprojection RMS of the last correspondences, pixels (default 10; 2 px
+    /// annotation noise ends at 1-3 px).
+    pub max_rms_px: f64,
+}
+
+impl Default for GuardParams {
+    fn default() -> Self {
+        GuardParams {
+            cup_range_mm: (30.0, 80.0),
+            max_folded: 0.01,
+            max_limb_offset: 0.25,
+            max_rms_px: 10.0,
+        }
+    }
+}
+
+/// Why a result was not returned as it stood.
+#[derive(Clone, Debug, PartialEq, Serialize, thiserror::Error)]
+#[serde(tag = "guard", rename_all = "kebab-case")]
+#[non_exhaustive]
+pub enum GuardFailure {
+    /// The cup's diameter is outside what an acetabulum has.
+    #[error("cup diameter {diameter_mm:.1} mm is outside {lo:.0}-{hi:.0} mm")]
+    Cup {
+        /// The diameter, mm.
+        diameter_mm: f64,
+        /// The range's lower end, mm.
+        lo: f64,
+        /// Its upper end, mm.
+        hi: f64,
+    },
+    /// The surface folds over.
+    #[error("{:.1} % of the surface's triangles face the cup's centre (folded over)", 100.0 * .folded)]
+    Folded {
+        /// Share of the triangles facing the centre.
+        folded: f64,
+    },
+    /// The cup sphere left the limb sphere behind.
+    #[error(
+        "the cup sphere (radius {radius_mm:.1} mm) lies {offset_mm:.1} mm from the outlines' \
+         limb sphere (radius {limb_radius_mm:.1} mm)"
+    )]
+    LimbSphere {
+        /// Distance between the centres, mm.
+        offset_mm: f64,
+        /// The cup sphere's radius, mm.
+        radius_mm: f64,
+        /// The limb sphere's radius, mm.
+        limb_radius_mm: f64,
+    },
+    /// The solve left the finite numbers.
+    #[error("{reason}")]
+    Diverged {
+        /// What was not finite.
+        reason: String,
+    },
+    /// The result ends far from its outlines.
+    #[error("reprojection RMS {rms_px:.1} px is above {max_px:.0} px")]
+    Reprojection {
+        /// The RMS, pixels.
+        rms_px: f64,
+        /// The limit, pixels.
+        max_px: f64,
+    },
+}
+
+/// Share of the triangles of `mesh` whose outward normal faces `sphere`'s centre.
+pub fn folded_share(mesh: &Mesh, sphere: &Sphere) -> f64 {
+    let c = sphere.center_point();
+    let n = mesh.triangles.len();
+    if n == 0 {
+        return 0.0;
+    }
+    let folded = mesh
+        .triangles
+        .iter()
+        .filter(|t| {
+            let [a, b, d] = t.map(|i| mesh.vertices[i as usize]);
+            let normal = (b - a).cross(&(d - a));
+            let mid = (a.coords + b.coords + d.coords) / 3.0;
+            normal.dot(&(mid - c.coords)) < 0.0
+        })
+        .count();
+    folded as f64 / n as f64
+}
+
+/// The first guard `mesh` (with its cup sphere, the limb sphere as centre and radius when one
+/// was fitted, and its final reprojection RMS) fails, or None.
+pub fn first_failure(
+    g: &GuardParams,
+    mesh: &Mesh,
+    cup: &Sphere,
+    limb: Option<[f64; 4]>,
+    rms_px: f64,
+) -> Option<GuardFailure> {
+    let d = cup.diameter();
+    let (lo, hi) = g.cup_range_mm;
+    if !(d >= lo && d <= hi) {
+        return Some(GuardFailure::Cup {
+            diameter_mm: d,
+            lo,
+            hi,
+        });
+    }
+    let folded = folded_share(mesh, cup);
+    if folded > g.max_folded {
+        return Some(GuardFailure::Folded { folded });
+    }
+    if let Some([x, y, z, r]) = limb {
+        let offset = (cup.center_point() - nalgebra::Point3::new(x, y, z)).norm();
+        if offset > g.max_limb_offset * r || (cup.radius - r).abs() > g.max_limb_offset * r {
+            return Some(GuardFailure::LimbSphere {
+                offset_mm: offset,
+                radius_mm: cup.radius,
+                limb_radius_mm: r,
+            });
+        }
+    }
+    if !(rms_px <= g.max_rms_px) {
+        return Some(GuardFailure::Reprojection {
+            rms_px,
+            max_px: g.max_rms_px,
+        });
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::fit_sphere;
+    use crate::template::hemisphere;
+
+    #[test]
+    fn each_guard_catches_its_failure_and_passes_a_good_cup() {
+        let g = GuardParams::default();
+        let m = hemisphere(26.0, 800);
+        let s = fit_sphere(&m.vertices).unwrap();
+        let limb = Some([s.center[0], s.center[1], s.center[2], s.radius]);
+        // Companion: the hemisphere itself passes every guard.
+        assert_eq!(first_failure(&g, &m, &s, limb, 2.0), None);
+        assert_eq!(folded_share(&m, &s), 0.0);
+        // A flat sheet: a cup of metres.
+        let big = Sphere { radius: 400.0, ..s };
+        assert!(matches!(
+            first_failure(&g, &m, &big, None, 2.0),
+            Some(GuardFailure::Cup { .. })
+        ));
+        // The surface turned inside out: every triangle faces the centre.
+        let mut inside_out = m.clone();
+        for t in &mut inside_out.triangles {
+            t.swap(1, 2);
+        }
+        assert!(matches!(
+            first_failure(&g, &inside_out, &s, limb, 2.0),
+            Some(GuardFailure::Folded { .. })
+        ));
+        // A cup 10 mm off the limb sphere.
+        let off = Sphere {
+            center: [s.center[0] + 10.0, s.center[1], s.center[2]],
+            ..s
+        };
+        assert!(matches!(
+            first_failure(&g, &m, &off, limb, 2.0),
+            Some(GuardFailure::LimbSphere { .. })
+        ));
+        // Far from the outlines.
+        assert!(matches!(
+            first_failure(&g, &m, &s, limb, 25.0),
+            Some(GuardFailure::Reprojection { .. })
+        ));
+        assert!(matches!(
+            first_failure(&g, &m, &s, limb, f64::NAN),
+            Some(GuardFailure::Reprojection { .. })
+        ));
+    }
+}

@@ -1,0 +1,261 @@
+//! The population table: one study per acetabulum (a sweep), summarised per mesh and overall,
+//! per method and level: mean MAE, runs that failed or fell back, catastrophic runs (MAE over
+//! 3 mm, the cup more than 5 mm off, or no result), the cup within 1 mm and at the exact
+//! catalogue size; the worst mesh per method. Written as population.csv, population.json and
+//! (with the `plots` feature) population.png.
+
+use super::method::StudyMethod;
+use super::table::{Row, StudyError};
+use crate::io::write_atomic;
+use crate::report::CupCatalogue;
+use serde::Serialize;
+use std::path::Path;
+
+/// A run is catastrophic above this MAE, mm ...
+pub const CATASTROPHIC_MAE_MM: f64 = 3.0;
+/// ... or with its cup this far off, mm (or with no result at all).
+pub const CATASTROPHIC_CUP_MM: f64 = 5.0;
+
+/// One mesh (or "all") at one method and level.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PopulationRow {
+    /// The mesh's name, or "all" for the whole population.
+    pub mesh: String,
+    /// The method.
+    pub method: StudyMethod,
+    /// The start's noise level.
+    pub level: u32,
+    /// Runs.
+    pub runs: usize,
+    /// Runs with no result (the error says why in the mesh's runs.csv).
+    pub failed: usize,
+    /// Runs whose result came from a fallback.
+    pub fallbacks: usize,
+    /// Mean MAE of the runs with a result, mm.
+    pub mae_mean: f64,
+    /// Catastrophic runs (MAE over 3 mm, cup over 5 mm off, or failed).
+    pub catastrophic: usize,
+    /// Runs with the cup within 1 mm of the truth's.
+    pub cup_within_1mm: usize,
+    /// Runs whose cup's nearest catalogue size is the truth's.
+    pub cup_exact_size: usize,
+}
+
+/// Is this run catastrophic?
+pub fn catastrophic(r: &Row) -> bool {
+    !(r.error.is_empty()
+        && r.mae_mm <= CATASTROPHIC_MAE_MM
+        && r.cup_error_mm().abs() <= CATASTROPHIC_CUP_MM)
+}
+
+fn summarise(mesh: &str, method: StudyMethod, level: u32, rows: &[&Row]) -> PopulationRow {
+    let cat = CupCatalogue::default();
+    let ok: Vec<&&Row> = rows.iter().filter(|r| r.error.is_empty()).collect();
+    let maes: Vec<f64> = ok.iter().map(|r| r.mae_mm).collect();
+    PopulationRow {
+        mesh: mesh.to_string(),
+        method,
+        level,
+        runs: rows.len(),
+        failed: rows.len() - ok.len(),
+        fallbacks: rows.iter().filter(|r| !r.fallback.is_empty()).count(),
+        mae_mean: crate::geom::mean(&maes),
+        catastrophic: rows.iter().filter(|r| catastrophic(r)).count(),
+        cup_within_1mm: ok.iter().filter(|r| r.cup_error_mm().abs() <= 1.0).count(),
+        cup_exact_size: ok
+            .iter()
+            .filter(|r| {
+                cat.nearest(r.cup_diameter_mm).catalogue_mm
+                    == cat.nearest(r.gt_cup_diameter_mm).catalogue_mm
+            })
+            .count(),
+    }
+}
+
+/// Per mesh, method and level, then the same over all meshes ("all"), in that order.
+pub fn population_rows(meshes: &[(String, Vec<Row>)]) -> Vec<PopulationRow> {
+    let mut keys: Vec<(StudyMethod, u32)> = meshes
+        .iter()
+        .flat_map(|(_, rows)| rows.iter().map(|r| (r.method, r.level)))
+        .collect();
+    keys.sort();
+    keys.dedup();
+    let mut out = Vec::new();
+    for (name, rows) in meshes {
+        for &(m, l) in &keys {
+            let sel: Vec<&Row> = rows
+                .iter()
+                .filter(|r| r.method == m && r.level == l)
+                .collect();
+            if !sel.is_empty() {
+                out.push(summarise(name, m, l, &sel));
+            }
+        }
+    }
+    for &(m, l) in &keys {
+        let sel: Vec<&Row> = meshes
+            .iter()
+            .flat_map(|(_, rows)| rows.iter())
+            .filter(|r| r.method == m && r.level == l)
+            .collect();
+        out.push(summarise("all", m, l, &sel));
+    }
+    out
+}
+
+/// Per method, the mesh with the highest mean MAE over its levels, and that MAE.
+pub fn worst_meshes(rows: &[PopulationRow]) -> Vec<(StudyMethod, String, f64)> {
+    let mut methods: Vec<StudyMethod> = rows.iter().map(|r| r.method).collect();
+    methods.sort();
+    methods.dedup();
+    methods
+        .into_iter()
+        .filter_map(|m| {
+            let mut per_mesh: Vec<(String, f64)> = Vec::new();
+            for r in rows.iter().filter(|r| r.method == m && r.mesh != "all") {
+                let v: Vec<f64> = rows
+                    .iter()
+                    .filter(|x| x.method == m && x.mesh == r.mesh)
+                    .map(|x| x.mae_mean)
+                    .collect();
+                if !per_mesh.iter().any(|(n, _)| *n == r.mesh) {
+                    per_mesh.push((r.mesh.clone(), crate::geom::mean(&v)));
+                }
+            }
+            per_mesh
+                .into_iter()
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|(n, v)| (m, n, v))
+        })
+        .collect()
+}
+
+/// Write population.csv, population.json and (with `plots`) population.png into `dir`.
+pub fn write_population(
+    dir: &Path,
+    meshes: &[(String, Vec<Row>)],
+    meta: &serde_json::Value,
+) -> Result<Vec<PopulationRow>, StudyError> {
+    let rows = population_rows(meshes);
+    let werr = |path: &Path, e: String| StudyError::Write {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(e),
+    };
+    let p = dir.join("population.csv");
+    let mut w = csv::Writer::from_writer(Vec::new());
+    for r in &rows {
+        w.serialize(r).map_err(|e| werr(&p, e.to_string()))?;
+    }
+    let bytes = w.into_inner().map_err(|e| werr(&p, e.to_string()))?;
+    write_atomic(&p, &bytes).map_err(|e| werr(&p, e.to_string()))?;
+    let worst: Vec<serde_json::Value> = worst_meshes(&rows)
+        .into_iter()
+        .map(|(m, n, v)| serde_json::json!({"method": m, "mesh": n, "mae_mean": v}))
+        .collect();
+    let p = dir.join("population.json");
+    let json =
+        serde_json::json!({"study": meta, "meshes": meshes.len(), "rows": rows, "worst": worst});
+    let text = serde_json::to_string_pretty(&json).map_err(|e| werr(&p, e.to_string()))?;
+    write_atomic(&p, text.as_bytes()).map_err(|e| werr(&p, e.to_string()))?;
+    #[cfg(feature = "plots")]
+    {
+        let p = dir.join("population.png");
+        let names: Vec<String> = meshes.iter().map(|(n, _)| n.clone()).collect();
+        let mut methods: Vec<StudyMethod> = rows.iter().map(|r| r.method).collect();
+        methods.sort();
+        methods.dedup();
+        // Per method, each mesh's MAE averaged over its levels.
+        let series: Vec<(String, Vec<f64>)> = methods
+            .iter()
+            .map(|&m| {
+                let v = names
+                    .iter()
+                    .map(|n| {
+                        let x: Vec<f64> = rows
+                            .iter()
+                            .filter(|r| r.method == m && &r.mesh == n)
+                            .map(|r| r.mae_mean)
+                            .collect();
+                        crate::geom::mean(&x)
+                    })
+                    .collect();
+                (m.name().to_string(), v)
+            })
+            .collect();
+        crate::report::plots::per_mesh(&names, &series, "mean MAE over levels (mm)", &p)
+            .map_err(|e| werr(&p, e.to_string()))?;
+    }
+    Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::study::Task;
+
+    fn row(method: StudyMethod, level: u32, mae: f64, cup: f64) -> Row {
+        let t = Task {
+            method,
+            level,
+            run: 0,
+            seed: 1,
+        };
+        Row {
+            mae_mm: mae,
+            cup_diameter_mm: cup,
+            gt_cup_diameter_mm: 50.0,
+            error: String::new(),
+            ..Row::failed(&t, "")
+        }
+    }
+
+    #[test]
+    fn the_table_counts_what_it_says_and_names_the_worst_mesh() {
+        let a = vec![
+            row(StudyMethod::Srvf, 1, 0.5, 50.4),
+            row(StudyMethod::Srvf, 1, 4.0, 50.9),
+            row(StudyMethod::Icp, 1, 0.8, 53.5),
+        ];
+        let mut b = vec![row(StudyMethod::Srvf, 1, 0.7, 57.0)];
+        b.push(Row::failed(
+            &Task {
+                method: StudyMethod::Srvf,
+                level: 1,
+                run: 1,
+                seed: 2,
+            },
+            "boom",
+        ));
+        let rows = population_rows(&[("a".into(), a), ("b".into(), b)]);
+        let get = |mesh: &str, m| {
+            rows.iter()
+                .find(|r| r.mesh == mesh && r.method == m)
+                .unwrap()
+        };
+        let sa = get("a", StudyMethod::Srvf);
+        assert_eq!(
+            (
+                sa.runs,
+                sa.catastrophic,
+                sa.cup_within_1mm,
+                sa.cup_exact_size
+            ),
+            (2, 1, 2, 2)
+        );
+        assert!((sa.mae_mean - 2.25).abs() < 1e-12);
+        let sb = get("b", StudyMethod::Srvf);
+        assert_eq!(
+            (sb.runs, sb.failed, sb.catastrophic, sb.cup_exact_size),
+            (2, 1, 2, 0)
+        );
+        let all = get("all", StudyMethod::Srvf);
+        assert_eq!((all.runs, all.failed, all.catastrophic), (4, 1, 3));
+        // 53.5 mm is nearest 54, the truth's 50 is 50: not the exact size.
+        assert_eq!(get("a", StudyMethod::Icp).cup_exact_size, 0);
+        let worst = worst_meshes(&rows);
+        assert_eq!(worst[0], (StudyMethod::Srvf, "a".to_string(), 2.25));
+        // Companion: a run within both bounds is not catastrophic.
+        assert!(!catastrophic(&row(StudyMethod::Srvf, 1, 2.9, 54.9)));
+        assert!(catastrophic(&row(StudyMethod::Srvf, 1, 2.9, 55.1)));
+    }
+}
