@@ -404,3 +404,68 @@ fn simulate_with_every_run_failed_writes_nothing() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(dir.join("ok/runs.csv").exists());
 }
+
+/// A population sweep: two meshes in a folder, one study each in its own subfolder, the
+/// population table over both; run again, both are skipped (resumed) and the table is the same.
+#[test]
+fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
+    let dir = tmp("sweep");
+    let meshes = dir.join("meshes");
+    std::fs::create_dir_all(&meshes).unwrap();
+    let mut mesh = phantom(&PhantomParams::default()).mesh;
+    acetab::io::write_obj(&mesh, &meshes.join("big.obj")).unwrap();
+    for v in &mut mesh.vertices {
+        *v = nalgebra::Point3::from(v.coords * 0.9);
+    }
+    acetab::io::write_obj(&mesh, &meshes.join("small.obj")).unwrap();
+    let out = dir.join("pop");
+    let run = || {
+        bin()
+            .arg("simulate")
+            .args(ONE_RUN.split(' '))
+            .arg("--gt")
+            .arg(&meshes)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    let o = run();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    for m in ["big", "small"] {
+        assert!(out.join(m).join("runs.csv").is_file(), "{m}: {err}");
+    }
+    let table = std::fs::read_to_string(out.join("population.csv")).unwrap();
+    // Two meshes and the whole population, one method at one level.
+    assert_eq!(table.lines().count(), 1 + 3, "{table}");
+    assert!(table.lines().any(|l| l.starts_with("all,srvf,1,2,")), "{table}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("population.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["meshes"], 2);
+    assert!(out.join("population.png").is_file());
+    // Resumed: nothing is run again.
+    let o = run();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    assert_eq!(err.matches("done before, skipped").count(), 2, "{err}");
+    assert_eq!(std::fs::read_to_string(out.join("population.csv")).unwrap(), table);
+    // Companion: a folder with no mesh is refused.
+    let empty = dir.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let o = bin()
+        .arg("simulate")
+        .args(ONE_RUN.split(' '))
+        .args(["--gt"])
+        .arg(&empty)
+        .arg("--gt")
+        .arg(meshes.join("big.obj"))
+        .arg("--out")
+        .arg(dir.join("none"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("no .stl, .ply or .obj file"), "{err}");
+}

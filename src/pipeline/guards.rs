@@ -12,8 +12,10 @@ pub struct GuardParams {
     /// The cup's diameter must lie in this range, mm (default 30-80: every adult acetabulum
     /// and every cup catalogue).
     pub cup_range_mm: (f64, f64),
-    /// Largest share of triangles facing the sphere's centre (folded over; default 0.01; the
-    /// template has none; a good result 0.1 % at most, a folded one 2-55 %).
+    /// Largest share of triangles facing the sphere's centre (folded over; default 0.1: the
+    /// template has none, good results 0-0.1 %, the srvf sheets that caused the catastrophes
+    /// 49-55 %, while the baselines' usable results reach 3-9 % at a curled rim; smaller folds
+    /// that come with a bad fit are caught by the reprojection guard).
     pub max_folded: f64,
     /// With a limb sphere: the cup sphere's centre within this fraction of the limb radius of
     /// the limb centre, and its radius within this fraction of the limb radius (default 0.25).
@@ -27,7 +29,7 @@ impl Default for GuardParams {
     fn default() -> Self {
         GuardParams {
             cup_range_mm: (30.0, 80.0),
-            max_folded: 0.01,
+            max_folded: 0.1,
             max_limb_offset: 0.25,
             max_rms_px: 10.0,
         }
