@@ -439,7 +439,10 @@ fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
     let table = std::fs::read_to_string(out.join("population.csv")).unwrap();
     // Two meshes and the whole population, one method at one level.
     assert_eq!(table.lines().count(), 1 + 3, "{table}");
-    assert!(table.lines().any(|l| l.starts_with("all,srvf,1,2,")), "{table}");
+    assert!(
+        table.lines().any(|l| l.starts_with("all,srvf,1,2,")),
+        "{table}"
+    );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("population.json")).unwrap())
             .unwrap();
@@ -450,7 +453,10 @@ fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
     let err = String::from_utf8_lossy(&o.stderr).into_owned();
     assert!(o.status.success(), "{err}");
     assert_eq!(err.matches("done before, skipped").count(), 2, "{err}");
-    assert_eq!(std::fs::read_to_string(out.join("population.csv")).unwrap(), table);
+    assert_eq!(
+        std::fs::read_to_string(out.join("population.csv")).unwrap(),
+        table
+    );
     // Companion: a folder with no mesh is refused.
     let empty = dir.join("empty");
     std::fs::create_dir_all(&empty).unwrap();

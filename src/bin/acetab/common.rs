@@ -147,10 +147,12 @@ pub fn shard(s: &str) -> Result<(usize, usize), String> {
 
 pub fn print_summary(rows: &[acetab::study::Row]) {
     println!(
-        "{:<17} {:>5} {:>5} {:>9} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9}",
+        "{:<17} {:>5} {:>5} {:>6} {:>9} {:>9} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9}",
         "method",
         "level",
         "runs",
+        "failed",
+        "fallbacks",
         "MAE mm",
         "SD",
         "cup err mm",
@@ -161,10 +163,12 @@ pub fn print_summary(rows: &[acetab::study::Row]) {
     );
     for s in summarize(rows) {
         println!(
-            "{:<17} {:>5} {:>5} {:>9.3} {:>9.3} {:>+11.2} {:>6}/{:<2} {:>6}/{:<2} {:>9} {:>9.2}",
+            "{:<17} {:>5} {:>5} {:>6} {:>9} {:>9.3} {:>9.3} {:>+11.2} {:>6}/{:<2} {:>6}/{:<2} {:>9} {:>9.2}",
             s.method.name(),
             s.level,
             s.runs,
+            s.failed,
+            s.fallbacks,
             s.mae_mean,
             s.mae_sd,
             s.cup_error_mean,
