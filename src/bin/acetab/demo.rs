@@ -90,6 +90,11 @@ pub fn run(args: DemoArgs) -> Result<(), String> {
             report.log.gn_iterations,
             out.display()
         );
+        if let (Some(f), Some(g)) = (report.log.fallback, &report.log.guard) {
+            println!(
+                "  note: the method's own result was refused ({g}); this one is the {f} fallback's"
+            );
+        }
     }
     Ok(())
 }

@@ -86,6 +86,11 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
             report.cup.seed,
             out.display()
         );
+        if let (Some(f), Some(g)) = (report.log.fallback, &report.log.guard) {
+            println!(
+                "note: the method's own result was refused ({g}); this one is the {f} fallback's"
+            );
+        }
     }
     Ok(())
 }
