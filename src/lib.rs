@@ -11,11 +11,11 @@
 //! The usual entry points are re-exported here:
 //!
 //! ```no_run
-//! use acetab::{reconstruct, Kernels, ReconParams};
+//! use acetab::{reconstruct, Kernels, ReconParams, Template};
 //! # fn go(case: &acetab::case::Case) -> Result<(), acetab::ReconError> {
-//! let rec = reconstruct(&case.cameras, &case.observed, &case.init, &ReconParams::default())?;
+//! let template = Template::standard();
+//! let rec = reconstruct(&case.input(&template), &ReconParams::default(), Kernels::Cpu)?;
 //! println!("cup {:.1} mm -> {} mm", rec.sphere.diameter(), rec.cup.catalogue_mm);
-//! # let _ = Kernels::Cpu;
 //! # Ok(())
 //! # }
 //! ```
