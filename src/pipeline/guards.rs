@@ -70,11 +70,17 @@ pub enum GuardFailure {
         /// The limb sphere's radius, mm.
         limb_radius_mm: f64,
     },
-    /// The solve left the finite numbers.
-    #[error("{reason}")]
-    Diverged {
-        /// What was not finite.
-        reason: String,
+    /// A solve left a vertex NaN or infinite.
+    #[error("the solver diverged: vertex {vertex} is not finite")]
+    NonFiniteVertex {
+        /// The first such vertex.
+        vertex: usize,
+    },
+    /// A pose refinement left a view's correction NaN or infinite.
+    #[error("the solver diverged: the pose correction of view {view} is not finite")]
+    NonFinitePose {
+        /// The view.
+        view: usize,
     },
     /// The result ends far from its outlines.
     #[error("reprojection RMS {rms_px:.1} px is above {max_px:.0} px")]

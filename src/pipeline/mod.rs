@@ -234,11 +234,8 @@ pub fn reconstruct(
     let failure = match guarded(attempt(input, prm, kernels)) {
         Ok(rec) => return Ok(rec),
         Err(ReconError::Guard(f)) => f,
-        Err(e @ (ReconError::NonFiniteVertex { .. } | ReconError::NonFinitePose { .. })) => {
-            GuardFailure::Diverged {
-                reason: e.to_string(),
-            }
-        }
+        Err(ReconError::NonFiniteVertex { vertex }) => GuardFailure::NonFiniteVertex { vertex },
+        Err(ReconError::NonFinitePose { view }) => GuardFailure::NonFinitePose { view },
         Err(e) => return Err(e),
     };
     for fb in FALLBACKS {

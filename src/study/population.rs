@@ -103,26 +103,37 @@ pub fn population_rows(meshes: &[(String, Vec<Row>)]) -> Vec<PopulationRow> {
     out
 }
 
-/// Per method, the mesh with the highest mean MAE over its levels, and that MAE.
-pub fn worst_meshes(rows: &[PopulationRow]) -> Vec<(StudyMethod, String, f64)> {
+/// Per mesh (not "all"), in table order, the mean over its levels of `method`'s mean MAE.
+fn mesh_means(rows: &[PopulationRow], method: StudyMethod) -> Vec<(String, f64)> {
+    let mut out: Vec<(String, Vec<f64>)> = Vec::new();
+    for r in rows
+        .iter()
+        .filter(|r| r.method == method && r.mesh != "all")
+    {
+        match out.iter_mut().find(|(n, _)| *n == r.mesh) {
+            Some((_, v)) => v.push(r.mae_mean),
+            None => out.push((r.mesh.clone(), vec![r.mae_mean])),
+        }
+    }
+    out.into_iter()
+        .map(|(n, v)| (n, crate::geom::mean(&v)))
+        .collect()
+}
+
+/// The methods of the table, in order.
+fn methods_of(rows: &[PopulationRow]) -> Vec<StudyMethod> {
     let mut methods: Vec<StudyMethod> = rows.iter().map(|r| r.method).collect();
     methods.sort();
     methods.dedup();
     methods
+}
+
+/// Per method, the mesh with the highest mean MAE over its levels, and that MAE.
+pub fn worst_meshes(rows: &[PopulationRow]) -> Vec<(StudyMethod, String, f64)> {
+    methods_of(rows)
         .into_iter()
         .filter_map(|m| {
-            let mut per_mesh: Vec<(String, f64)> = Vec::new();
-            for r in rows.iter().filter(|r| r.method == m && r.mesh != "all") {
-                let v: Vec<f64> = rows
-                    .iter()
-                    .filter(|x| x.method == m && x.mesh == r.mesh)
-                    .map(|x| x.mae_mean)
-                    .collect();
-                if !per_mesh.iter().any(|(n, _)| *n == r.mesh) {
-                    per_mesh.push((r.mesh.clone(), crate::geom::mean(&v)));
-                }
-            }
-            per_mesh
+            mesh_means(rows, m)
                 .into_iter()
                 .max_by(|a, b| a.1.total_cmp(&b.1))
                 .map(|(n, v)| (m, n, v))
@@ -161,23 +172,14 @@ pub fn write_population(
     {
         let p = dir.join("population.png");
         let names: Vec<String> = meshes.iter().map(|(n, _)| n.clone()).collect();
-        let mut methods: Vec<StudyMethod> = rows.iter().map(|r| r.method).collect();
-        methods.sort();
-        methods.dedup();
-        // Per method, each mesh's MAE averaged over its levels.
-        let series: Vec<(String, Vec<f64>)> = methods
-            .iter()
-            .map(|&m| {
+        // Per method, each mesh's MAE averaged over its levels (NaN where it has none).
+        let series: Vec<(String, Vec<f64>)> = methods_of(&rows)
+            .into_iter()
+            .map(|m| {
+                let means = mesh_means(&rows, m);
                 let v = names
                     .iter()
-                    .map(|n| {
-                        let x: Vec<f64> = rows
-                            .iter()
-                            .filter(|r| r.method == m && &r.mesh == n)
-                            .map(|r| r.mae_mean)
-                            .collect();
-                        crate::geom::mean(&x)
-                    })
+                    .map(|n| means.iter().find(|(x, _)| x == n).map_or(f64::NAN, |p| p.1))
                     .collect();
                 (m.name().to_string(), v)
             })

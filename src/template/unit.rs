@@ -113,11 +113,10 @@ impl Template {
                 max: MAX_TEMPLATE_VERTICES,
             });
         }
-        let unit = fit_sphere_robust(&mesh.vertices)
-            .ok()
-            .filter(|s| s.center_point().coords.norm() <= 0.25 && (s.radius - 1.0).abs() <= 0.25);
+        let s = fit_sphere_robust(&mesh.vertices).ok();
+        let unit =
+            s.filter(|s| s.center_point().coords.norm() <= 0.25 && (s.radius - 1.0).abs() <= 0.25);
         if unit.is_none() {
-            let s = fit_sphere_robust(&mesh.vertices).ok();
             return Err(TemplateError::NotUnit {
                 center: s.map_or([f64::NAN; 3], |s| s.center),
                 radius: s.map_or(f64::NAN, |s| s.radius),

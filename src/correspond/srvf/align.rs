@@ -45,7 +45,8 @@ pub struct SrvfParams {
 }
 
 impl SrvfParams {
-    /// `theta` wrapped to (-pi, pi] and held within `max_rotation`.
+    /// With `max_rotation`, `theta` wrapped to (-pi, pi] and held within it; without, `theta`
+    /// as it is.
     pub fn bounded(&self, theta: f64) -> f64 {
         let pi = std::f64::consts::PI;
         let t = theta - 2.0 * pi * ((theta + pi) / (2.0 * pi)).floor();
@@ -123,10 +124,10 @@ pub enum SrvfError {
         /// The first such point.
         index: usize,
     },
+    /// A curve whose length overflows f64.
     #[error(
         "curve {curve} is too large to measure (its length overflows; rescale the coordinates)"
     )]
-    /// A curve whose length overflows f64.
     Overflow {
         /// Which curve.
         curve: &'static str,
@@ -153,7 +154,7 @@ pub struct Alignment {
     pub b_arclength: Vec<f64>,
     /// For each A sample, the matched point on B and its fractional vertex index in B.
     pub b_points: Vec<Point2<f64>>,
-    /// Per sample of A, the matched position along B (fractional sample index).
+    /// For each A sample, its matched point's fractional vertex index in B.
     pub b_index: Vec<f64>,
     /// Partial matches only: whether A was reversed to run the same way as B.
     pub reversed: bool,
