@@ -262,6 +262,27 @@ fn align_reports_a_rotation_and_rejects_a_bad_file() {
         err.contains("--samples 100000000: must be 8 to 50000"),
         "{err}"
     );
+    // A negative position weight is a usage error naming it; a positive one aligns.
+    let o = bin()
+        .arg("align")
+        .arg(dir.join("a.csv"))
+        .arg(dir.join("b.csv"))
+        .arg("--anchor=-1")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("--anchor") && err.contains("-1"), "{err}");
+    let o = bin()
+        .arg("align")
+        .arg(dir.join("a.csv"))
+        .arg(dir.join("a.csv"))
+        .args(["--json", "--samples", "120", "--anchor", "3"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["distance"].as_f64().unwrap() < 0.02, "{}", v["distance"]);
 }
 
 /// A ground truth in the wrong units (the phantom in centimetres) runs but is warned about; the

@@ -130,8 +130,8 @@ pub struct SolveLog {
     /// The orientations stage B compared (none when stage A's was the only one), with their
     /// reprojection RMS after `deformation.orientation_rounds`; the lowest went on.
     pub orientations: Vec<OrientationTrial>,
-    /// The fallback that gave this result ("rigid" or "icp-normvec"; see `Fallback`), when the
-    /// method as asked for did not pass the guards; None when it did.
+    /// The fallback that gave this result ("srvf-shape", "icp-normvec" or "rigid"; see
+    /// `Fallback`), when the method as asked for did not pass the guards; None when it did.
     pub fallback: Option<&'static str>,
     /// What the method as asked for failed, when a fallback was taken.
     pub guard: Option<GuardFailure>,
@@ -255,19 +255,26 @@ pub enum Fallback {
     /// The same correspondences with a ten times stiffer graph (w_rot and w_reg x 10): a result
     /// that followed bad correspondences into a fold or a sheet cannot follow them as far.
     Rigid,
-    /// ICP-NormVec correspondences from the same start (for SRVF only; the baselines keep
-    /// their own): closest points with a normal test cannot pull a vertex across the outline.
+    /// SRVF correspondences without the position term (`SrvfParams::anchor` = 0; for SRVF with
+    /// it): the term assumes the model contour starts near its outline, and from a start far
+    /// off it pairs points that are near but do not correspond, where the shape distance alone
+    /// still finds the right ones.
+    ShapeOnly,
+    /// ICP-NormVec correspondences from the same start (for SRVF and plain ICP; ICP-NormVec
+    /// itself goes on to `Rigid`): closest points with a normal test cannot pull a vertex
+    /// across the outline. A baseline that borrows it is only made harder to beat.
     IcpNormvec,
 }
 
 /// The fallbacks, in the order they are tried.
-pub const FALLBACKS: [Fallback; 2] = [Fallback::IcpNormvec, Fallback::Rigid];
+pub const FALLBACKS: [Fallback; 3] = [Fallback::ShapeOnly, Fallback::IcpNormvec, Fallback::Rigid];
 
 impl Fallback {
     /// Its name in logs and tables.
     pub fn name(self) -> &'static str {
         match self {
             Fallback::Rigid => "rigid",
+            Fallback::ShapeOnly => "srvf-shape",
             Fallback::IcpNormvec => "icp-normvec",
         }
     }
@@ -280,8 +287,16 @@ impl Fallback {
                 p.weights.rot *= 10.0;
                 p.weights.reg *= 10.0;
             }
+            Fallback::ShapeOnly => {
+                if prm.method != crate::correspond::Method::Srvf
+                    || prm.correspond.srvf.anchor <= 0.0
+                {
+                    return None;
+                }
+                p.correspond.srvf.anchor = 0.0;
+            }
             Fallback::IcpNormvec => {
-                if prm.method != crate::correspond::Method::Srvf {
+                if prm.method == crate::correspond::Method::IcpNormvec {
                     return None;
                 }
                 p.method = crate::correspond::Method::IcpNormvec;
@@ -289,6 +304,16 @@ impl Fallback {
         }
         Some(p)
     }
+}
+
+/// The settings `rec` was solved with: `prm`, or the fallback's settings when its log names one
+/// (what its resamples must be solved with too; see `cup_report`).
+pub fn params_used(rec: &Reconstruction, prm: &ReconParams) -> ReconParams {
+    FALLBACKS
+        .iter()
+        .find(|f| rec.log.fallback == Some(f.name()))
+        .and_then(|f| f.params(prm))
+        .unwrap_or_else(|| prm.clone())
 }
 
 /// One pass of the method, unguarded.
@@ -637,10 +662,22 @@ mod tests {
             (rigid.weights.rot, rigid.weights.reg),
             (10.0 * p.weights.rot, 10.0 * p.weights.reg)
         );
-        let baseline = ReconParams {
+        let shape = Fallback::ShapeOnly.params(&p).unwrap();
+        assert_eq!(shape.correspond.srvf.anchor, 0.0);
+        assert_eq!(shape.method, crate::correspond::Method::Srvf);
+        assert!(p.correspond.srvf.anchor > 0.0);
+        assert!(Fallback::ShapeOnly.params(&shape).is_none());
+        let icp_baseline = ReconParams {
             method: crate::correspond::Method::Icp,
             ..Default::default()
         };
-        assert!(Fallback::IcpNormvec.params(&baseline).is_none());
+        let borrowed = Fallback::IcpNormvec.params(&icp_baseline).unwrap();
+        assert_eq!(borrowed.method, crate::correspond::Method::IcpNormvec);
+        let normvec_baseline = ReconParams {
+            method: crate::correspond::Method::IcpNormvec,
+            ..Default::default()
+        };
+        assert!(Fallback::IcpNormvec.params(&normvec_baseline).is_none());
+        assert!(Fallback::ShapeOnly.params(&icp_baseline).is_none());
     }
 }

@@ -171,10 +171,12 @@ pub fn cup_report(
     kernels: Kernels,
     up: &UncertaintyParams,
 ) -> Result<CupReport, ReconError> {
+    // The resamples are solved as the result was: with the fallback's settings when one gave it.
+    let used = super::params_used(rec, prm);
     let ctx = Ctx {
         cams: &rec.cameras,
         observed,
-        prm,
+        prm: &used,
         kernels,
     };
     // The same estimator as the reported cup (`Reconstruction::sphere`).
@@ -266,10 +268,11 @@ mod tests {
         assert!(!stands_among(report.diameter_mm, &shifted));
         // The resamples are the cup estimator's: re-drawn through it they are the same numbers,
         // and through the whole surface's sphere (the old bug) they are not.
+        let used = crate::pipeline::params_used(&rec, &prm);
         let ctx = Ctx {
             cams: &rec.cameras,
             observed: &case.observed,
-            prm: &prm,
+            prm: &used,
             kernels: Kernels::Cpu,
         };
         let cup = |m: &crate::geom::Mesh, o: &[Observation]| Ok(cup_spheres(m, o)?.cup.diameter());

@@ -54,8 +54,8 @@ pub struct Row {
     pub seconds: f64,
     /// Why the run failed (empty when it did not).
     pub error: String,
-    /// The fallback that gave the result when the method's own failed a guard ("rigid",
-    /// "icp-normvec"), or empty.
+    /// The fallback that gave the result when the method's own failed a guard ("srvf-shape",
+    /// "icp-normvec", "rigid"), or empty.
     #[serde(default)]
     pub fallback: String,
 }

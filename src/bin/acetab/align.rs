@@ -20,8 +20,22 @@ pub struct AlignArgs {
     /// Arc-length samples per curve.
     #[arg(long, default_value_t = 200)]
     pub samples: usize,
+    /// Weight of the position term (0: the elastic shape distance alone). For two curves drawn
+    /// in one frame, w > 0 also pairs nearby points (see SrvfParams::anchor; the
+    /// reconstruction uses 3).
+    #[arg(long, default_value_t = 0.0, value_parser = non_negative)]
+    pub anchor: f64,
+    /// Print the result as JSON.
     #[arg(long)]
     pub json: bool,
+}
+
+/// A finite weight >= 0.
+fn non_negative(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!("{s}: must be a finite number >= 0")),
+    }
 }
 
 pub fn run(args: AlignArgs) -> Result<(), String> {
@@ -32,6 +46,7 @@ pub fn run(args: AlignArgs) -> Result<(), String> {
         open,
         partial,
         samples,
+        anchor,
         json,
     } = args;
     let kind = if open {
@@ -50,6 +65,7 @@ pub fn run(args: AlignArgs) -> Result<(), String> {
     let cb = read_curve_csv(&b).map_err(|e| e.to_string())?;
     let prm = SrvfParams {
         samples,
+        anchor,
         ..Default::default()
     };
     let t = std::time::Instant::now();

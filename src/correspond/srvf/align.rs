@@ -4,7 +4,9 @@
 //! falling.
 
 use super::curve::{best_rotation, dist2, rotate, srvf};
-use super::dp::{coprime_steps, dp_warp, dp_warp_fast, dp_warp_near, Warp};
+use super::dp::{
+    coprime_steps, dp_warp_anchored, dp_warp_fast, dp_warp_near, Anchor, CurvePair, Warp,
+};
 use crate::geom::{polyline_length, resample_closed, resample_open, ClosedPolyline};
 use nalgebra::{Point2, Vector2};
 
@@ -42,6 +44,13 @@ pub struct SrvfParams {
     /// nearly round or elliptical outline match itself turned by up to 180 degrees, and every
     /// correspondence then pulls its vertex across the outline (see `CorrespondParams`).
     pub max_rotation: Option<f64>,
+    /// Weight of the position term (default 0: the elastic shape distance alone). Curves drawn
+    /// in one frame also tell where each point is: with a weight w > 0 the warp and seed also
+    /// pay w |a(t) - b(gamma(t))|^2 per sample, positions in units of B's RMS radius about its
+    /// centroid, so that of two warps that match the shapes about as well the one pairing
+    /// nearby points wins (a dent in A is then met by the part of B beside it, not by a part
+    /// of similar shape further round). `distance` stays the shape distance alone.
+    pub anchor: f64,
 }
 
 impl SrvfParams {
@@ -80,6 +89,7 @@ impl Default for SrvfParams {
             rel_tol: 1e-4,
             band: 6,
             max_rotation: None,
+            anchor: 0.0,
         }
     }
 }
@@ -189,15 +199,17 @@ fn rotate_and_warp(
     prm: &SrvfParams,
     steps: &[(usize, usize)],
     hint: Option<&[(usize, usize)]>,
+    anchor: Option<Anchor>,
 ) -> (f64, Warp) {
     let mut theta = prm.bounded(theta);
+    let anchor = anchor.filter(|a| a.weight > 0.0);
     let dp = |q: &[Vector2<f64>], near: Option<&[(usize, usize)]>| {
         if prm.band == 0 {
-            dp_warp(q1, q, steps)
+            dp_warp_anchored(q1, q, steps, anchor)
         } else if let Some(path) = near {
-            dp_warp_near(q1, q, steps, path, prm.band)
+            dp_warp_near(q1, q, steps, path, prm.band, anchor)
         } else {
-            dp_warp_fast(q1, q, steps, prm.band)
+            dp_warp_fast(q1, q, steps, prm.band, anchor)
         }
     };
     let mut w = dp(&rotate(q2, theta), hint);
@@ -216,9 +228,10 @@ fn rotate_and_warp(
             energy = w2.energy;
             w = w2;
         } else {
-            // Keep the rotation refinement alone if it helps without a new warp.
+            // Keep the rotation refinement alone if it helps without a new warp (the position
+            // term does not depend on the rotation).
             let rotated = rotate(&w.warped, d);
-            let e = dist2(q1, &rotated);
+            let e = dist2(q1, &rotated) + (w.energy - dist2(q1, &w.warped));
             if e < energy {
                 theta = next_theta;
                 w.warped = rotated;
@@ -231,8 +244,14 @@ fn rotate_and_warp(
 }
 
 /// Rotation-only energy of every cyclic shift of q2 against q1 and its rotation, within
-/// `prm.max_rotation` (exact, O(T^2)).
-fn shift_energies(q1: &[Vector2<f64>], q2: &[Vector2<f64>], prm: &SrvfParams) -> Vec<(f64, f64)> {
+/// `prm.max_rotation` (exact, O(T^2)); with positions (A's and B's samples in the anchor frame),
+/// plus the position term of pairing A's sample i with B's i + s.
+fn shift_energies(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    prm: &SrvfParams,
+    positions: Option<CurvePair>,
+) -> Vec<(f64, f64)> {
     let t = q1.len();
     (0..t)
         .map(|s| {
@@ -243,9 +262,39 @@ fn shift_energies(q1: &[Vector2<f64>], q2: &[Vector2<f64>], prm: &SrvfParams) ->
                 sn += b.x * a.y - b.y * a.x;
             }
             // Unit-norm SRVFs: ||q1 - O q2||^2 = 2 - 2 <q1, O q2>.
-            prm.best_bounded(c, sn, t)
+            let (mut e, theta) = prm.best_bounded(c, sn, t);
+            if let Some((pa, pb)) = positions {
+                let d: f64 = (0..t)
+                    .map(|i| (pa[i] - pb[(i + s) % t]).norm_squared())
+                    .sum();
+                e += prm.anchor * d / t as f64;
+            }
+            (e, theta)
         })
         .collect()
+}
+
+/// Where the position term measures: about B's centroid, in units of B's RMS radius about it.
+#[derive(Clone, Copy)]
+struct AnchorFrame {
+    origin: Point2<f64>,
+    unit: f64,
+}
+
+impl AnchorFrame {
+    fn of(b: &[Point2<f64>]) -> AnchorFrame {
+        let n = b.len().max(1) as f64;
+        let origin = Point2::from(b.iter().map(|p| p.coords).sum::<Vector2<f64>>() / n);
+        let rms = (b.iter().map(|p| (p - origin).norm_squared()).sum::<f64>() / n).sqrt();
+        AnchorFrame {
+            origin,
+            unit: if rms > 0.0 { rms } else { 1.0 },
+        }
+    }
+
+    fn map(&self, p: &[Point2<f64>]) -> Vec<Vector2<f64>> {
+        p.iter().map(|q| (q - self.origin) / self.unit).collect()
+    }
 }
 
 fn closed_grid(q: &[Vector2<f64>], shift: usize) -> Vec<Vector2<f64>> {
@@ -311,13 +360,17 @@ pub fn align_closed(
         q2,
         steps,
     } = Resampled::new(a, b, prm, true)?;
-    let energies = shift_energies(&q1, &q2, prm);
+    let anchored = prm.anchor > 0.0;
+    let frame = AnchorFrame::of(&rb);
+    let (pa, pb) = (frame.map(&ra), frame.map(&rb));
+    let energies = shift_energies(&q1, &q2, prm, anchored.then_some((&pa[..], &pb[..])));
     let mut order: Vec<usize> = (0..t).collect();
     order.sort_by(|&x, &y| energies[x].0.total_cmp(&energies[y].0));
     if !exhaustive {
         order = pick_distinct_seeds(&order, t, prm.seed_candidates.max(1));
     }
     let q1g = closed_grid(&q1, 0);
+    let pag = closed_grid(&pa, 0);
     let mut best: Option<(f64, usize, f64, Warp)> = None;
     // Refine seed s with full DP (under `p`); `near`: search a band around the best path so far,
     // since a neighbouring seed shifts the optimal path by one cell.
@@ -328,6 +381,7 @@ pub fn align_closed(
             } else {
                 None
             };
+            let pbg = closed_grid(&pb, s);
             let (theta, w) = rotate_and_warp(
                 &q1g,
                 &closed_grid(&q2, s),
@@ -335,6 +389,11 @@ pub fn align_closed(
                 p,
                 &steps,
                 hint.as_deref(),
+                Some(Anchor {
+                    a: &pag,
+                    b: &pbg,
+                    weight: p.anchor,
+                }),
             );
             if best.as_ref().is_none_or(|b| w.energy < b.0) {
                 *best = Some((w.energy, s, theta, w));
@@ -358,12 +417,27 @@ pub fn align_closed(
         };
         let (ca, _) = resample_closed(&ra, tc);
         let cq1 = closed_grid(&srvf(&ca, true), 0);
+        let cpa = closed_grid(&frame.map(&ca), 0);
         let mut ranked: Vec<(f64, usize)> = order
             .iter()
             .map(|&s| {
                 let (cb, _) = resample_closed(&rotate_list(&rb, s), tc);
                 let cq2 = closed_grid(&srvf(&cb, true), 0);
-                let (_, w) = rotate_and_warp(&cq1, &cq2, energies[s].1, &coarse_prm, &steps, None);
+                let cpb = closed_grid(&frame.map(&cb), 0);
+                let anchor = Anchor {
+                    a: &cpa,
+                    b: &cpb,
+                    weight: prm.anchor,
+                };
+                let (_, w) = rotate_and_warp(
+                    &cq1,
+                    &cq2,
+                    energies[s].1,
+                    &coarse_prm,
+                    &steps,
+                    None,
+                    Some(anchor),
+                );
                 (w.energy, s)
             })
             .collect();
@@ -383,7 +457,9 @@ pub fn align_closed(
             }
         }
     }
-    let (energy, seed, theta, w) = best.expect("at least one seed is tried");
+    let (_, seed, theta, w) = best.expect("at least one seed is tried");
+    // The shape distance alone (the position term only chose among warps).
+    let energy = dist2(&q1g, &w.warped);
     let poly = ClosedPolyline::new(b);
     let mut b_arclength = Vec::with_capacity(t);
     let (mut b_points, mut b_index) = (Vec::with_capacity(t), Vec::with_capacity(t));
@@ -437,12 +513,32 @@ pub fn align_open(
     prm: &SrvfParams,
 ) -> Result<Alignment, SrvfError> {
     let Resampled {
-        ra, q1, q2, steps, ..
+        ra,
+        rb,
+        q1,
+        q2,
+        steps,
+        ..
     } = Resampled::new(a, b, prm, false)?;
-    let (theta, w) = rotate_and_warp(&q1, &q2, best_rotation(&q1, &q2), prm, &steps, None);
+    let frame = AnchorFrame::of(&rb);
+    let (pa, pb) = (frame.map(&ra), frame.map(&rb));
+    let anchor = Anchor {
+        a: &pa,
+        b: &pb,
+        weight: prm.anchor,
+    };
+    let (theta, w) = rotate_and_warp(
+        &q1,
+        &q2,
+        best_rotation(&q1, &q2),
+        prm,
+        &steps,
+        None,
+        Some(anchor),
+    );
     let total = polyline_length(b, false);
     let mut out = Alignment {
-        distance: w.energy.max(0.0).sqrt(),
+        distance: dist2(&q1, &w.warped).max(0.0).sqrt(),
         rotation: theta,
         seed: 0,
         gamma: w.gamma.clone(),
@@ -553,6 +649,9 @@ pub fn align_partial(
         let q = srvf(&ra, false);
         (ra, q)
     };
+    let frame = AnchorFrame::of(b);
+    // A's positions in the anchor frame, by direction and sample count.
+    let arc_pos = |reversed: bool, t: usize| frame.map(&arc_q(reversed, t).0);
     // (energy, reversed, start fraction, length fraction)
     let mut cands: Vec<(f64, bool, f64, f64)> = Vec::new();
     let rank_t = prm.samples.min(32);
@@ -561,6 +660,11 @@ pub fn align_partial(
         arc_q(true, coarse.samples).1,
     ];
     let rank_q1 = [arc_q(false, rank_t).1, arc_q(true, rank_t).1];
+    let coarse_pa = [
+        arc_pos(false, coarse.samples),
+        arc_pos(true, coarse.samples),
+    ];
+    let rank_pa = [arc_pos(false, rank_t), arc_pos(true, rank_t)];
     for (d, q1) in rank_q1.iter().enumerate() {
         for k in 0..starts {
             let start = k as f64 / starts as f64;
@@ -589,15 +693,28 @@ pub fn align_partial(
         }
     }
     let eval = |q1: &[Vector2<f64>],
+                pa: &[Vector2<f64>],
                 p: &SrvfParams,
                 start: f64,
                 len: f64,
                 hint: Option<&[(usize, usize)]>| {
-        let q2 = srvf(
-            &sub_arc(&poly, start * poly.total, len * poly.total, q1.len()),
-            false,
-        );
-        rotate_and_warp(q1, &q2, best_rotation(q1, &q2), p, &steps, hint)
+        let arc = sub_arc(&poly, start * poly.total, len * poly.total, q1.len());
+        let q2 = srvf(&arc, false);
+        let pb = frame.map(&arc);
+        let anchor = Anchor {
+            a: pa,
+            b: &pb,
+            weight: p.anchor,
+        };
+        rotate_and_warp(
+            q1,
+            &q2,
+            best_rotation(q1, &q2),
+            p,
+            &steps,
+            hint,
+            Some(anchor),
+        )
     };
     // The candidates are told apart by a DP at the ranking resolution; the winner is polished at
     // the (finer) coarse resolution.
@@ -607,14 +724,16 @@ pub fn align_partial(
     };
     let mut best: Option<(f64, bool, f64, f64)> = None;
     for &(rev, start, len) in &picked {
-        let (_, w) = eval(&rank_q1[usize::from(rev)], &rank_prm, start, len, None);
+        let d = usize::from(rev);
+        let (_, w) = eval(&rank_q1[d], &rank_pa[d], &rank_prm, start, len, None);
         if best.as_ref().is_none_or(|b| w.energy < b.0) {
             best = Some((w.energy, rev, start, len));
         }
     }
     let (_, reversed, mut start, mut len) = best.expect("candidates are never empty");
     let q1c = &coarse_q1[usize::from(reversed)];
-    let (_, w) = eval(q1c, &coarse, start, len, None);
+    let pac = &coarse_pa[usize::from(reversed)];
+    let (_, w) = eval(q1c, pac, &coarse, start, len, None);
     let (mut energy, mut path) = (w.energy, w.path);
     // Pattern search: move while a move helps, else halve the steps (at most 24 evaluations).
     let (mut step_s, mut step_l) = (0.5 / starts as f64, 0.05 * len);
@@ -624,7 +743,7 @@ pub fn align_partial(
         for (ds, dl) in [(-step_s, 0.0), (step_s, 0.0), (0.0, -step_l), (0.0, step_l)] {
             let l2 = (len + dl).clamp(0.02, 0.99);
             // A small move of the sub-arc moves the warp path little: search near it.
-            let (_, w) = eval(q1c, &coarse, start + ds, l2, Some(&path));
+            let (_, w) = eval(q1c, pac, &coarse, start + ds, l2, Some(&path));
             evals += 1;
             if w.energy < energy {
                 (energy, start, len, path) = (w.energy, start + ds, l2, w.path);
@@ -638,10 +757,10 @@ pub fn align_partial(
     }
     let t = prm.samples;
     let (ra, q1) = arc_q(reversed, t);
-    let (theta, w) = eval(&q1, prm, start, len, None);
+    let (theta, w) = eval(&q1, &frame.map(&ra), prm, start, len, None);
     let (start, len) = (start * poly.total, len * poly.total);
     let mut out = Alignment {
-        distance: w.energy.max(0.0).sqrt(),
+        distance: dist2(&q1, &w.warped).max(0.0).sqrt(),
         rotation: theta,
         seed: ((start.rem_euclid(poly.total) / poly.total) * t as f64).round() as usize % t,
         gamma: w.gamma.clone(),

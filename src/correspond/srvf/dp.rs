@@ -8,6 +8,36 @@ use nalgebra::Vector2;
 /// Two SRVFs to align, sampled alike: (q1, q2).
 pub type CurvePair<'a> = (&'a [Vector2<f64>], &'a [Vector2<f64>]);
 
+/// The position term of a DP between curves drawn in one frame: both curves' arc-length samples
+/// on the same grids as their SRVFs (in units of a length scale), and its weight. A piece of the
+/// warp then costs, besides the SRVF difference, `weight * |a(t) - b(gamma(t))|^2` per sample:
+/// of two warps that match the shapes alike, the one that pairs nearby points wins.
+#[derive(Clone, Copy, Debug)]
+pub struct Anchor<'a> {
+    /// Curve A's samples (q1's grid).
+    pub a: &'a [Vector2<f64>],
+    /// Curve B's samples (q2's grid).
+    pub b: &'a [Vector2<f64>],
+    /// The weight (0: the SRVF energy alone).
+    pub weight: f64,
+}
+
+impl Anchor<'_> {
+    /// The position energy of a warp given at A's samples in B's sample units (mean over
+    /// samples, times the weight).
+    pub fn energy(&self, gamma_samples: &[f64]) -> f64 {
+        let n = self.a.len().max(1) as f64;
+        self.weight
+            * self
+                .a
+                .iter()
+                .zip(gamma_samples)
+                .map(|(a, &y)| (a - interp(self.b, y)).norm_squared())
+                .sum::<f64>()
+            / n
+    }
+}
+
 /// The coprime step set for neighbourhood size `n` (n = 1 gives only the diagonal).
 pub fn coprime_steps(n: usize) -> Vec<(usize, usize)> {
     fn gcd(a: usize, b: usize) -> usize {
@@ -79,9 +109,19 @@ pub struct Warp {
 
 /// Optimal warp of q2 onto q1 (equal lengths, at least 2 samples) by DP over the coprime steps.
 pub fn dp_warp(q1: &[Vector2<f64>], q2: &[Vector2<f64>], steps: &[(usize, usize)]) -> Warp {
+    dp_warp_anchored(q1, q2, steps, None)
+}
+
+/// `dp_warp` with a position term (see `Anchor`); its energy includes the term.
+pub fn dp_warp_anchored(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    steps: &[(usize, usize)],
+    anchor: Option<Anchor>,
+) -> Warp {
     let n = q1.len();
     let band = vec![(1usize, n - 1); n];
-    dp_in_band(q1, q2, steps, &band)
+    dp_in_band(q1, q2, steps, &band, anchor)
 }
 
 /// One coprime step (a, b) prepared for the inner loop: sqrt of its slope and, for each of the
@@ -121,6 +161,7 @@ fn dp_in_band(
     q2: &[Vector2<f64>],
     steps: &[(usize, usize)],
     band: &[(usize, usize)],
+    anchor: Option<Anchor>,
 ) -> Warp {
     let n = q1.len();
     debug_assert_eq!(n, q2.len());
@@ -170,6 +211,28 @@ fn dp_in_band(
             v
         })
         .collect();
+    // B's positions at the same taps (not scaled: the position term ignores the slope).
+    let weight = anchor.map_or(0.0, |a| a.weight);
+    let (pa, placed): (Vec<Vector2<f64>>, Vec<Vec<Vector2<f64>>>) = match anchor {
+        Some(an) if weight > 0.0 => (
+            an.a.to_vec(),
+            prepared
+                .iter()
+                .map(|st| {
+                    let cols = n.saturating_sub(st.b);
+                    let mut v = Vec::with_capacity(st.taps.len() * cols);
+                    for &(off, u) in &st.taps {
+                        for l in 0..cols {
+                            let p = l + off;
+                            v.push(an.b[p] + (an.b[(p + 1).min(n - 1)] - an.b[p]) * u);
+                        }
+                    }
+                    v
+                })
+                .collect(),
+        ),
+        _ => (Vec::new(), Vec::new()),
+    };
     for i in 1..n {
         for j in lo[i]..=hi[i] {
             let mut best = f64::INFINITY;
@@ -194,6 +257,14 @@ fn dp_in_band(
                     let dx = x1[k + r] - qx;
                     let dy = y1[k + r] - qy;
                     c += dx * dx + dy * dy;
+                }
+                if weight > 0.0 {
+                    let pl = &placed[si];
+                    let mut e = 0.0;
+                    for r in 0..st.a {
+                        e += (pa[k + r] - pl[r * cols + l]).norm_squared();
+                    }
+                    c += weight * e;
                 }
                 let c = prev + c;
                 if c < best {
@@ -225,10 +296,16 @@ fn dp_in_band(
     if path.last() != Some(&(0, 0)) {
         // The band cut every path (cannot happen with bands built from a path); fall back to
         // the full grid rather than return a broken warp.
-        return dp_warp(q1, q2, steps);
+        return dp_warp_anchored(q1, q2, steps, anchor);
     }
     path.reverse();
-    warp_from_path(q1, q2, &path)
+    let mut w = warp_from_path(q1, q2, &path);
+    if let Some(an) = anchor.filter(|a| a.weight > 0.0) {
+        let scale = (n - 1).max(1) as f64;
+        let samples: Vec<f64> = w.gamma.iter().map(|g| g * scale).collect();
+        w.energy += an.energy(&samples);
+    }
+    w
 }
 
 /// Grids up to this size are solved exactly by `dp_warp_fast`.
@@ -270,17 +347,31 @@ pub fn dp_warp_fast(
     q2: &[Vector2<f64>],
     steps: &[(usize, usize)],
     halfwidth: usize,
+    anchor: Option<Anchor>,
 ) -> Warp {
     let n = q1.len();
     if n <= EXACT_DP_MAX {
-        return dp_warp(q1, q2, steps);
+        return dp_warp_anchored(q1, q2, steps, anchor);
     }
     let m = n.div_ceil(2) + usize::from(n.is_multiple_of(2));
     let fine = |c: usize| (2 * c).min(n - 1);
-    let c1: Vec<Vector2<f64>> = (0..m).map(|c| q1[fine(c)]).collect();
-    let c2: Vec<Vector2<f64>> = (0..m).map(|c| q2[fine(c)]).collect();
-    let coarse = dp_warp_fast(&c1, &c2, steps, halfwidth);
-    dp_in_band(q1, q2, steps, &band_around(&coarse.path, 2, n, halfwidth))
+    let every_other =
+        |q: &[Vector2<f64>]| -> Vec<Vector2<f64>> { (0..m).map(|c| q[fine(c)]).collect() };
+    let (c1, c2) = (every_other(q1), every_other(q2));
+    let coarse_pos = anchor.map(|a| (every_other(a.a), every_other(a.b), a.weight));
+    let coarse_anchor = coarse_pos.as_ref().map(|(a, b, weight)| Anchor {
+        a,
+        b,
+        weight: *weight,
+    });
+    let coarse = dp_warp_fast(&c1, &c2, steps, halfwidth, coarse_anchor);
+    dp_in_band(
+        q1,
+        q2,
+        steps,
+        &band_around(&coarse.path, 2, n, halfwidth),
+        anchor,
+    )
 }
 
 /// DP in a band of +-`halfwidth` cells around `hint`, a path on the same grid (the previous
@@ -291,12 +382,13 @@ pub fn dp_warp_near(
     steps: &[(usize, usize)],
     hint: &[(usize, usize)],
     halfwidth: usize,
+    anchor: Option<Anchor>,
 ) -> Warp {
     let n = q1.len();
     if n <= 24 || hint.len() < 2 {
-        return dp_warp(q1, q2, steps);
+        return dp_warp_anchored(q1, q2, steps, anchor);
     }
-    dp_in_band(q1, q2, steps, &band_around(hint, 1, n, halfwidth))
+    dp_in_band(q1, q2, steps, &band_around(hint, 1, n, halfwidth), anchor)
 }
 
 /// Follow back-pointers from (n-1, n-1) to (0, 0).
@@ -358,14 +450,23 @@ mod tests {
 
     /// Every monotone path through the step set, by exhaustive recursion (tiny grids only).
     fn brute(q1: &[Vector2<f64>], q2: &[Vector2<f64>], steps: &[(usize, usize)]) -> f64 {
+        brute_with(q1.len(), steps, &|k, l, i, j| edge_cost(q1, q2, k, l, i, j))
+    }
+
+    /// The cheapest monotone path from (0, 0) to (n-1, n-1) under `edge`, by exhaustive
+    /// recursion.
+    fn brute_with(
+        n: usize,
+        steps: &[(usize, usize)],
+        edge: &dyn Fn(usize, usize, usize, usize) -> f64,
+    ) -> f64 {
         fn go(
-            q1: &[Vector2<f64>],
-            q2: &[Vector2<f64>],
+            n: usize,
             steps: &[(usize, usize)],
+            edge: &dyn Fn(usize, usize, usize, usize) -> f64,
             at: (usize, usize),
             acc: f64,
         ) -> f64 {
-            let n = q1.len();
             if at == (n - 1, n - 1) {
                 return acc;
             }
@@ -373,18 +474,86 @@ mod tests {
             for &(a, b) in steps {
                 let (i, j) = (at.0 + a, at.1 + b);
                 if i < n && j < n {
-                    best = best.min(go(
-                        q1,
-                        q2,
-                        steps,
-                        (i, j),
-                        acc + edge_cost(q1, q2, at.0, at.1, i, j),
-                    ));
+                    best = best.min(go(n, steps, edge, (i, j), acc + edge(at.0, at.1, i, j)));
                 }
             }
             best
         }
-        go(q1, q2, steps, (0, 0), 0.0)
+        go(n, steps, edge, (0, 0), 0.0)
+    }
+
+    /// The anchored cost of the piece (k, l) -> (i, j): the SRVF part and the position term of
+    /// samples k..i-1, each over n.
+    fn anchored_edge(q: CurvePair, an: &Anchor, (k, l, i, j): (usize, usize, usize, usize)) -> f64 {
+        let m = (j - l) as f64 / (i - k) as f64;
+        let pos: f64 = (k..i)
+            .map(|t| (an.a[t] - interp(an.b, l as f64 + (t - k) as f64 * m)).norm_squared())
+            .sum();
+        edge_cost(q.0, q.1, k, l, i, j) + an.weight * pos / q.0.len() as f64
+    }
+
+    fn anchored_path_cost(q: CurvePair, an: &Anchor, p: &[(usize, usize)]) -> f64 {
+        p.windows(2)
+            .map(|w| anchored_edge(q, an, (w[0].0, w[0].1, w[1].0, w[1].1)))
+            .sum()
+    }
+
+    #[test]
+    fn anchored_dp_equals_brute_force_with_the_position_term() {
+        let mut seed = 11u64;
+        for n in [5usize, 7] {
+            for nb in [2usize, 3] {
+                let steps = coprime_steps(nb);
+                let (q1, q2) = (random_q(n, &mut seed), random_q(n, &mut seed));
+                let (a, b) = (random_q(n, &mut seed), random_q(n, &mut seed));
+                let an = Anchor {
+                    a: &a,
+                    b: &b,
+                    weight: 3.0,
+                };
+                let best = brute_with(n, &steps, &|k, l, i, j| {
+                    anchored_edge((&q1, &q2), &an, (k, l, i, j))
+                });
+                let w = dp_warp_anchored(&q1, &q2, &steps, Some(an));
+                let got = anchored_path_cost((&q1, &q2), &an, &w.path);
+                assert!((got - best).abs() < 1e-12, "n {n} nb {nb}: {got} vs {best}");
+                // The energy reported is the SRVF distance plus the position energy of the warp.
+                let samples: Vec<f64> = w.gamma.iter().map(|g| g * (n - 1) as f64).collect();
+                let e = super::super::curve::dist2(&q1, &w.warped) + an.energy(&samples);
+                assert!((w.energy - e).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn the_anchored_check_rejects_the_shape_only_warp() {
+        // Companion: where the position term matters, the warp that ignores it (plain dp_warp)
+        // is not the anchored optimum, and the same comparison refuses it.
+        let mut seed = 5u64;
+        let n = 7;
+        let steps = coprime_steps(3);
+        let (q1, q2) = (random_q(n, &mut seed), random_q(n, &mut seed));
+        let a: Vec<Vector2<f64>> = (0..n).map(|t| Vector2::new(t as f64, 0.0)).collect();
+        let b: Vec<Vector2<f64>> = (0..n)
+            .map(|t| Vector2::new((t * t) as f64 / 6.0, 0.0))
+            .collect();
+        let an = Anchor {
+            a: &a,
+            b: &b,
+            weight: 3.0,
+        };
+        let best = brute_with(n, &steps, &|k, l, i, j| {
+            anchored_edge((&q1, &q2), &an, (k, l, i, j))
+        });
+        let shape_only = dp_warp(&q1, &q2, &steps);
+        let got = anchored_path_cost((&q1, &q2), &an, &shape_only.path);
+        assert!(got > best + 1e-6, "{got} vs {best}");
+        // With weight 0 the anchored DP is the plain one, path for path.
+        let zero = Anchor { weight: 0.0, ..an };
+        assert_eq!(
+            dp_warp_anchored(&q1, &q2, &steps, Some(zero)).path,
+            shape_only.path
+        );
     }
 
     fn lcg(seed: &mut u64) -> f64 {
@@ -447,7 +616,7 @@ mod tests {
             let (q1, q2) = (curve(f1, 0.0), curve(f2, 0.4));
             let steps = coprime_steps(5);
             let exact = dp_warp(&q1, &q2, &steps);
-            let fast = dp_warp_fast(&q1, &q2, &steps, 6);
+            let fast = dp_warp_fast(&q1, &q2, &steps, 6, None);
             assert!(
                 fast.energy <= exact.energy * 1.01 + 1e-9,
                 "fast {} exact {}",
