@@ -194,6 +194,7 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
         ("--threads", "0", "0 is not in 1..=1024"),
         ("--coarse-nodes", "1", "1 is not in 2..=150"),
         ("--shard", "3/2", "expected I/N with 0 <= I < N"),
+        ("--uncertainty-samples", "1001", "1001 is not in 0..=1000"),
     ] {
         let mut cmd = bin();
         cmd.args(["simulate", "--gt", "phantom", flag, value]);
@@ -354,6 +355,12 @@ fn merge_joins_shards_and_refuses_to_overwrite_one_or_read_a_bad_cell() {
     let study: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("all/summary.json")).unwrap())
             .unwrap();
+    // Every run carries its cup uncertainty (16 resamples by default).
+    let s0 = &study["summary"][0];
+    assert_eq!(s0["cup_sd_runs"], 2, "{s0}");
+    assert!(s0["brier_mean"]
+        .as_f64()
+        .is_some_and(|b| (0.0..=2.0).contains(&b)));
     let truth = study["study"]["truth_cup_diameter_mm"].as_f64().unwrap();
     let outline = study["study"]["truth_outline_sphere_diameter_mm"]
         .as_f64()

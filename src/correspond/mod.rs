@@ -236,16 +236,15 @@ mod polygon_tests {
         }
     }
 
-    /// The annotated rim: the same ellipse 4 % smaller, as a polygon of `corners` points (about
-    /// 20 px apart for 45), with a notch dent (15 px deep over 40 degrees) and 2 px noise.
-    fn outline(corners: usize, dent: bool, seed: u64) -> Curve {
+    /// A closed polygon of `corners` points at the model ellipse scaled by `radius(t)` at polar
+    /// angle t, with 2 px noise.
+    fn noisy_polygon(corners: usize, seed: u64, radius: impl Fn(f64) -> f64) -> Curve {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let noise = Normal::new(0.0, 2.0).unwrap();
         let points = (0..corners)
             .map(|i| {
                 let t = std::f64::consts::TAU * i as f64 / corners as f64;
-                let notch = (t - 4.4).abs() < 20f64.to_radians();
-                let r = if dent && notch { 0.92 } else { 0.96 };
+                let r = radius(t);
                 Point2::new(
                     C.0 + r * 160.0 * t.cos() + noise.sample(&mut rng),
                     C.1 + r * 135.0 * t.sin() + noise.sample(&mut rng),
@@ -256,6 +255,19 @@ mod polygon_tests {
             points,
             closed: true,
         }
+    }
+
+    /// The annotated rim: the same ellipse 4 % smaller, as a polygon of `corners` points (about
+    /// 20 px apart for 45), with a notch dent (15 px deep over 40 degrees) and 2 px noise.
+    fn outline(corners: usize, dent: bool, seed: u64) -> Curve {
+        noisy_polygon(corners, seed, |t| {
+            let notch = (t - 4.4).abs() < 20f64.to_radians();
+            if dent && notch {
+                0.92
+            } else {
+                0.96
+            }
+        })
     }
 
     /// Angle between each correspondence's target and its model point about the centre,
@@ -279,24 +291,14 @@ mod polygon_tests {
     /// A deep notch (the outline pulled in to `depth` of the ellipse over +-`half` degrees about
     /// 4.4 rad), as a 30-corner polygon with 2 px noise: the a46-like outline.
     fn deep_notch(depth: f64, half: f64, seed: u64) -> Curve {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        let noise = Normal::new(0.0, 2.0).unwrap();
-        let corners = 30;
-        let points = (0..corners)
-            .map(|i| {
-                let t = std::f64::consts::TAU * i as f64 / corners as f64;
-                let d = (t - 4.4).sin().atan2((t - 4.4).cos()).abs();
-                let r = if d < half.to_radians() { depth } else { 0.97 };
-                Point2::new(
-                    C.0 + r * 160.0 * t.cos() + noise.sample(&mut rng),
-                    C.1 + r * 135.0 * t.sin() + noise.sample(&mut rng),
-                )
-            })
-            .collect();
-        Curve {
-            points,
-            closed: true,
-        }
+        noisy_polygon(30, seed, |t| {
+            let d = (t - 4.4).sin().atan2((t - 4.4).cos()).abs();
+            if d < half.to_radians() {
+                depth
+            } else {
+                0.97
+            }
+        })
     }
 
     /// Angle errors of the correspondences whose model point lies inside the notch of

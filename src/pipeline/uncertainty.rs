@@ -72,6 +72,27 @@ pub struct CupReport {
 }
 
 impl CupReport {
+    /// The resamples' probability of catalogue size `size_mm` (0 for a size none chose).
+    pub fn probability_of(&self, size_mm: f64) -> f64 {
+        self.probabilities
+            .iter()
+            .find(|p| p.size_mm == size_mm)
+            .map_or(0.0, |p| p.probability)
+    }
+
+    /// Brier score of the size probabilities when the right size is `truth_mm`: the sum over
+    /// catalogue sizes of (p - [size is the truth])^2; 0 when certain and right, 2 when certain
+    /// and wrong.
+    pub fn brier(&self, truth_mm: f64) -> f64 {
+        let listed: f64 = self
+            .probabilities
+            .iter()
+            .map(|p| (p.probability - if p.size_mm == truth_mm { 1.0 } else { 0.0 }).powi(2))
+            .sum();
+        let truth_listed = self.probabilities.iter().any(|p| p.size_mm == truth_mm);
+        listed + if truth_listed { 0.0 } else { 1.0 }
+    }
+
     /// One line for the terminal.
     pub fn line(&self) -> String {
         let p_of = |s: f64| {
@@ -232,6 +253,42 @@ mod tests {
     use crate::pipeline::reconstruct;
     use crate::template::Template;
     use std::path::Path;
+
+    fn report_with(probabilities: &[(f64, f64)]) -> CupReport {
+        CupReport {
+            diameter_mm: 51.0,
+            catalogue_mm: 52.0,
+            sd_mm: 0.3,
+            plus_minus_mm: 0.6,
+            probabilities: probabilities
+                .iter()
+                .map(|&(size_mm, probability)| SizeProbability {
+                    size_mm,
+                    probability,
+                })
+                .collect(),
+            samples: 16,
+            seed: 1,
+            noise_px: 1.0,
+            resampled_mm: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn brier_scores_certain_right_certain_wrong_and_split_answers() {
+        let certain = report_with(&[(50.0, 0.0), (52.0, 1.0), (54.0, 0.0)]);
+        assert_eq!(certain.brier(52.0), 0.0);
+        // Certain and wrong, the truth listed or not: 2.
+        assert_eq!(certain.brier(50.0), 2.0);
+        assert_eq!(certain.brier(58.0), 2.0);
+        let split = report_with(&[(50.0, 0.5), (52.0, 0.5), (54.0, 0.0)]);
+        assert!((split.brier(52.0) - 0.5).abs() < 1e-12);
+        assert_eq!(split.probability_of(50.0), 0.5);
+        assert_eq!(split.probability_of(56.0), 0.0);
+        // Companion: a score that ignored the truth's own size would give the split answer 0.25
+        // (only the wrong size's square); the right one is not that.
+        assert!((split.brier(52.0) - 0.25).abs() > 0.1);
+    }
 
     /// Does the reported diameter stand among its resamples: inside their range and within one
     /// SD of their median?

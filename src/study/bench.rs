@@ -222,6 +222,8 @@ pub fn run_bench(
             runs: p.study_runs,
             methods: vec![StudyMethod::Srvf],
             threads: p.threads.max(1),
+            // The reconstructions alone, as the bench has always timed them.
+            uncertainty: None,
             ..Default::default()
         };
         let batcher = crate::engine::gpu::GpuBatcher::new(

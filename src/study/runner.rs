@@ -6,7 +6,7 @@ use super::task::{run_seed, Task};
 use crate::engine::Kernels;
 use crate::geom::pool_map;
 use crate::geom::Mesh;
-use crate::pipeline::{reconstruct, ReconParams, Reconstruction};
+use crate::pipeline::{cup_report, reconstruct, ReconParams, Reconstruction, UncertaintyParams};
 use crate::report::{accuracy_from, accuracy_samples};
 use crate::report::{DistanceStats, InteriorQuery};
 use crate::sim::XrayGeometry;
@@ -36,6 +36,9 @@ pub struct StudyConfig {
     pub template: TemplateParams,
     /// The reconstruction settings (each method turns stages off).
     pub params: ReconParams,
+    /// The cup's uncertainty for every run (`cup_report`, as `acetab reconstruct` gives it; the
+    /// seed is each run's own), or None. Default: 16 resamples.
+    pub uncertainty: Option<UncertaintyParams>,
 }
 
 impl StudyConfig {
@@ -87,6 +90,7 @@ impl Default for StudyConfig {
             geometry: XrayGeometry::default(),
             template: TemplateParams::default(),
             params: ReconParams::default(),
+            uncertainty: Some(UncertaintyParams::default()),
         }
     }
 }
@@ -184,7 +188,8 @@ fn run_prepared(
     row.gt_cup_diameter_mm = sim.truth_sphere.diameter();
     let prm = task.method.params(&cfg.params);
     let start = std::time::Instant::now();
-    let rec = match reconstruct(&sim.input(&prep.template), &prm, kernels) {
+    let input = sim.input(&prep.template);
+    let rec = match reconstruct(&input, &prm, kernels) {
         Ok(r) => r,
         Err(e) => {
             row.seconds = start.elapsed().as_secs_f64();
@@ -209,6 +214,23 @@ fn run_prepared(
     row.iterations = rec.log.gn_iterations;
     row.correspondence_updates = rec.log.correspondence_updates;
     row.fallback = rec.log.fallback.unwrap_or_default().to_string();
+    if let Some(up) = &cfg.uncertainty {
+        let up = UncertaintyParams {
+            seed: task.seed,
+            ..up.clone()
+        };
+        // A run whose resampling fails keeps its result; its uncertainty columns stay NaN.
+        if let Ok(rep) = cup_report(&rec, input.observed, &prm, kernels, &up) {
+            let truth = prm
+                .cup
+                .catalogue
+                .nearest(row.gt_cup_diameter_mm)
+                .catalogue_mm;
+            row.cup_sd_mm = rep.sd_mm;
+            row.size_probability = rep.probability_of(rep.catalogue_mm);
+            row.brier = rep.brier(truth);
+        }
+    }
     (
         row,
         Some(ExampleRun {

@@ -58,6 +58,18 @@ pub struct Row {
     /// "icp-normvec", "rigid"), or empty.
     #[serde(default)]
     pub fallback: String,
+    /// SD of the cup diameter over the run's resamples (`cup_report`, the same resampling as
+    /// `acetab reconstruct`), mm; NaN when the study resamples nothing or the run failed.
+    #[serde(serialize_with = "six")]
+    pub cup_sd_mm: f64,
+    /// The resamples' probability of the catalogue size the cup was given; NaN as above.
+    #[serde(serialize_with = "six")]
+    pub size_probability: f64,
+    /// Brier score of the resamples' size probabilities against the truth's catalogue size:
+    /// the sum over sizes of (p - [size is the truth's])^2, 0 (certain and right) to 2 (certain
+    /// and wrong); NaN as above.
+    #[serde(serialize_with = "six")]
+    pub brier: f64,
 }
 
 impl Row {
@@ -82,6 +94,9 @@ impl Row {
             seconds: 0.0,
             error: error.to_string(),
             fallback: String::new(),
+            cup_sd_mm: f64::NAN,
+            size_probability: f64::NAN,
+            brier: f64::NAN,
         }
     }
 
@@ -292,6 +307,13 @@ pub struct Summary {
     pub surface_fit_within_1mm: usize,
     /// See `surface_fit_within_1mm`.
     pub limb_within_1mm: Option<usize>,
+    /// Runs with a cup SD (`Row::cup_sd_mm`), and of those, the share whose cup error is
+    /// within it (68 % for a Gaussian that means what it says); None without resamples.
+    pub cup_sd_runs: usize,
+    /// See `cup_sd_runs`.
+    pub cup_sd_coverage: Option<f64>,
+    /// Mean Brier score of the size probabilities over those runs; None without resamples.
+    pub brier_mean: Option<f64>,
     /// Median seconds per run.
     pub median_seconds: f64,
 }
@@ -327,6 +349,11 @@ pub fn summarize(rows: &[Row]) -> Vec<Summary> {
             let (mae_mean, mae_sd) = mean_sd(&ok.iter().map(|r| r.mae_mm).collect::<Vec<_>>());
             let ce: Vec<f64> = ok.iter().map(|r| r.cup_error_mm()).collect();
             let (cup_error_mean, cup_error_sd) = mean_sd(&ce);
+            let with_sd: Vec<&Row> = ok
+                .iter()
+                .copied()
+                .filter(|r| r.cup_sd_mm.is_finite() && r.brier.is_finite())
+                .collect();
             let mut secs: Vec<f64> = g.iter().map(|r| r.seconds).collect();
             secs.sort_by(f64::total_cmp);
             Summary {
@@ -347,6 +374,16 @@ pub fn summarize(rows: &[Row]) -> Vec<Summary> {
                     .any(|r| r.limb_diameter_mm.is_finite())
                     .then(|| within(&ok, |r| r.limb_diameter_mm)),
                 median_seconds: secs.get(secs.len() / 2).copied().unwrap_or(f64::NAN),
+                cup_sd_runs: with_sd.len(),
+                cup_sd_coverage: (!with_sd.is_empty()).then(|| {
+                    with_sd
+                        .iter()
+                        .filter(|r| r.cup_error_mm().abs() <= r.cup_sd_mm)
+                        .count() as f64
+                        / with_sd.len() as f64
+                }),
+                brier_mean: (!with_sd.is_empty())
+                    .then(|| with_sd.iter().map(|r| r.brier).sum::<f64>() / with_sd.len() as f64),
             }
         })
         .collect()
@@ -471,6 +508,33 @@ mod tests {
             error: String::new(),
             ..Row::failed(&t, "")
         }
+    }
+
+    #[test]
+    fn summary_counts_the_runs_within_their_cup_sd_and_averages_brier() {
+        // Cup errors +0.5 mm each (`row`); SDs 0.6, 0.4, 1.0 and one run without resamples.
+        let mut rows: Vec<Row> = (0..4).map(|k| row(StudyMethod::Srvf, 1, k, 0.8)).collect();
+        for (r, (sd, b)) in rows.iter_mut().zip([(0.6, 0.2), (0.4, 1.0), (1.0, 0.3)]) {
+            r.cup_sd_mm = sd;
+            r.brier = b;
+        }
+        let s = &summarize(&rows)[0];
+        assert_eq!(s.cup_sd_runs, 3);
+        assert!((s.cup_sd_coverage.unwrap() - 2.0 / 3.0).abs() < 1e-12);
+        assert!((s.brier_mean.unwrap() - 0.5).abs() < 1e-12);
+        // Companion: the same runs with every SD halved are counted as the misses they are.
+        for r in rows.iter_mut().take(3) {
+            r.cup_sd_mm *= 0.5;
+        }
+        let s = &summarize(&rows)[0];
+        assert!((s.cup_sd_coverage.unwrap() - 1.0 / 3.0).abs() < 1e-12);
+        // Without resamples there is nothing to cover.
+        let plain = vec![row(StudyMethod::Srvf, 1, 0, 0.8)];
+        let s = &summarize(&plain)[0];
+        assert_eq!(
+            (s.cup_sd_runs, s.cup_sd_coverage, s.brier_mean),
+            (0, None, None)
+        );
     }
 
     #[test]

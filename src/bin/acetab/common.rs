@@ -147,7 +147,7 @@ pub fn shard(s: &str) -> Result<(usize, usize), String> {
 
 pub fn print_summary(rows: &[acetab::study::Row]) {
     println!(
-        "{:<17} {:>5} {:>5} {:>6} {:>9} {:>9} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9}",
+        "{:<17} {:>5} {:>5} {:>6} {:>9} {:>9} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9} {:>9} {:>6}",
         "method",
         "level",
         "runs",
@@ -159,11 +159,13 @@ pub fn print_summary(rows: &[acetab::study::Row]) {
         "|cup|<=1",
         "surface",
         "limb",
-        "median s"
+        "median s",
+        "|err|<=SD",
+        "Brier"
     );
     for s in summarize(rows) {
         println!(
-            "{:<17} {:>5} {:>5} {:>6} {:>9} {:>9.3} {:>9.3} {:>+11.2} {:>6}/{:<2} {:>6}/{:<2} {:>9} {:>9.2}",
+            "{:<17} {:>5} {:>5} {:>6} {:>9} {:>9.3} {:>9.3} {:>+11.2} {:>6}/{:<2} {:>6}/{:<2} {:>9} {:>9.2} {:>9} {:>6}",
             s.method.name(),
             s.level,
             s.runs,
@@ -178,7 +180,11 @@ pub fn print_summary(rows: &[acetab::study::Row]) {
             s.runs,
             s.limb_within_1mm
                 .map_or_else(|| "-".to_string(), |k| format!("{k:>6}/{:<2}", s.runs)),
-            s.median_seconds
+            s.median_seconds,
+            s.cup_sd_coverage
+                .map_or_else(|| "-".to_string(), |c| format!("{:.0} %", 100.0 * c)),
+            s.brier_mean
+                .map_or_else(|| "-".to_string(), |b| format!("{b:.3}"))
         );
     }
 }

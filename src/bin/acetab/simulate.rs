@@ -8,7 +8,7 @@ use acetab::contours::ContourSource;
 use acetab::engine::gpu::GpuBatcher;
 use acetab::engine::{BackendChoice, Kernels};
 use acetab::io::fill_dir_atomically;
-use acetab::pipeline::{DeformationParams, ReconParams};
+use acetab::pipeline::{DeformationParams, ReconParams, UncertaintyParams};
 use acetab::sim::SimSetup;
 use acetab::study::population::{worst_meshes, write_population};
 use acetab::study::{read_csv, run_study, tasks, write_examples, write_tables, StudyConfig};
@@ -58,6 +58,11 @@ pub struct SimulateArgs {
     /// but the last (default: the full graph throughout; see README).
     #[arg(long, value_parser = count_in(2, acetab::solve::GraphParams::default().nodes))]
     pub coarse_nodes: Option<usize>,
+    /// Resamples for every run's cup uncertainty (cup_sd_mm, size_probability and brier in
+    /// runs.csv; the same resampling as `acetab reconstruct`, seeded by the run's seed); 0
+    /// turns it off.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(0..=1000))]
+    pub uncertainty_samples: u64,
     #[arg(long)]
     pub out: PathBuf,
 }
@@ -77,6 +82,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         w_reg,
         w_obs,
         coarse_nodes,
+        uncertainty_samples,
         out,
     } = args;
     for (flag, w) in [("--w-rot", w_rot), ("--w-reg", w_reg), ("--w-obs", w_obs)] {
@@ -105,6 +111,10 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
             },
             ..Default::default()
         },
+        uncertainty: (uncertainty_samples > 0).then(|| UncertaintyParams {
+            samples: uncertainty_samples as usize,
+            ..Default::default()
+        }),
         ..Default::default()
     };
     let dev = open_device(backend)?;
