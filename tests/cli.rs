@@ -195,6 +195,12 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
         ("--coarse-nodes", "1", "1 is not in 2..=150"),
         ("--shard", "3/2", "expected I/N with 0 <= I < N"),
         ("--uncertainty-samples", "1001", "1001 is not in 0..=1000"),
+        ("--views", "z:0,q:3", "cannot read \"q:3\""),
+        (
+            "--views",
+            "z:0,y:30",
+            "at least two views from distinct directions",
+        ),
     ] {
         let mut cmd = bin();
         cmd.args(["simulate", "--gt", "phantom", flag, value]);

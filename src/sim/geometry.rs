@@ -1,6 +1,7 @@
 //! The simulated X-ray set-up: a point source 900 mm from the object, detector 1100 mm from the
-//! source (magnification 1.22), 0.2 mm pixels, 2048 x 2048 images; views rotated about the body's
-//! longitudinal axis (z) and aimed at the object.
+//! source (magnification 1.22), 0.2 mm pixels, 2048 x 2048 images; each view the antero-posterior
+//! one turned about body axes (default: about the longitudinal axis z by 0, +20 and -20 degrees)
+//! and aimed at the object.
 
 use crate::views::{Camera, Intrinsics};
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
@@ -16,8 +17,100 @@ pub struct XrayGeometry {
     pub pixel_size: f64,
     /// Image width and height, pixels.
     pub image_size: u32,
-    /// Rotation of each view about the world z axis, degrees (0 = antero-posterior).
-    pub angles_deg: Vec<f64>,
+    /// Each view: the antero-posterior view turned about body axes (see `ViewRotation`).
+    pub views: Vec<ViewRotation>,
+}
+
+/// A body axis of the world frame: x left-right, y antero-posterior (towards the source of the
+/// antero-posterior view), z longitudinal (superior).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BodyAxis {
+    /// Left-right: turning about it tilts the view cranially or caudally (inlet / outlet).
+    X,
+    /// Antero-posterior: turning about it rolls the image.
+    Y,
+    /// Longitudinal: turning about it gives the oblique (Judet-like) views.
+    Z,
+}
+
+/// One view: the antero-posterior view turned about body axes, in order (`z:20`, or `z:20+x:-15`:
+/// 20 degrees about z, then -15 about x). Written and read as that text.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewRotation {
+    /// (axis, degrees), applied first to last.
+    pub turns: Vec<(BodyAxis, f64)>,
+}
+
+impl ViewRotation {
+    /// A turn about z alone (the default views' kind).
+    pub fn about_z(deg: f64) -> Self {
+        ViewRotation {
+            turns: vec![(BodyAxis::Z, deg)],
+        }
+    }
+
+    /// The rotation: the turns composed, the first applied first.
+    pub fn rotation(&self) -> Rotation3<f64> {
+        self.turns
+            .iter()
+            .fold(Rotation3::identity(), |acc, &(axis, deg)| {
+                let a = match axis {
+                    BodyAxis::X => Vector3::x_axis(),
+                    BodyAxis::Y => Vector3::y_axis(),
+                    BodyAxis::Z => Vector3::z_axis(),
+                };
+                Rotation3::from_axis_angle(&a, deg.to_radians()) * acc
+            })
+    }
+}
+
+impl std::fmt::Display for ViewRotation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let parts: Vec<String> = self
+            .turns
+            .iter()
+            .map(|(a, d)| {
+                let a = match a {
+                    BodyAxis::X => "x",
+                    BodyAxis::Y => "y",
+                    BodyAxis::Z => "z",
+                };
+                format!("{a}:{d}")
+            })
+            .collect();
+        f.write_str(&parts.join("+"))
+    }
+}
+
+impl std::str::FromStr for ViewRotation {
+    type Err = String;
+
+    /// `AXIS:DEG[+AXIS:DEG...]`, AXIS one of x, y, z, DEG finite degrees.
+    fn from_str(s: &str) -> Result<Self, String> {
+        let turns = s
+            .split('+')
+            .map(|t| {
+                let (a, d) = t
+                    .trim()
+                    .split_once(':')
+                    .ok_or_else(|| format!("\"{t}\": expected AXIS:DEGREES (e.g. z:20)"))?;
+                let axis = match a.trim() {
+                    "x" | "X" => BodyAxis::X,
+                    "y" | "Y" => BodyAxis::Y,
+                    "z" | "Z" => BodyAxis::Z,
+                    other => return Err(format!("\"{other}\": the axis must be x, y or z")),
+                };
+                let deg: f64 = d
+                    .trim()
+                    .parse()
+                    .ok()
+                    .filter(|v: &f64| v.is_finite())
+                    .ok_or_else(|| format!("\"{d}\": the angle must be finite degrees"))?;
+                Ok((axis, deg))
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        Ok(ViewRotation { turns })
+    }
 }
 
 /// A geometry no X-ray set-up has (see `XrayGeometry::validate`).
@@ -61,17 +154,22 @@ impl XrayGeometry {
         if self.image_size == 0 {
             return Err(bad("image_size", "0".into(), "at least 1 pixel"));
         }
-        if let Some(a) = self.angles_deg.iter().find(|a| !a.is_finite()) {
-            return Err(bad("angles_deg", a.to_string(), "finite degrees"));
+        if let Some(v) = self
+            .views
+            .iter()
+            .find(|v| v.turns.is_empty() || v.turns.iter().any(|(_, d)| !d.is_finite()))
+        {
+            return Err(bad("views", v.to_string(), "turns of finite degrees"));
         }
-        let distinct =
-            |a: f64, b: f64| ((a - b).rem_euclid(360.0)).min((b - a).rem_euclid(360.0)) > 1e-9;
-        let first = self.angles_deg.first().copied();
-        if !first.is_some_and(|f| self.angles_deg.iter().any(|&a| distinct(a, f))) {
+        // Two views are one if their sources stand in the same direction.
+        let source = |v: &ViewRotation| v.rotation() * Vector3::y();
+        let first = self.views.first().map(source);
+        if !first.is_some_and(|f| self.views.iter().any(|v| (source(v) - f).norm() > 1e-9)) {
+            let list: Vec<String> = self.views.iter().map(|v| v.to_string()).collect();
             return Err(bad(
-                "angles_deg",
-                format!("{:?}", self.angles_deg),
-                "at least two distinct angles",
+                "views",
+                format!("[{}]", list.join(",")),
+                "at least two views from distinct directions",
             ));
         }
         Ok(())
@@ -85,24 +183,27 @@ impl Default for XrayGeometry {
             source_to_object: 900.0,
             pixel_size: 0.2,
             image_size: 2048,
-            angles_deg: vec![0.0, 20.0, -20.0],
+            views: [0.0, 20.0, -20.0]
+                .into_iter()
+                .map(ViewRotation::about_z)
+                .collect(),
         }
     }
 }
 
-/// One camera per angle, the source placed anteriorly (rotated about z), looking at `target`,
-/// image rows running inferiorly.
+/// One camera per view: the antero-posterior source (anterior, on +y) turned by the view's
+/// rotation, looking at `target`, image rows running along the turned inferior direction.
 pub fn simulated_views(g: &XrayGeometry, target: &Point3<f64>) -> Vec<Camera> {
     let f = g.source_to_detector / g.pixel_size;
     let c = g.image_size as f64 / 2.0;
-    g.angles_deg
+    g.views
         .iter()
-        .map(|deg| {
-            let rz = Rotation3::from_axis_angle(&Vector3::z_axis(), deg.to_radians());
-            let toward_source = rz * Vector3::y();
+        .map(|v| {
+            let rot = v.rotation();
+            let toward_source = rot * Vector3::y();
             let source = target + toward_source * g.source_to_object;
             let zc = -toward_source;
-            let yc = -Vector3::z();
+            let yc = -(rot * Vector3::z());
             let xc = yc.cross(&zc);
             let r = Rotation3::from_matrix_unchecked(Matrix3::from_rows(&[
                 xc.transpose(),
@@ -186,31 +287,22 @@ mod tests {
                     ..Default::default()
                 },
             ),
+            ("views", about_z(&[0.0, f64::NAN])),
+            ("views", about_z(&[20.0])),
+            ("views", about_z(&[0.0, 360.0, -360.0])),
+            ("views", about_z(&[])),
             (
-                "angles_deg",
+                "views",
                 XrayGeometry {
-                    angles_deg: vec![0.0, f64::NAN],
+                    views: vec![ViewRotation::about_z(0.0), ViewRotation { turns: vec![] }],
                     ..Default::default()
                 },
             ),
+            // Turning about the antero-posterior axis itself moves no source.
             (
-                "angles_deg",
+                "views",
                 XrayGeometry {
-                    angles_deg: vec![20.0],
-                    ..Default::default()
-                },
-            ),
-            (
-                "angles_deg",
-                XrayGeometry {
-                    angles_deg: vec![0.0, 360.0, -360.0],
-                    ..Default::default()
-                },
-            ),
-            (
-                "angles_deg",
-                XrayGeometry {
-                    angles_deg: vec![],
+                    views: vec![ViewRotation::about_z(0.0), "y:30".parse().unwrap()],
                     ..Default::default()
                 },
             ),
@@ -218,11 +310,45 @@ mod tests {
         for (field, g) in cases {
             assert_eq!(g.validate().map_err(|e| e.field), Err(field), "{g:?}");
         }
-        // Companion: two distinct views are enough.
-        let two = XrayGeometry {
-            angles_deg: vec![0.0, 359.0],
+        // Companion: two distinct views are enough, about any axis.
+        assert_eq!(about_z(&[0.0, 359.0]).validate(), Ok(()));
+        let inlet = XrayGeometry {
+            views: vec![ViewRotation::about_z(0.0), "x:25".parse().unwrap()],
             ..Default::default()
         };
-        assert_eq!(two.validate(), Ok(()));
+        assert_eq!(inlet.validate(), Ok(()));
+    }
+
+    fn about_z(deg: &[f64]) -> XrayGeometry {
+        XrayGeometry {
+            views: deg.iter().map(|d| ViewRotation::about_z(*d)).collect(),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn views_read_and_write_as_text_and_turn_the_source_about_their_axes() {
+        let v: ViewRotation = "z:20+x:-15".parse().unwrap();
+        assert_eq!(v.turns, vec![(BodyAxis::Z, 20.0), (BodyAxis::X, -15.0)]);
+        assert_eq!(v.to_string(), "z:20+x:-15");
+        for bad in ["20", "w:10", "z:ten", "z:inf", "z:20+"] {
+            assert!(bad.parse::<ViewRotation>().is_err(), "{bad}");
+        }
+        // z:90 puts the source on the left-right axis; x:90 above the object (inlet at 90).
+        let src = |s: &str| s.parse::<ViewRotation>().unwrap().rotation() * Vector3::y();
+        assert!((src("z:90") - Vector3::new(-1.0, 0.0, 0.0)).norm() < 1e-12);
+        assert!((src("x:90") - Vector3::new(0.0, 0.0, 1.0)).norm() < 1e-12);
+        // An inlet view still looks at the target, superior up along its own turned axis.
+        let target = Point3::new(1.0, 2.0, 3.0);
+        let g = XrayGeometry {
+            views: vec![ViewRotation::about_z(0.0), "x:30".parse().unwrap()],
+            ..Default::default()
+        };
+        let cams = simulated_views(&g, &target);
+        let px = cams[1].project(&target).unwrap();
+        assert!((px.x - 1024.0).abs() < 1e-9 && (px.y - 1024.0).abs() < 1e-9);
+        assert!(((cams[1].center() - target).norm() - 900.0).abs() < 1e-9);
+        // Companion: the tilted view is not the antero-posterior one.
+        assert!((cams[1].center() - cams[0].center()).norm() > 100.0);
     }
 }

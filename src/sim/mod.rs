@@ -7,7 +7,7 @@ mod phantom;
 mod simulate;
 
 pub use demo::{phantom_case, run_demo, DemoError, DemoReport, DEMO_NOISE_PX};
-pub use geometry::{simulated_views, GeometryError, XrayGeometry};
+pub use geometry::{simulated_views, BodyAxis, GeometryError, ViewRotation, XrayGeometry};
 pub use phantom::{phantom, radiographic_axis, try_phantom, Phantom, PhantomError, PhantomParams};
 pub use simulate::{
     fit_placement, ground_truth_surface, observed_alpha, perturb, perturb_poses, simulate_case,

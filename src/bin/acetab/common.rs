@@ -117,6 +117,24 @@ pub fn levels(s: &str) -> Result<Levels, String> {
     .map(Levels)
 }
 
+/// `--views`: the X-ray views, each the antero-posterior view turned about body axes (clap
+/// value parser).
+#[derive(Clone, Debug)]
+pub struct Views(pub Vec<acetab::sim::ViewRotation>);
+
+/// Parse `--views` ("z:0,z:20,z:-20"; a view may chain turns, "z:20+x:-15").
+pub fn views(s: &str) -> Result<Views, String> {
+    let list = parse_list(s, "AXIS:DEGREES with AXIS x, y or z, e.g. z:20", |x| {
+        x.parse::<acetab::sim::ViewRotation>().ok()
+    })?;
+    let g = acetab::sim::XrayGeometry {
+        views: list.clone(),
+        ..Default::default()
+    };
+    g.validate().map_err(|e| e.to_string())?;
+    Ok(Views(list))
+}
+
 /// `--methods`: a list of study methods (clap value parser).
 #[derive(Clone, Debug)]
 pub struct Methods(pub Vec<acetab::study::StudyMethod>);

@@ -2,14 +2,14 @@
 
 use crate::common::{
     count_in, engine_on, io_msg, levels, load_truth, methods, open_device, print_summary, shard,
-    threads_or_all, Levels, Methods, MAX_RUNS, MAX_THREADS,
+    threads_or_all, views, Levels, Methods, Views, MAX_RUNS, MAX_THREADS,
 };
 use acetab::contours::ContourSource;
 use acetab::engine::gpu::GpuBatcher;
 use acetab::engine::{BackendChoice, Kernels};
 use acetab::io::fill_dir_atomically;
 use acetab::pipeline::{DeformationParams, ReconParams, UncertaintyParams};
-use acetab::sim::SimSetup;
+use acetab::sim::{SimSetup, XrayGeometry};
 use acetab::study::population::{worst_meshes, write_population};
 use acetab::study::{read_csv, run_study, tasks, write_examples, write_tables, StudyConfig};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -25,6 +25,11 @@ pub struct SimulateArgs {
     pub gt: Vec<String>,
     #[arg(long, default_value = "1,2,3,4,5", value_parser = levels)]
     pub levels: Levels,
+    /// The X-ray views: each the antero-posterior view turned about body axes, x left-right
+    /// (inlet/outlet tilts), y antero-posterior, z longitudinal (obliques); a view may chain
+    /// turns ("z:20+x:-15")
+    #[arg(long, default_value = "z:0,z:20,z:-20", value_parser = views)]
+    pub views: Views,
     #[arg(long, default_value_t = 10, value_parser = count_in(1, MAX_RUNS))]
     pub runs: usize,
     /// Methods: srvf, icp, icp-normvec (every stage of ours, each on its own
@@ -71,6 +76,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
     let SimulateArgs {
         gt,
         levels,
+        views,
         runs,
         methods,
         seed,
@@ -109,6 +115,10 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
                 coarse_graph_nodes: coarse_nodes,
                 ..Default::default()
             },
+            ..Default::default()
+        },
+        geometry: XrayGeometry {
+            views: views.0,
             ..Default::default()
         },
         uncertainty: (uncertainty_samples > 0).then(|| UncertaintyParams {
@@ -230,6 +240,7 @@ fn sweep(study: &Study, meshes: &[(String, PathBuf)], out: &Path) -> Result<(), 
     let meta = serde_json::json!({
         "gt": meshes.iter().map(|(_, p)| p.display().to_string()).collect::<Vec<_>>(),
         "levels": study.cfg.levels, "runs": study.runs, "methods": study.cfg.methods,
+        "views": study.cfg.geometry.views.iter().map(|v| v.to_string()).collect::<Vec<_>>(),
         "seed": study.seed, "sweep_seconds": start.elapsed().as_secs_f64(),
     });
     let rows = write_population(out, &tables, &meta).map_err(|e| e.to_string())?;
@@ -328,6 +339,7 @@ impl Study<'_> {
             "gt": gt, "truth_cup_diameter_mm": truth_cup,
             "truth_outline_sphere_diameter_mm": outline_cup,
             "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
+            "views": cfg.geometry.views.iter().map(|v| v.to_string()).collect::<Vec<_>>(),
             "shard": format!("{}/{}", shard.0, shard.1), "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),
             "contours": format!("{:?}", cfg.params.contour_source),
             "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
