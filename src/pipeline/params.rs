@@ -180,6 +180,7 @@ impl ReconParams {
             ("deformation.icp_tol_mm", self.deformation.icp_tol_mm),
             ("placement.limb_scale_mm", self.placement.limb_scale_mm),
             ("lm.rel_tol", self.lm.rel_tol),
+            ("correspond.srvf.anchor", self.correspond.srvf.anchor),
         ];
         for (field, v) in non_negative {
             if !(v.is_finite() && v >= 0.0) {
@@ -234,6 +235,10 @@ mod tests {
                 Box::new(|p| p.placement.limb_scale_mm = -1.0),
             ),
             ("weights.obs", Box::new(|p| p.weights.obs = f64::NAN)),
+            (
+                "correspond.srvf.anchor",
+                Box::new(|p| p.correspond.srvf.anchor = -1.0),
+            ),
             ("weights.reg", Box::new(|p| p.weights.reg = f64::INFINITY)),
             (
                 "deformation.sphere_prior",
@@ -270,6 +275,7 @@ mod tests {
         let mut edge = ReconParams::default();
         edge.placement.limb_scale_mm = 0.0;
         edge.deformation.sphere_prior = 0.0;
+        edge.correspond.srvf.anchor = 0.0;
         assert!(edge.validate().is_ok());
     }
 }

@@ -85,10 +85,22 @@ impl std::fmt::Display for ViewRotation {
 impl std::str::FromStr for ViewRotation {
     type Err = String;
 
-    /// `AXIS:DEG[+AXIS:DEG...]`, AXIS one of x, y, z, DEG finite degrees.
+    /// `AXIS:DEG[+AXIS:DEG...]`, AXIS one of x, y, z, DEG finite degrees (a sign of its own
+    /// allowed: `z:+20`).
     fn from_str(s: &str) -> Result<Self, String> {
-        let turns = s
-            .split('+')
+        // Turns are joined by a '+' that an axis letter follows.
+        let mut parts = Vec::new();
+        let mut start = 0;
+        for (i, c) in s.char_indices() {
+            let next_is_axis = s[i + 1..].trim_start().starts_with(char::is_alphabetic);
+            if c == '+' && next_is_axis {
+                parts.push(&s[start..i]);
+                start = i + 1;
+            }
+        }
+        parts.push(&s[start..]);
+        let turns = parts
+            .into_iter()
             .map(|t| {
                 let (a, d) = t
                     .trim()
@@ -331,6 +343,8 @@ mod tests {
         let v: ViewRotation = "z:20+x:-15".parse().unwrap();
         assert_eq!(v.turns, vec![(BodyAxis::Z, 20.0), (BodyAxis::X, -15.0)]);
         assert_eq!(v.to_string(), "z:20+x:-15");
+        let signed: ViewRotation = "z:+20+x:+5".parse().unwrap();
+        assert_eq!(signed.turns, vec![(BodyAxis::Z, 20.0), (BodyAxis::X, 5.0)]);
         for bad in ["20", "w:10", "z:ten", "z:inf", "z:20+"] {
             assert!(bad.parse::<ViewRotation>().is_err(), "{bad}");
         }
