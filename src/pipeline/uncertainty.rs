@@ -95,12 +95,6 @@ impl CupReport {
 
     /// One line for the terminal.
     pub fn line(&self) -> String {
-        let p_of = |s: f64| {
-            self.probabilities
-                .iter()
-                .find(|p| p.size_mm == s)
-                .map_or(0.0, |p| p.probability)
-        };
         let others: Vec<String> = self
             .probabilities
             .iter()
@@ -112,7 +106,7 @@ impl CupReport {
             self.diameter_mm,
             self.plus_minus_mm,
             self.catalogue_mm,
-            p_of(self.catalogue_mm),
+            self.probability_of(self.catalogue_mm),
             if others.is_empty() { "" } else { "; " },
             others.join(", ")
         )

@@ -189,49 +189,27 @@ fn dp_in_band(
     let (x1, y1): (Vec<f64>, Vec<f64>) = q1.iter().map(|v| (v.x, v.y)).unzip();
     // q2 at every tap of every step, times the step's sqrt slope, for each start column l
     // (0 <= l < n - b): it does not depend on the row, so it is computed once, not per cell.
-    let warped: Vec<Vec<(f64, f64)>> = prepared
-        .iter()
-        .map(|st| {
-            let cols = n.saturating_sub(st.b);
-            let mut v = Vec::with_capacity(st.taps.len() * cols);
-            for &(off, u) in &st.taps {
-                for l in 0..cols {
-                    let p = l + off;
-                    let (qx, qy) = if u == 0.0 {
-                        (q2[p].x, q2[p].y)
-                    } else {
-                        (
-                            q2[p].x + (q2[p + 1].x - q2[p].x) * u,
-                            q2[p].y + (q2[p + 1].y - q2[p].y) * u,
-                        )
-                    };
-                    v.push((qx * st.sqrt_slope, qy * st.sqrt_slope));
-                }
-            }
-            v
-        })
-        .collect();
+    let warped = tap_table(&prepared, n, |st, p, u| {
+        let (qx, qy) = if u == 0.0 {
+            (q2[p].x, q2[p].y)
+        } else {
+            (
+                q2[p].x + (q2[p + 1].x - q2[p].x) * u,
+                q2[p].y + (q2[p + 1].y - q2[p].y) * u,
+            )
+        };
+        (qx * st.sqrt_slope, qy * st.sqrt_slope)
+    });
     // B's positions at the same taps (not scaled: the position term ignores the slope).
     let weight = anchor.map_or(0.0, |a| a.weight);
-    let (pa, placed): (Vec<Vector2<f64>>, Vec<Vec<Vector2<f64>>>) = match anchor {
+    let (pa, placed): (&[Vector2<f64>], Vec<Vec<Vector2<f64>>>) = match anchor {
         Some(an) if weight > 0.0 => (
-            an.a.to_vec(),
-            prepared
-                .iter()
-                .map(|st| {
-                    let cols = n.saturating_sub(st.b);
-                    let mut v = Vec::with_capacity(st.taps.len() * cols);
-                    for &(off, u) in &st.taps {
-                        for l in 0..cols {
-                            let p = l + off;
-                            v.push(an.b[p] + (an.b[(p + 1).min(n - 1)] - an.b[p]) * u);
-                        }
-                    }
-                    v
-                })
-                .collect(),
+            an.a,
+            tap_table(&prepared, n, |_, p, u| {
+                an.b[p] + (an.b[(p + 1).min(n - 1)] - an.b[p]) * u
+            }),
         ),
-        _ => (Vec::new(), Vec::new()),
+        _ => (&[], Vec::new()),
     };
     for i in 1..n {
         for j in lo[i]..=hi[i] {
@@ -306,6 +284,28 @@ fn dp_in_band(
         w.energy += an.energy(&samples);
     }
     w
+}
+
+/// `value(step, p, u)` at every tap (p, u) of every step, for each start column l < n - b (the
+/// tap's sample is l + its offset), laid out tap by tap: the DP's per-step tables.
+fn tap_table<T>(
+    prepared: &[PreparedStep],
+    n: usize,
+    value: impl Fn(&PreparedStep, usize, f64) -> T,
+) -> Vec<Vec<T>> {
+    prepared
+        .iter()
+        .map(|st| {
+            let cols = n.saturating_sub(st.b);
+            let mut v = Vec::with_capacity(st.taps.len() * cols);
+            for &(off, u) in &st.taps {
+                for l in 0..cols {
+                    v.push(value(st, l + off, u));
+                }
+            }
+            v
+        })
+        .collect()
 }
 
 /// Grids up to this size are solved exactly by `dp_warp_fast`.
