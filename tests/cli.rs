@@ -509,3 +509,117 @@ fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("no .stl, .ply or .obj file"), "{err}");
 }
+
+/// A study folder `dir` of `n` srvf runs with cup errors `err(k)` and resampled SDs 0.2 mm.
+fn study_of(dir: &Path, n: usize, err: impl Fn(usize) -> f64) {
+    let rows: Vec<acetab::study::Row> = (0..n)
+        .map(|k| {
+            let t = acetab::study::Task {
+                method: acetab::study::StudyMethod::Srvf,
+                level: 1,
+                run: k,
+                seed: k as u64,
+            };
+            let mut r = acetab::study::Row::failed(&t, "");
+            r.gt_cup_diameter_mm = 50.0;
+            r.cup_diameter_mm = 50.0 + err(k);
+            r.cup_sd_mm = 0.2;
+            r
+        })
+        .collect();
+    std::fs::create_dir_all(dir).unwrap();
+    acetab::study::write_csv(&rows, &dir.join("runs.csv")).unwrap();
+}
+
+#[test]
+fn calibrate_learns_the_model_sd_leaves_a_subject_out_and_names_bad_input() {
+    let dir = tmp("calibrate");
+    let pop = dir.join("pop");
+    // Subject s1: errors 0.01 .. 1.00 mm; subject s2: errors of 5 mm.
+    study_of(&pop.join("s1_lhip"), 100, |k| 0.01 * (k + 1) as f64);
+    study_of(&pop.join("s2_rhip"), 100, |_| 5.0);
+    let learn = |extra: &[&str], out: &Path| {
+        bin()
+            .args(["calibrate", "--study"])
+            .arg(&pop)
+            .args(extra)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let one = dir.join("one.json");
+    let o = learn(&["--leave-out", "s2"], &one);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let cal = acetab::pipeline::CupCalibration::read(&one).unwrap();
+    // 69 of 100 errors (0.01 .. 0.69) within sqrt(0.04 + s^2): s^2 = 0.69^2 - 0.04.
+    assert!(
+        (cal.model_sd_mm - (0.69f64.powi(2) - 0.04).sqrt()).abs() < 1e-9,
+        "{cal:?}"
+    );
+    assert_eq!(cal.runs, 100);
+    // Companion: with s2 in, the model SD is another (5 mm errors are half the runs).
+    let both = dir.join("both.json");
+    assert!(learn(&[], &both).status.success());
+    let cal2 = acetab::pipeline::CupCalibration::read(&both).unwrap();
+    assert!(cal2.model_sd_mm > 4.0, "{cal2:?}");
+    // A study whose summary.json holds a model SD has it taken out of its cup SDs first.
+    std::fs::write(
+        pop.join("s2_rhip/summary.json"),
+        r#"{"study": {"cup_model_sd_mm": -3}}"#,
+    )
+    .unwrap();
+    let bad = dir.join("bad.json");
+    let o = learn(&[], &bad);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("summary.json") && err.contains("cup_model_sd_mm = -3"),
+        "{err}"
+    );
+    assert!(!bad.exists());
+    // Too few runs, and a folder with no study, are refused with the reason.
+    let o = learn(&["--leave-out", "s1", "--leave-out", "s2"], &bad);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("0 runs with a cup SD"));
+    let o = bin()
+        .args(["calibrate", "--study"])
+        .arg(dir.join("nothing"))
+        .arg("--out")
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("nothing"));
+    // A calibration file that is not one is named by simulate.
+    std::fs::write(&bad, "{\"model_sd_mm\": \"x\"}").unwrap();
+    let mut cmd = bin();
+    cmd.args(["simulate", "--gt", "phantom"])
+        .args(ONE_RUN.split(' '))
+        .arg("--calibration")
+        .arg(&bad);
+    fails_cleanly(cmd, &dir.join("study"), &["--calibration", "bad.json"]);
+}
+
+#[test]
+fn a_realistic_study_records_its_protocol_and_calibration() {
+    let dir = tmp("realistic");
+    let out = dir.join("study");
+    let o = bin()
+        .args(["simulate", "--gt", "phantom", "--protocol", "realistic"])
+        .args(ONE_RUN.split(' '))
+        .args(["--uncertainty-samples", "2", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let study = &s["study"];
+    assert_eq!(study["protocol"]["Realistic"]["pose_deg"], 1.0, "{study}");
+    assert_eq!(study["calibration"], "shipped realistic");
+    let shipped = acetab::pipeline::CupCalibration::shipped_realistic().model_sd_mm;
+    assert_eq!(study["cup_model_sd_mm"], shipped);
+    // The run's SD holds the model error.
+    let rows = acetab::study::read_csv(&out.join("runs.csv")).unwrap();
+    assert!(rows[0].cup_sd_mm >= shipped, "{}", rows[0].cup_sd_mm);
+}

@@ -4,6 +4,7 @@
 //! then for the deformation graph with its sphere prior (stage B), and fit the cup sphere to the
 //! observed part of the result.
 
+mod calibration;
 mod correspondences;
 mod cup;
 mod deformation;
@@ -12,6 +13,7 @@ mod params;
 mod placement;
 mod uncertainty;
 
+pub use calibration::{CalibrationError, CupCalibration, MIN_TRAINING_RUNS, NOMINAL_COVERAGE};
 pub use cup::{cup_spheres, observed_part_sphere, CupSpheres};
 pub use guards::{first_failure, folded_share, GuardFailure, GuardParams};
 pub use params::{CupParams, DeformationParams, PlacementParams, ReconParams};

@@ -26,6 +26,10 @@ pub struct UncertaintyParams {
     pub seed: u64,
     /// Contour noise SD in pixels; None: the fit's reprojection RMS (at least 0.5 px).
     pub noise_px: Option<f64>,
+    /// Model-error SD of the diameter, mm, added in quadrature to the resamples' spread (what
+    /// resampling cannot see: the walls no view outlines; `CupCalibration`). Default 0: the
+    /// resamples alone.
+    pub model_sd_mm: f64,
 }
 
 impl Default for UncertaintyParams {
@@ -34,6 +38,7 @@ impl Default for UncertaintyParams {
             samples: 16,
             seed: 1,
             noise_px: None,
+            model_sd_mm: 0.0,
         }
     }
 }
@@ -54,12 +59,20 @@ pub struct CupReport {
     pub diameter_mm: f64,
     /// Nearest catalogue size.
     pub catalogue_mm: f64,
-    /// SD of the resampled diameters, and the half-width of their central 95 % range.
+    /// The diameter's SD: the resamples' (`resample_sd_mm`) and the model error's
+    /// (`model_sd_mm`) in quadrature.
     pub sd_mm: f64,
-    /// See `sd_mm`.
+    /// Half-width of the 95 % range: that of the resamples' central 95 % and 1.96 model SDs in
+    /// quadrature.
     pub plus_minus_mm: f64,
-    /// The chosen size and its neighbours in the catalogue, with their probabilities (all sizes
-    /// any resample chose are listed).
+    /// SD of the resampled diameters.
+    pub resample_sd_mm: f64,
+    /// The model-error SD used (`UncertaintyParams::model_sd_mm`).
+    pub model_sd_mm: f64,
+    /// The chosen size and its neighbours in the catalogue, with their probabilities, and every
+    /// other size with a probability of 0.5 % or more (without a model error: every size a
+    /// resample chose). A size's probability is the share of the resamples, each widened by
+    /// the model error's Gaussian, that falls nearest to it.
     pub probabilities: Vec<SizeProbability>,
     /// Resamples drawn.
     pub samples: usize,
@@ -197,46 +210,80 @@ pub fn cup_report(
     // The same estimator as the reported cup (`Reconstruction::sphere`).
     let cup = |m: &crate::geom::Mesh, o: &[Observation]| Ok(cup_spheres(m, o)?.cup.diameter());
     let (diam, noise_px) = resampled_diameters(rec, &ctx, up, &cup)?;
-    let n = diam.len() as f64;
-    let (_, sd) = mean_sd(&diam, true);
+    if !(up.model_sd_mm.is_finite() && up.model_sd_mm >= 0.0) {
+        return Err(ReconError::Param {
+            field: "uncertainty model_sd_mm",
+            value: up.model_sd_mm.to_string(),
+            expected: "a finite SD >= 0",
+        });
+    }
+    let (_, resample_sd) = mean_sd(&diam, true);
     let mut sorted = diam.clone();
     sorted.sort_by(f64::total_cmp);
-    let plus_minus = 0.5 * (quantile_sorted(&sorted, 0.975) - quantile_sorted(&sorted, 0.025));
+    let half95 = 0.5 * (quantile_sorted(&sorted, 0.975) - quantile_sorted(&sorted, 0.025));
+    let model = up.model_sd_mm;
     let diameter = rec.sphere.diameter();
     let chosen = prm.cup.catalogue.nearest(diameter).catalogue_mm;
-    let mut probabilities: Vec<SizeProbability> = Vec::new();
-    let sizes = &prm.cup.catalogue.sizes_mm;
-    // The chosen size and its two neighbours are always listed, then any other size drawn.
-    if let Some(k) = sizes.iter().position(|&s| s == chosen) {
-        for &s in &sizes[k.saturating_sub(1)..(k + 2).min(sizes.len())] {
-            probabilities.push(SizeProbability {
-                size_mm: s,
-                probability: 0.0,
-            });
-        }
-    }
-    for d in &diam {
-        let s = prm.cup.catalogue.nearest(*d).catalogue_mm;
-        match probabilities.iter_mut().find(|p| p.size_mm == s) {
-            Some(p) => p.probability += 1.0 / n,
-            None => probabilities.push(SizeProbability {
-                size_mm: s,
-                probability: 1.0 / n,
-            }),
-        }
-    }
-    probabilities.sort_by(|a, b| a.size_mm.total_cmp(&b.size_mm));
+    let probabilities = size_probabilities(&prm.cup.catalogue.sizes_mm, chosen, &diam, model);
     Ok(CupReport {
         diameter_mm: diameter,
         catalogue_mm: chosen,
-        sd_mm: sd,
-        plus_minus_mm: plus_minus,
+        sd_mm: resample_sd.hypot(model),
+        plus_minus_mm: half95.hypot(1.96 * model),
+        resample_sd_mm: resample_sd,
+        model_sd_mm: model,
         probabilities,
         samples: diam.len(),
         seed: up.seed,
         noise_px,
         resampled_mm: diam,
     })
+}
+
+/// Least probability a size other than the chosen one and its neighbours needs to be listed
+/// when the model error spreads the resamples over the whole catalogue.
+const LISTED_PROBABILITY: f64 = 0.005;
+
+/// Per catalogue size (`sizes`, ascending), the share of the resampled diameters `diam`, each
+/// widened by a Gaussian of SD `model`, that is nearest to it (a size's interval runs between
+/// the midpoints to its neighbours); the chosen size and its neighbours are always listed.
+fn size_probabilities(
+    sizes: &[f64],
+    chosen: f64,
+    diam: &[f64],
+    model: f64,
+) -> Vec<SizeProbability> {
+    let n = diam.len().max(1) as f64;
+    let k_chosen = sizes.iter().position(|&s| s == chosen);
+    let near = |k: usize| k_chosen.is_some_and(|c| k + 1 >= c && k <= c + 1);
+    let mut out = Vec::new();
+    for (k, &size) in sizes.iter().enumerate() {
+        let lo = if k == 0 {
+            f64::NEG_INFINITY
+        } else {
+            0.5 * (sizes[k - 1] + size)
+        };
+        let hi = sizes
+            .get(k + 1)
+            .map_or(f64::INFINITY, |next| 0.5 * (size + next));
+        let p = if model > 0.0 {
+            let cdf =
+                |x: f64, d: f64| 0.5 * libm::erfc(-(x - d) / (model * std::f64::consts::SQRT_2));
+            diam.iter().map(|&d| cdf(hi, d) - cdf(lo, d)).sum::<f64>() / n
+        } else {
+            // As `CupCatalogue::nearest` chooses (a midpoint goes to the larger size).
+            diam.iter().filter(|&&d| d >= lo && d < hi).count() as f64 / n
+        };
+        let listed =
+            near(k) || (model > 0.0 && p >= LISTED_PROBABILITY) || (model == 0.0 && p > 0.0);
+        if listed {
+            out.push(SizeProbability {
+                size_mm: size,
+                probability: p,
+            });
+        }
+    }
+    out
 }
 
 #[cfg(test)]
@@ -254,6 +301,8 @@ mod tests {
             catalogue_mm: 52.0,
             sd_mm: 0.3,
             plus_minus_mm: 0.6,
+            resample_sd_mm: 0.3,
+            model_sd_mm: 0.0,
             probabilities: probabilities
                 .iter()
                 .map(|&(size_mm, probability)| SizeProbability {
@@ -266,6 +315,32 @@ mod tests {
             noise_px: 1.0,
             resampled_mm: Vec::new(),
         }
+    }
+
+    #[test]
+    fn a_model_error_spreads_the_size_probabilities_as_a_gaussian_does() {
+        let sizes: Vec<f64> = (0..=15).map(|k| 40.0 + 2.0 * k as f64).collect();
+        // Every resample at 52.4: without a model error, 52 is certain.
+        let diam = vec![52.4; 10];
+        let alone = size_probabilities(&sizes, 52.0, &diam, 0.0);
+        let p = |v: &[SizeProbability], s: f64| {
+            v.iter()
+                .find(|x| x.size_mm == s)
+                .map_or(0.0, |x| x.probability)
+        };
+        assert_eq!(p(&alone, 52.0), 1.0);
+        assert_eq!(alone.len(), 3, "the chosen size and its neighbours");
+        // With SD 1 mm: P(51 <= d < 53) for d ~ N(52.4, 1) = Phi(0.6) - Phi(-1.4) = 0.6449.
+        let wide = size_probabilities(&sizes, 52.0, &diam, 1.0);
+        assert!((p(&wide, 52.0) - 0.6449).abs() < 1e-3, "{wide:?}");
+        assert!((p(&wide, 54.0) - (0.9953 - 0.7257)).abs() < 1e-3);
+        let total: f64 = wide.iter().map(|x| x.probability).sum();
+        assert!(total > 0.99 && total <= 1.0 + 1e-12, "{total}");
+        // The ends of the catalogue take the tails.
+        let low = size_probabilities(&sizes, 40.0, &[40.0; 4], 1.0);
+        assert!((p(&low, 40.0) - 0.8413).abs() < 1e-3, "{low:?}");
+        // Companion: the counted probabilities are not the Gaussian's.
+        assert!((p(&alone, 52.0) - 0.6449).abs() > 0.3);
     }
 
     #[test]

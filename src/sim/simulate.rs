@@ -109,7 +109,7 @@ pub enum SimError {
 }
 
 /// A Gaussian with this SD, or the setting's error (NaN, infinite or negative).
-fn gaussian(field: &'static str, sd: f64) -> Result<Normal<f64>, SimError> {
+pub(super) fn gaussian(field: &'static str, sd: f64) -> Result<Normal<f64>, SimError> {
     Normal::new(0.0, sd)
         .ok()
         .filter(|_| sd.is_finite() && sd >= 0.0)

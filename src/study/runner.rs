@@ -10,7 +10,7 @@ use crate::pipeline::{cup_report, reconstruct, ReconParams, Reconstruction, Unce
 use crate::report::{accuracy_from, accuracy_samples};
 use crate::report::{DistanceStats, InteriorQuery};
 use crate::sim::XrayGeometry;
-use crate::sim::{NoiseLevel, SimCase, SimError, SimSetup};
+use crate::sim::{NoiseLevel, Protocol, SimCase, SimError, SimSetup};
 use crate::template::{Template, TemplateParams};
 
 /// What to run.
@@ -28,8 +28,11 @@ pub struct StudyConfig {
     pub threads: usize,
     /// (index, count): this process runs the tasks whose position modulo count is index.
     pub shard: (usize, usize),
-    /// Contour noise SD, pixels.
+    /// Contour noise SD, pixels (the ideal protocol's).
     pub noise_px: f64,
+    /// How each run's case is made: ideal (default) or realistic (pose and magnification
+    /// errors, partial outlines, annotation drift; `noise_px` then unused).
+    pub protocol: Protocol,
     /// The simulated views.
     pub geometry: XrayGeometry,
     /// The standard template every run starts from.
@@ -66,6 +69,9 @@ impl StudyConfig {
         {
             return Err(bad("levels", l.to_string(), "0 to 5"));
         }
+        if let Protocol::Realistic(e) = &self.protocol {
+            e.validate()?;
+        }
         let (i, n) = self.shard;
         if n == 0 || i >= n {
             return Err(bad("shard", format!("{i}/{n}"), "I/N with 0 <= I < N"));
@@ -87,6 +93,7 @@ impl Default for StudyConfig {
             threads: 1,
             shard: (0, 1),
             noise_px: 2.0,
+            protocol: Protocol::Ideal,
             geometry: XrayGeometry::default(),
             template: TemplateParams::default(),
             params: ReconParams::default(),
@@ -144,6 +151,7 @@ pub fn run_one(
 /// What every run of a study shares, computed once: the simulation set-up, the accuracy samples
 /// on the truth and the truth prepared for `recon_mae_mm`.
 pub(super) struct Prepared {
+    pub(super) truth: Mesh,
     pub(super) setup: SimSetup,
     pub(super) template: Template,
     pub(super) samples: Vec<nalgebra::Point3<f64>>,
@@ -161,6 +169,7 @@ impl Prepared {
         Ok(Prepared {
             template: Template::cap(template).map_err(crate::pipeline::ReconError::from)?,
             setup: SimSetup::new(truth, geometry)?,
+            truth: truth.clone(),
             samples: accuracy_samples(truth),
             interior: InteriorQuery::new(truth),
         })
@@ -178,7 +187,11 @@ fn run_prepared(
         row.error = format!("no noise level {}", task.level);
         return (row, None);
     };
-    let sim = match prep.setup.case(cfg.noise_px, &level, task.seed) {
+    let sim = match &cfg.protocol {
+        Protocol::Ideal => prep.setup.case(cfg.noise_px, &level, task.seed),
+        Protocol::Realistic(e) => prep.setup.realistic_case(&prep.truth, e, &level, task.seed),
+    };
+    let sim = match sim {
         Ok(sim) => sim,
         Err(e) => {
             row.error = e.to_string();
@@ -300,6 +313,14 @@ mod tests {
             ..Default::default()
         };
         assert_eq!(field(shard), "shard");
+        let realistic = StudyConfig {
+            protocol: Protocol::Realistic(crate::sim::RealisticErrors {
+                left_out: 0.9,
+                ..Default::default()
+            }),
+            ..Default::default()
+        };
+        assert_eq!(field(realistic), "realistic left_out");
         let mut params = StudyConfig::default();
         params.params.placement.limb_scale_mm = f64::NAN;
         assert_eq!(field(params), "params");

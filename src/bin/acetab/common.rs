@@ -149,6 +149,31 @@ pub fn methods(s: &str) -> Result<Methods, String> {
     .map(Methods)
 }
 
+/// Parse one study method (names in any case).
+pub fn method(s: &str) -> Result<acetab::study::StudyMethod, String> {
+    use acetab::study::StudyMethod;
+    StudyMethod::from_name(&s.trim().to_ascii_lowercase()).ok_or_else(|| {
+        let names = StudyMethod::ALL.map(StudyMethod::name).join(", ");
+        format!("unknown method {s:?}; expected one of {names}")
+    })
+}
+
+/// `--calibration`: the cup calibration file, "none" (the resamples alone), or None for the
+/// shipped one `shipped` gives. Returns the model-error SD and where it came from.
+pub fn calibration(
+    arg: &Option<String>,
+    shipped: fn() -> acetab::pipeline::CupCalibration,
+    shipped_name: &str,
+) -> Result<(f64, String), String> {
+    match arg.as_deref() {
+        None => Ok((shipped().model_sd_mm, format!("shipped {shipped_name}"))),
+        Some("none") => Ok((0.0, "none".into())),
+        Some(path) => acetab::pipeline::CupCalibration::read(std::path::Path::new(path))
+            .map(|c| (c.model_sd_mm, path.to_string()))
+            .map_err(|e| format!("--calibration {e}")),
+    }
+}
+
 /// `--shard I/N`, 0 <= I < N (clap value parser).
 pub fn shard(s: &str) -> Result<(usize, usize), String> {
     let bad = || format!("expected I/N with 0 <= I < N, got {s:?}");

@@ -2,6 +2,7 @@
 
 mod align;
 mod bench;
+mod calibrate;
 mod common;
 mod demo;
 mod merge;
@@ -41,6 +42,8 @@ enum Command {
     PoseStudy(pose_study::PoseStudyArgs),
     /// Reconstruct a case file.
     Reconstruct(reconstruct::ReconstructArgs),
+    /// Learn the cup uncertainty's model-error SD from studies whose truths are known.
+    Calibrate(calibrate::CalibrateArgs),
 }
 
 fn run(cli: Cli) -> Result<(), String> {
@@ -52,6 +55,7 @@ fn run(cli: Cli) -> Result<(), String> {
         Command::Bench(a) => bench::run(a),
         Command::PoseStudy(a) => pose_study::run(a),
         Command::Reconstruct(a) => reconstruct::run(a),
+        Command::Calibrate(a) => calibrate::run(a),
     }
 }
 

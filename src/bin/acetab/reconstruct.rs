@@ -27,6 +27,11 @@ pub struct ReconstructArgs {
     /// Resamples for the cup size's uncertainty (contour noise + bootstrap weights).
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(1..=1000))]
     pub uncertainty_samples: u64,
+    /// Cup calibration (JSON from `acetab calibrate`; the model-error SD added to the
+    /// resamples' spread), or "none" (the resamples alone). Default: the shipped calibration
+    /// learned under the realistic protocol (calibration/realistic.json).
+    #[arg(long)]
+    pub calibration: Option<String>,
     /// Seed of the resampling draws.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -50,9 +55,15 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         contours,
         refine_poses,
         uncertainty_samples,
+        calibration,
         seed,
         json,
     } = args;
+    let (model_sd_mm, _) = crate::common::calibration(
+        &calibration,
+        acetab::pipeline::CupCalibration::shipped_realistic,
+        "realistic",
+    )?;
     let catalogue = CupCatalogue::parse(&catalogue).map_err(|e| format!("--catalogue: {e}"))?;
     let prm = ReconParams {
         method,
@@ -68,6 +79,7 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         samples: uncertainty_samples as usize,
         seed,
         noise_px: None,
+        model_sd_mm,
     };
     let report = run_case(&case, &out, &prm, kernels, &up).map_err(|e| e.to_string())?;
     if json {

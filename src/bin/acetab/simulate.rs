@@ -9,11 +9,18 @@ use acetab::engine::gpu::GpuBatcher;
 use acetab::engine::{BackendChoice, Kernels};
 use acetab::io::fill_dir_atomically;
 use acetab::pipeline::{DeformationParams, ReconParams, UncertaintyParams};
-use acetab::sim::{SimSetup, XrayGeometry};
+use acetab::sim::{Protocol, RealisticErrors, SimSetup, XrayGeometry};
 use acetab::study::population::{worst_meshes, write_population};
 use acetab::study::{read_csv, run_study, tasks, write_examples, write_tables, StudyConfig};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
+
+/// `--protocol`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ProtocolArg {
+    Ideal,
+    Realistic,
+}
 
 #[derive(clap::Args)]
 pub struct SimulateArgs {
@@ -32,6 +39,16 @@ pub struct SimulateArgs {
     pub views: Views,
     #[arg(long, default_value_t = 10, value_parser = count_in(1, MAX_RUNS))]
     pub runs: usize,
+    /// How each run's X-rays are made: ideal (the nominal views, whole outlines, 2 px noise per
+    /// point) or realistic (per-view pose errors of SD 1 degree and 2 mm, 2 % magnification
+    /// error, the quarter of each outline over the femoral head left out, annotation drift of
+    /// 2 px over about 20 px plus 1 px jitter; the reconstruction is told the nominal views).
+    #[arg(long, value_enum, default_value_t = ProtocolArg::Ideal)]
+    pub protocol: ProtocolArg,
+    /// Refine small per-view pose corrections with the deformation (as `acetab reconstruct
+    /// --refine-poses`; prior SD 2 deg, 5 mm; the first view defines the frame).
+    #[arg(long)]
+    pub refine_poses: bool,
     /// Methods: srvf, icp, icp-normvec (every stage of ours, each on its own
     /// correspondences), and srvf-paper, icp-paper, icp-normvec-paper (the seed paper's
     /// protocol: the deformation alone, from the perturbed template).
@@ -68,6 +85,11 @@ pub struct SimulateArgs {
     /// turns it off.
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(0..=1000))]
     pub uncertainty_samples: u64,
+    /// Cup calibration (JSON from `acetab calibrate`: the model-error SD added to the
+    /// resamples' spread), or "none" (the resamples alone). Default: the shipped calibration
+    /// of the protocol (calibration/ideal.json or realistic.json).
+    #[arg(long)]
+    pub calibration: Option<String>,
     #[arg(long)]
     pub out: PathBuf,
 }
@@ -78,6 +100,8 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         levels,
         views,
         runs,
+        protocol,
+        refine_poses,
         methods,
         seed,
         threads,
@@ -89,14 +113,31 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         w_obs,
         coarse_nodes,
         uncertainty_samples,
+        calibration,
         out,
     } = args;
+    let (model_sd_mm, calibration) = match protocol {
+        ProtocolArg::Ideal => crate::common::calibration(
+            &calibration,
+            acetab::pipeline::CupCalibration::shipped_ideal,
+            "ideal",
+        ),
+        ProtocolArg::Realistic => crate::common::calibration(
+            &calibration,
+            acetab::pipeline::CupCalibration::shipped_realistic,
+            "realistic",
+        ),
+    }?;
     for (flag, w) in [("--w-rot", w_rot), ("--w-reg", w_reg), ("--w-obs", w_obs)] {
         if !(w.is_finite() && w >= 0.0) {
             return Err(format!("{flag} {w}: must be a finite non-negative weight"));
         }
     }
     let cfg = StudyConfig {
+        protocol: match protocol {
+            ProtocolArg::Ideal => Protocol::Ideal,
+            ProtocolArg::Realistic => Protocol::Realistic(RealisticErrors::default()),
+        },
         levels: levels.0,
         runs,
         methods: methods.0,
@@ -115,6 +156,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
                 coarse_graph_nodes: coarse_nodes,
                 ..Default::default()
             },
+            pose: refine_poses.then(acetab::solve::PoseParams::default),
             ..Default::default()
         },
         geometry: XrayGeometry {
@@ -123,6 +165,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         },
         uncertainty: (uncertainty_samples > 0).then(|| UncertaintyParams {
             samples: uncertainty_samples as usize,
+            model_sd_mm,
             ..Default::default()
         }),
         ..Default::default()
@@ -136,6 +179,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
     let kernels = batcher.as_ref().map_or(Kernels::Cpu, Kernels::Batched);
     let study = Study {
         cfg: &cfg,
+        calibration,
         runs,
         seed,
         shard,
@@ -154,6 +198,8 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
 /// One study's settings, shared by every mesh of a sweep.
 struct Study<'a> {
     cfg: &'a StudyConfig,
+    /// Where the cup calibration came from (summary.json).
+    calibration: String,
     runs: usize,
     seed: u64,
     shard: (usize, usize),
@@ -241,7 +287,7 @@ fn sweep(study: &Study, meshes: &[(String, PathBuf)], out: &Path) -> Result<(), 
         "gt": meshes.iter().map(|(_, p)| p.display().to_string()).collect::<Vec<_>>(),
         "levels": study.cfg.levels, "runs": study.runs, "methods": study.cfg.methods,
         "views": study.cfg.geometry.views.iter().map(|v| v.to_string()).collect::<Vec<_>>(),
-        "seed": study.seed, "sweep_seconds": start.elapsed().as_secs_f64(),
+        "seed": study.seed, "protocol": study.cfg.protocol, "sweep_seconds": start.elapsed().as_secs_f64(),
     });
     let rows = write_population(out, &tables, &meta).map_err(|e| e.to_string())?;
     println!(
@@ -287,6 +333,7 @@ impl Study<'_> {
     fn run(&self, gt: &str, out: &Path) -> Result<Vec<acetab::study::Row>, String> {
         let Study {
             cfg,
+            ref calibration,
             runs,
             seed,
             shard,
@@ -340,10 +387,13 @@ impl Study<'_> {
             "truth_outline_sphere_diameter_mm": outline_cup,
             "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
             "views": cfg.geometry.views.iter().map(|v| v.to_string()).collect::<Vec<_>>(),
-            "shard": format!("{}/{}", shard.0, shard.1), "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),
+            "shard": format!("{}/{}", shard.0, shard.1), "protocol": cfg.protocol,
+            "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),
             "contours": format!("{:?}", cfg.params.contour_source),
             "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
-            "w_obs": cfg.params.weights.obs, "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
+            "w_obs": cfg.params.weights.obs, "refine_poses": cfg.params.pose.is_some(),
+            "cup_model_sd_mm": cfg.uncertainty.as_ref().map(|u| u.model_sd_mm),
+            "calibration": calibration, "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
         });
         fill_dir_atomically(
             out,

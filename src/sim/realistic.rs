@@ -1,0 +1,456 @@
+//! The realistic protocol: what separates a simulated case from a patient's X-rays, drawn per
+//! run. The X-rays are made with views that are not quite where the reconstruction is told they
+//! are (pose errors about the object, a magnification error), the annotator leaves out the arc
+//! of the outline where the walls cross the femoral head and blur (the paper's real cases were
+//! annotated so), and the traced line wanders smoothly (a Gaussian process along the outline) on
+//! top of the click-to-click jitter. The reconstruction gets the nominal views and these outlines.
+
+use super::simulate::{gaussian, observed_alpha, perturb, NoiseLevel, SimCase, SimError, SimSetup};
+use crate::contours::model_contour;
+use crate::geom::{Curve, Mesh};
+use crate::views::Camera;
+use nalgebra::{Point2, Vector2};
+use rand::SeedableRng;
+use rand_distr::Distribution;
+
+/// How a simulated case is made: ideal (the nominal views, the whole outline, independent
+/// Gaussian noise per point) or realistic (`RealisticErrors`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub enum Protocol {
+    /// Nominal views, closed outlines, `StudyConfig::noise_px` per point.
+    Ideal,
+    /// The errors of a patient's X-rays (`StudyConfig::noise_px` is not used).
+    Realistic(RealisticErrors),
+}
+
+impl Protocol {
+    /// The protocol's name, as `--protocol` takes it.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Protocol::Ideal => "ideal",
+            Protocol::Realistic(_) => "realistic",
+        }
+    }
+}
+
+/// The realistic protocol's error sizes (defaults: issue 17's).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct RealisticErrors {
+    /// Per-view pose error: rotation SD per axis about the object's centre, degrees (default 1).
+    /// The first view defines the frame and is exact, as the AP view does in practice.
+    pub pose_deg: f64,
+    /// Per-view pose error: translation SD per axis, mm at the object (default 2).
+    pub pose_mm: f64,
+    /// Per-view magnification error, relative SD (default 0.02): the view's true focal length
+    /// is the nominal one times 1 + N(0, SD).
+    pub magnification: f64,
+    /// Share of each outline's length left out, one arc centred where the template's opening
+    /// axis points in the image (the walls over the femoral head; default 0.25; 0 keeps the
+    /// outline closed).
+    pub left_out: f64,
+    /// Smooth annotation drift: SD of a Gaussian process along the outline, px, per image axis
+    /// (default 2) ...
+    pub drift_px: f64,
+    /// ... with this correlation length along the outline, px (default 20).
+    pub drift_length_px: f64,
+    /// Independent jitter per point, px (default 1).
+    pub jitter_px: f64,
+}
+
+impl Default for RealisticErrors {
+    fn default() -> Self {
+        RealisticErrors {
+            pose_deg: 1.0,
+            pose_mm: 2.0,
+            magnification: 0.02,
+            left_out: 0.25,
+            drift_px: 2.0,
+            drift_length_px: 20.0,
+            jitter_px: 1.0,
+        }
+    }
+}
+
+impl RealisticErrors {
+    /// The first setting no draw can be made with: SDs that are not finite and >= 0, a
+    /// magnification SD of 0.2 or more (a focal length could turn negative), a left-out share
+    /// outside [0, 0.6], a correlation length that is not finite and > 0.
+    pub fn validate(&self) -> Result<(), SimError> {
+        let bad = |field, value: f64, expected| {
+            Err(SimError::Setting {
+                field,
+                value: value.to_string(),
+                expected,
+            })
+        };
+        for (field, v) in [
+            ("realistic pose_deg", self.pose_deg),
+            ("realistic pose_mm", self.pose_mm),
+            ("realistic drift_px", self.drift_px),
+            ("realistic jitter_px", self.jitter_px),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(field, v, "a finite SD >= 0");
+            }
+        }
+        if !(self.magnification.is_finite() && (0.0..0.2).contains(&self.magnification)) {
+            return bad(
+                "realistic magnification",
+                self.magnification,
+                "a relative SD in [0, 0.2)",
+            );
+        }
+        if !(self.left_out.is_finite() && (0.0..=0.6).contains(&self.left_out)) {
+            return bad("realistic left_out", self.left_out, "a share in [0, 0.6]");
+        }
+        if !(self.drift_length_px.is_finite() && self.drift_length_px > 0.0) {
+            return bad(
+                "realistic drift_length_px",
+                self.drift_length_px,
+                "a finite length > 0",
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Fewest outline points an annotation keeps after its arc is left out.
+const MIN_KEPT_POINTS: usize = 8;
+
+impl SimSetup {
+    /// One realistic run of `truth` (the mesh this set-up was made from): true views drawn about
+    /// the nominal ones, the truth's outlines in them, an arc left out, drift and jitter added,
+    /// the start perturbed by `level`; all draws from ChaCha8(seed). The case carries the
+    /// nominal views.
+    pub fn realistic_case(
+        &self,
+        truth: &Mesh,
+        errors: &RealisticErrors,
+        level: &NoiseLevel,
+        seed: u64,
+    ) -> Result<SimCase, SimError> {
+        errors.validate()?;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let init = perturb(&self.placement, level, &mut rng)?;
+        let rot = gaussian("realistic pose_deg", errors.pose_deg.to_radians())?;
+        let shift = gaussian("realistic pose_mm", errors.pose_mm)?;
+        let mag = gaussian("realistic magnification", errors.magnification)?;
+        let mut observed = Vec::with_capacity(self.cameras.len());
+        for (view, nominal) in self.cameras.iter().enumerate() {
+            let mut x = [0.0; 6];
+            if view > 0 {
+                for v in x[..3].iter_mut() {
+                    *v = rot.sample(&mut rng);
+                }
+                for v in x[3..].iter_mut() {
+                    *v = shift.sample(&mut rng);
+                }
+            }
+            let mut cam = crate::solve::corrected_camera(nominal, &self.placement.center, &x);
+            let m = 1.0 + mag.sample(&mut rng);
+            cam.k.fx *= m;
+            cam.k.fy *= m;
+            let outline = model_contour(
+                truth,
+                &cam,
+                Some(observed_alpha(truth, &cam, &self.placement)),
+            )
+            .map_err(|source| SimError::Contour { view, source })?;
+            let curve = annotate(&outline.points, &cam, self, errors, &mut rng)
+                .map_err(|source| SimError::Contour { view, source })?;
+            observed.push(vec![curve]);
+        }
+        Ok(SimCase {
+            cameras: self.cameras.clone(),
+            observed,
+            truth_placement: self.placement.clone(),
+            truth_sphere: self.sphere,
+            init,
+            seed,
+        })
+    }
+}
+
+/// An annotator's trace of the closed outline `pts` seen by `cam`: the left-out arc removed,
+/// then the drift and the jitter added.
+fn annotate(
+    pts: &[Point2<f64>],
+    cam: &Camera,
+    setup: &SimSetup,
+    e: &RealisticErrors,
+    rng: &mut rand_chacha::ChaCha8Rng,
+) -> Result<Curve, crate::contours::ContourError> {
+    let (kept, closed) = leave_out_arc(pts, cam, setup, e.left_out);
+    if kept.len() < MIN_KEPT_POINTS {
+        return Err(crate::contours::ContourError::TooFewPoints { count: kept.len() });
+    }
+    let s = arc_positions(&kept, closed);
+    let total = s.last().copied().unwrap_or(0.0)
+        + if closed {
+            (kept[0] - kept[kept.len() - 1]).norm()
+        } else {
+            0.0
+        };
+    let drift_x = smooth_process(&s, total, closed, e.drift_px, e.drift_length_px, rng);
+    let drift_y = smooth_process(&s, total, closed, e.drift_px, e.drift_length_px, rng);
+    let jitter = rand_distr::Normal::new(0.0, e.jitter_px).expect("validated SD");
+    let points = kept
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            p + Vector2::new(
+                drift_x[i] + jitter.sample(rng),
+                drift_y[i] + jitter.sample(rng),
+            )
+        })
+        .collect();
+    Ok(Curve { points, closed })
+}
+
+/// `pts` without the arc of `share` of its length centred on the point farthest along the
+/// image direction of the truth's opening axis; the rest as an open curve that starts just
+/// after the gap (or the whole closed outline when `share` is 0).
+fn leave_out_arc(
+    pts: &[Point2<f64>],
+    cam: &Camera,
+    setup: &SimSetup,
+    share: f64,
+) -> (Vec<Point2<f64>>, bool) {
+    let n = pts.len();
+    if share <= 0.0 || n < 3 {
+        return (pts.to_vec(), true);
+    }
+    let c = setup.placement.center;
+    let tip = c + setup.placement.axis.into_inner() * setup.placement.radius;
+    let dir = match (cam.project(&c), cam.project(&tip)) {
+        (Ok(a), Ok(b)) if (b - a).norm() > 1e-9 => (b - a).normalize(),
+        // The axis points along the ray: no side faces the head more than another.
+        _ => Vector2::new(0.0, 1.0),
+    };
+    let mid = (0..n)
+        .max_by(|&i, &j| dir.dot(&pts[i].coords).total_cmp(&dir.dot(&pts[j].coords)))
+        .unwrap_or(0);
+    let seg = |i: usize| (pts[(i + 1) % n] - pts[i]).norm();
+    let total: f64 = (0..n).map(seg).sum();
+    let half = 0.5 * share * total;
+    // Walk out from `mid` both ways until half the left-out length is covered on each side.
+    let (mut fwd, mut len) = (0, 0.0);
+    while len < half && fwd < n {
+        len += seg((mid + fwd) % n);
+        fwd += 1;
+    }
+    let (mut back, mut len) = (0, 0.0);
+    while len < half && back < n {
+        back += 1;
+        len += seg((mid + n - back) % n);
+    }
+    let dropped = (fwd + back + 1).min(n);
+    let start = (mid + fwd + 1) % n;
+    let kept = (0..n - dropped).map(|k| pts[(start + k) % n]).collect();
+    (kept, false)
+}
+
+/// Arc length at each point of `pts` from the first.
+fn arc_positions(pts: &[Point2<f64>], _closed: bool) -> Vec<f64> {
+    let mut s = Vec::with_capacity(pts.len());
+    let mut acc = 0.0;
+    for (i, p) in pts.iter().enumerate() {
+        if i > 0 {
+            acc += (p - pts[i - 1]).norm();
+        }
+        s.push(acc);
+    }
+    s
+}
+
+/// A Gaussian process with SD `sd` and squared-exponential correlation of length `length` along
+/// the curve, sampled at arc positions `s` (periodic over `total` when `closed`): white noise
+/// on a grid of `length`/4 spacing, smoothed by a Gaussian kernel of width `length`/sqrt 2 (the
+/// convolution's covariance has length `length`), read at each position by its grid
+/// neighbours, and scaled to SD `sd`.
+fn smooth_process(
+    s: &[f64],
+    total: f64,
+    closed: bool,
+    sd: f64,
+    length: f64,
+    rng: &mut rand_chacha::ChaCha8Rng,
+) -> Vec<f64> {
+    if sd == 0.0 || s.is_empty() {
+        return vec![0.0; s.len()];
+    }
+    let h = length / 4.0;
+    let width = length / std::f64::consts::SQRT_2;
+    let reach = (3.0 * width / h).ceil() as i64;
+    // Grid over the curve (and `reach` beyond each end of an open one).
+    let cells = ((total / h).ceil() as i64).max(1);
+    let (lo, hi) = if closed {
+        (0, cells)
+    } else {
+        (-reach, cells + reach + 1)
+    };
+    let white: Vec<f64> = (lo..hi)
+        .map(|_| rand_distr::StandardNormal.sample(rng))
+        .collect();
+    let kernel: Vec<f64> = (-reach..=reach)
+        .map(|k| (-0.5 * (k as f64 * h / width).powi(2)).exp())
+        .collect();
+    let norm = kernel.iter().map(|k| k * k).sum::<f64>().sqrt();
+    let at_cell = |c: i64| -> f64 {
+        (-reach..=reach)
+            .map(|k| {
+                let j = if closed {
+                    (c + k).rem_euclid(cells)
+                } else {
+                    (c + k).clamp(lo, hi - 1)
+                };
+                kernel[(k + reach) as usize] * white[(j - lo) as usize]
+            })
+            .sum::<f64>()
+            / norm
+    };
+    s.iter()
+        .map(|&x| {
+            let f = x / h;
+            let c = f.floor() as i64;
+            let t = f - c as f64;
+            sd * ((1.0 - t) * at_cell(c) + t * at_cell(c + 1))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::{phantom, PhantomParams, XrayGeometry};
+
+    fn setup() -> (Mesh, SimSetup) {
+        let truth = phantom(&PhantomParams::default()).mesh;
+        let s = SimSetup::new(&truth, &XrayGeometry::default()).unwrap();
+        (truth, s)
+    }
+
+    #[test]
+    fn the_drift_has_the_sd_and_correlation_length_asked_for() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let s: Vec<f64> = (0..400).map(|i| i as f64 * 2.0).collect();
+        let (mut v0, mut c10, mut c40, mut n) = (0.0, 0.0, 0.0, 0.0);
+        for _ in 0..200 {
+            let d = smooth_process(&s, 800.0, true, 2.0, 20.0, &mut rng);
+            for i in 0..s.len() {
+                v0 += d[i] * d[i];
+                c10 += d[i] * d[(i + 5) % s.len()];
+                c40 += d[i] * d[(i + 20) % s.len()];
+                n += 1.0;
+            }
+        }
+        let sd = (v0 / n).sqrt();
+        let (r10, r40) = (c10 / v0, c40 / v0);
+        assert!((sd - 2.0).abs() < 0.15, "sd {sd}");
+        // Squared-exponential of length 20: exp(-1/8) = 0.88 at 10 px, exp(-2) = 0.14 at 40.
+        assert!((r10 - 0.88).abs() < 0.06, "10 px: {r10}");
+        assert!((r40 - 0.135).abs() < 0.08, "40 px: {r40}");
+        // Companion: white jitter's correlation at 10 px is near zero, which the test refuses.
+        let white: Vec<f64> = (0..400)
+            .map(|_| rand_distr::StandardNormal.sample(&mut rng))
+            .collect();
+        let w10: f64 = (0..400)
+            .map(|i| white[i] * white[(i + 5) % 400])
+            .sum::<f64>()
+            / white.iter().map(|x| x * x).sum::<f64>();
+        assert!(
+            (w10 - 0.88).abs() >= 0.06,
+            "white noise passed as drift: {w10}"
+        );
+    }
+
+    #[test]
+    fn a_realistic_case_leaves_out_an_arc_and_moves_the_outline_by_the_errors() {
+        let (truth, s) = setup();
+        let level = NoiseLevel::level(1).unwrap();
+        let e = RealisticErrors::default();
+        let case = s.realistic_case(&truth, &e, &level, 11).unwrap();
+        assert_eq!(
+            case.cameras, s.cameras,
+            "the reconstruction gets the nominal views"
+        );
+        for (v, curves) in case.observed.iter().enumerate() {
+            let c = &curves[0];
+            assert!(!c.closed);
+            let full = crate::geom::polyline_length(&s.outlines[v], true);
+            let kept = crate::geom::polyline_length(&c.points, false);
+            assert!(
+                (0.6..0.8).contains(&(kept / full)),
+                "view {v}: kept {kept:.0} of {full:.0} px"
+            );
+        }
+        // Same seed, same case; another seed, another.
+        let again = s.realistic_case(&truth, &e, &level, 11).unwrap();
+        assert_eq!(case.observed[1][0].points, again.observed[1][0].points);
+        let other = s.realistic_case(&truth, &e, &level, 12).unwrap();
+        assert_ne!(case.observed[1][0].points, other.observed[1][0].points);
+        // No errors and nothing left out: the ideal outline, closed and exact.
+        let none = RealisticErrors {
+            pose_deg: 0.0,
+            pose_mm: 0.0,
+            magnification: 0.0,
+            left_out: 0.0,
+            drift_px: 0.0,
+            drift_length_px: 20.0,
+            jitter_px: 0.0,
+        };
+        let exact = s.realistic_case(&truth, &none, &level, 11).unwrap();
+        for v in 0..s.cameras.len() {
+            assert!(exact.observed[v][0].closed);
+            assert_eq!(exact.observed[v][0].points, s.outlines[v]);
+        }
+        // A 5 % magnification error is seen: the outline grows about the principal point.
+        let big = RealisticErrors {
+            magnification: 0.05,
+            ..none.clone()
+        };
+        let grown = (0..20)
+            .map(|seed| {
+                let c = s.realistic_case(&truth, &big, &level, seed).unwrap();
+                let l = crate::geom::polyline_length(&c.observed[0][0].points, true);
+                (l / crate::geom::polyline_length(&s.outlines[0], true) - 1.0).abs()
+            })
+            .fold(0.0, f64::max);
+        assert!(grown > 0.03, "magnification not applied: {grown}");
+    }
+
+    #[test]
+    fn realistic_settings_no_draw_can_be_made_with_are_refused() {
+        let (truth, s) = setup();
+        let level = NoiseLevel::level(1).unwrap();
+        let ok = RealisticErrors::default();
+        for bad in [
+            RealisticErrors {
+                pose_deg: f64::NAN,
+                ..ok.clone()
+            },
+            RealisticErrors {
+                jitter_px: -1.0,
+                ..ok.clone()
+            },
+            RealisticErrors {
+                magnification: 0.5,
+                ..ok.clone()
+            },
+            RealisticErrors {
+                left_out: 0.9,
+                ..ok.clone()
+            },
+            RealisticErrors {
+                drift_length_px: 0.0,
+                ..ok.clone()
+            },
+        ] {
+            assert!(matches!(
+                s.realistic_case(&truth, &bad, &level, 1),
+                Err(SimError::Setting { .. })
+            ));
+        }
+        assert!(s.realistic_case(&truth, &ok, &level, 1).is_ok());
+    }
+}
