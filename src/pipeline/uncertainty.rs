@@ -70,9 +70,9 @@ pub struct CupReport {
     /// The model-error SD used (`UncertaintyParams::model_sd_mm`).
     pub model_sd_mm: f64,
     /// The chosen size and its neighbours in the catalogue, with their probabilities, and every
-    /// other size with a probability of 0.5 % or more (without a model error: every size a
-    /// resample chose). A size's probability is the share of the resamples, each widened by
-    /// the model error's Gaussian, that falls nearest to it.
+    /// other size a resample chose (with a model error: every size). A size's probability is
+    /// the share of the resamples, each widened by the model error's Gaussian, that falls
+    /// nearest to it.
     pub probabilities: Vec<SizeProbability>,
     /// Resamples drawn.
     pub samples: usize,
@@ -111,7 +111,7 @@ impl CupReport {
         let others: Vec<String> = self
             .probabilities
             .iter()
-            .filter(|p| p.size_mm != self.catalogue_mm)
+            .filter(|p| p.size_mm != self.catalogue_mm && p.probability >= LINE_PROBABILITY)
             .map(|p| format!("{:.0} mm {:.2}", p.size_mm, p.probability))
             .collect();
         format!(
@@ -125,6 +125,9 @@ impl CupReport {
         )
     }
 }
+
+/// Least probability another size needs to be named on the terminal line.
+const LINE_PROBABILITY: f64 = 0.01;
 
 /// The cup estimator the resamples go through: a diameter from a resolved mesh and its round's
 /// correspondences.
@@ -240,13 +243,10 @@ pub fn cup_report(
     })
 }
 
-/// Least probability a size other than the chosen one and its neighbours needs to be listed
-/// when the model error spreads the resamples over the whole catalogue.
-const LISTED_PROBABILITY: f64 = 0.005;
-
 /// Per catalogue size (`sizes`, ascending), the share of the resampled diameters `diam`, each
 /// widened by a Gaussian of SD `model`, that is nearest to it (a size's interval runs between
-/// the midpoints to its neighbours); the chosen size and its neighbours are always listed.
+/// the midpoints to its neighbours, the ends open, so they sum to one). Listed: the chosen size
+/// and its neighbours, and every size a resample chose; with a model error, every size.
 fn size_probabilities(
     sizes: &[f64],
     chosen: f64,
@@ -274,8 +274,7 @@ fn size_probabilities(
             // As `CupCatalogue::nearest` chooses (a midpoint goes to the larger size).
             diam.iter().filter(|&&d| d >= lo && d < hi).count() as f64 / n
         };
-        let listed =
-            near(k) || (model > 0.0 && p >= LISTED_PROBABILITY) || (model == 0.0 && p > 0.0);
+        let listed = near(k) || model > 0.0 || p > 0.0;
         if listed {
             out.push(SizeProbability {
                 size_mm: size,
@@ -335,7 +334,8 @@ mod tests {
         assert!((p(&wide, 52.0) - 0.6449).abs() < 1e-3, "{wide:?}");
         assert!((p(&wide, 54.0) - (0.9953 - 0.7257)).abs() < 1e-3);
         let total: f64 = wide.iter().map(|x| x.probability).sum();
-        assert!(total > 0.99 && total <= 1.0 + 1e-12, "{total}");
+        assert!((total - 1.0).abs() < 1e-12, "{total}");
+        assert_eq!(wide.len(), sizes.len());
         // The ends of the catalogue take the tails.
         let low = size_probabilities(&sizes, 40.0, &[40.0; 4], 1.0);
         assert!((p(&low, 40.0) - 0.8413).abs() < 1e-3, "{low:?}");

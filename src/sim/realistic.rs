@@ -184,7 +184,7 @@ fn annotate(
     if kept.len() < MIN_KEPT_POINTS {
         return Err(crate::contours::ContourError::TooFewPoints { count: kept.len() });
     }
-    let s = arc_positions(&kept, closed);
+    let s = arc_positions(&kept);
     let total = s.last().copied().unwrap_or(0.0)
         + if closed {
             (kept[0] - kept[kept.len() - 1]).norm()
@@ -251,7 +251,7 @@ fn leave_out_arc(
 }
 
 /// Arc length at each point of `pts` from the first.
-fn arc_positions(pts: &[Point2<f64>], _closed: bool) -> Vec<f64> {
+fn arc_positions(pts: &[Point2<f64>]) -> Vec<f64> {
     let mut s = Vec::with_capacity(pts.len());
     let mut acc = 0.0;
     for (i, p) in pts.iter().enumerate() {
