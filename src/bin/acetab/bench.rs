@@ -1,7 +1,7 @@
 //! `acetab bench`: each GPU kernel against its CPU twin at several sizes, and the study's
 //! throughput on both backends (needs a GPU adapter; lavapipe counts).
 
-use crate::common::{count_in, MAX_RUNS};
+use crate::common::{count_in, sizes, Sizes, MAX_RUNS, MAX_THREADS};
 use acetab::engine::gpu::GpuDevice;
 
 #[derive(clap::Args)]
@@ -17,6 +17,16 @@ pub struct BenchArgs {
     /// A quick pass (one small mesh, DP batches of 1 and 4): checks the bench runs, not speed.
     #[arg(long)]
     pub quick: bool,
+    /// Template sizes (vertices) for the deform, project and silhouette kernels (default
+    /// 1000,10000,100000).
+    #[arg(long, value_parser = sizes)]
+    pub mesh_sizes: Option<Sizes>,
+    /// SRVF DP batch sizes, problems per dispatch (default 1,16,256,1024).
+    #[arg(long, value_parser = sizes)]
+    pub dp_batches: Option<Sizes>,
+    /// Worker threads of the study part (default 2).
+    #[arg(long, default_value_t = 2, value_parser = count_in(1, MAX_THREADS))]
+    pub threads: usize,
 }
 
 pub fn run(args: BenchArgs) -> Result<(), String> {
@@ -25,17 +35,27 @@ pub fn run(args: BenchArgs) -> Result<(), String> {
         study_runs,
         repeats,
         quick,
+        mesh_sizes,
+        dp_batches,
+        threads,
     } = args;
     let dev = GpuDevice::from_env().map_err(|e| format!("acetab bench: {e}"))?;
     let gpu = dev.engine().map_err(|e| e.to_string())?;
     let mut prm = acetab::study::bench::BenchParams {
         study_runs,
         repeats,
+        threads,
         ..Default::default()
     };
     if quick {
         prm.mesh_sizes = vec![500];
         prm.dp_batches = vec![1, 4];
+    }
+    if let Some(m) = mesh_sizes {
+        prm.mesh_sizes = m.0;
+    }
+    if let Some(d) = dp_batches {
+        prm.dp_batches = d.0;
     }
     let report = acetab::study::bench::run_bench(&gpu, &dev.describe(), &prm, &|s| {
         if !json {

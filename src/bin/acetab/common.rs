@@ -105,6 +105,24 @@ fn parse_list<T: PartialEq>(
     Ok(list)
 }
 
+/// A list of sizes (bench problem counts, mesh vertices), each 1 to `MAX_BENCH_SIZE`.
+#[derive(Clone, Debug)]
+pub struct Sizes(pub Vec<usize>);
+
+/// The largest size `acetab bench` takes in a list.
+pub const MAX_BENCH_SIZE: usize = 1_000_000;
+
+/// Parse a list of sizes (clap value parser).
+pub fn sizes(s: &str) -> Result<Sizes, String> {
+    let allowed = format!("sizes 1 to {MAX_BENCH_SIZE}");
+    parse_list(s, &allowed, |x| {
+        x.parse::<usize>()
+            .ok()
+            .filter(|n| (1..=MAX_BENCH_SIZE).contains(n))
+    })
+    .map(Sizes)
+}
+
 /// `--levels`: noise levels, a list of 1 to 5 (clap value parser).
 #[derive(Clone, Debug)]
 pub struct Levels(pub Vec<u32>);

@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# The real-GPU check (issue 18). On a machine with an NVIDIA GPU: the kernels against their CPU
+# twins (acetab bench) at batch sizes up to 4,096 problems and meshes up to 100,000 vertices, and
+# a study's throughput on the GPU against the CPU path on every core. Within 8 minutes; every step
+# has its own time limit, and a step that fails is reported and skipped.
+#
+# Uses target/device/acetab and target/device/lib (ci/device-prepare.sh, run beforehand where
+# the project builds), else builds with cargo if there is one. Writes to $OUT (the device tool's
+# folder) or target/device-check. QUICK=1: small sizes, to test the script on a CPU (lavapipe).
+set -uo pipefail
+cd "$(dirname "$0")/.."
+out=${OUT:-target/device-check}
+mkdir -p "$out"
+log() { echo "== $*" | tee -a "$out/check.log"; }
+bin=target/device/acetab
+if [ ! -x "$bin" ]; then
+  if command -v cargo >/dev/null; then
+    cargo build --release --quiet && bin=target/release/acetab
+  else
+    log "no target/device/acetab and no cargo: run ci/device-prepare.sh first"; exit 1
+  fi
+fi
+[ -d target/device/lib ] && export LD_LIBRARY_PATH="$PWD/target/device/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+cores=$(nproc)
+log "commit $(cat target/device/commit 2>/dev/null || git rev-parse --short=12 HEAD 2>/dev/null), $cores cores"
+command -v nvidia-smi >/dev/null && nvidia-smi -L | tee -a "$out/check.log"
+ls /usr/share/vulkan/icd.d /etc/vulkan/icd.d 2>/dev/null | tee -a "$out/check.log"
+if [ "${QUICK:-0}" = 1 ]; then
+  meshes=1000,10000; batches=1,64,256; runs=8; repeats=2
+else
+  meshes=1000,10000,100000; batches=1,64,256,1024,4096; runs=128; repeats=5
+fi
+# Vulkan first; the GL backend (EGL) if no Vulkan adapter comes up.
+backend=""
+for b in vulkan gl; do
+  if WGPU_BACKEND=$b timeout 60 "$bin" bench --quick --study-runs 0 --repeats 1 >"$out/probe-$b.txt" 2>&1; then
+    backend=$b; break
+  fi
+done
+if [ -z "$backend" ]; then
+  log "no GPU adapter (see $out/probe-*.txt); only the CPU study runs"
+else
+  export WGPU_BACKEND=$backend
+  log "adapter: $(grep adapter "$out/probe-$backend.txt")"
+  log "kernels: acetab bench --mesh-sizes $meshes --dp-batches $batches --repeats $repeats"
+  timeout 240 "$bin" bench --mesh-sizes "$meshes" --dp-batches "$batches" --repeats "$repeats" \
+    --study-runs 0 2>"$out/bench.err" | tee "$out/bench.txt" || log "bench failed or ran out of time (see $out/bench.err)"
+fi
+for be in cpu ${backend:+gpu}; do
+  log "study: phantom, srvf, level 3, $runs runs, $cores threads, backend $be"
+  timeout 150 "$bin" simulate --gt phantom --levels 3 --runs "$runs" --methods srvf --threads "$cores" \
+    --uncertainty-samples 0 --backend "$be" --out "$out/study-$be" >"$out/study-$be.txt" 2>&1 \
+    || log "study on $be failed or ran out of time (see $out/study-$be.txt)"
+  grep "runs in" "$out/study-$be.txt" | tee -a "$out/check.log"
+done
+log "done"
