@@ -210,6 +210,20 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
 }
 
 #[test]
+fn bench_names_a_bad_size_before_looking_for_an_adapter() {
+    for (flag, value, needle) in [
+        ("--dp-batches", "1,0", "cannot read \"0\" (expected sizes 1 to 1000000)"),
+        ("--mesh-sizes", "500,500", "\"500\" is listed twice"),
+        ("--threads", "0", "0 is not in 1..=1024"),
+    ] {
+        let o = bin().args(["bench", flag, value]).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(flag) && err.contains(needle), "{err}");
+    }
+}
+
+#[test]
 fn align_reports_a_rotation_and_rejects_a_bad_file() {
     let dir = tmp("align");
     let blob = |n: usize, rot: f64, shift: usize| -> String {
