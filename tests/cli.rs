@@ -103,6 +103,10 @@ fn a_case_file_reconstructs_through_the_cli() {
     // The phantom's fitted sphere is 52.45 mm across.
     assert!((d - 52.45).abs() < 2.0, "cup {d}");
     // The cup report: a +- and probabilities over the catalogue sizes that sum to one.
+    // Where it came from: the version and this command line.
+    assert_eq!(v["provenance"]["version"], env!("CARGO_PKG_VERSION"));
+    assert_eq!(v["provenance"]["command_line"][1], "reconstruct");
+    assert_eq!(v["provenance"]["backend"], "cpu");
     let pm = v["cup"]["plus_minus_mm"].as_f64().unwrap();
     assert!(pm.is_finite() && pm >= 0.0);
     let p: f64 = v["cup"]["probabilities"]
@@ -212,7 +216,11 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
 #[test]
 fn bench_names_a_bad_size_before_looking_for_an_adapter() {
     for (flag, value, needle) in [
-        ("--dp-batches", "1,0", "cannot read \"0\" (expected sizes 1 to 1000000)"),
+        (
+            "--dp-batches",
+            "1,0",
+            "cannot read \"0\" (expected sizes 1 to 1000000)",
+        ),
         ("--mesh-sizes", "500,500", "\"500\" is listed twice"),
         ("--threads", "0", "0 is not in 1..=1024"),
     ] {
@@ -631,6 +639,8 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
     let study = &s["study"];
     assert_eq!(study["protocol"]["Realistic"]["pose_deg"], 1.0, "{study}");
     assert_eq!(study["calibration"], "shipped realistic");
+    assert_eq!(study["provenance"]["command_line"][1], "simulate");
+    assert_eq!(study["provenance"]["threads"], 1);
     let shipped = acetab::pipeline::CupCalibration::shipped_realistic().model_sd_mm;
     assert_eq!(study["cup_model_sd_mm"], shipped);
     // The run's SD holds the model error.

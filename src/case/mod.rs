@@ -7,4 +7,4 @@ mod run;
 pub use file::{
     Case, CaseError, CaseFile, ContourFile, ContourKind, IntrinsicsFile, TemplateFile, ViewFile,
 };
-pub use run::{run_case, CaseRunError, CaseRunReport};
+pub use run::{run_case, run_case_with, CaseRunError, CaseRunReport};

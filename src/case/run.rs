@@ -10,6 +10,7 @@ use crate::pipeline::{cup_report, CupReport, UncertaintyParams};
 use crate::pipeline::{reconstruct, ReconError, ReconParams};
 #[cfg(feature = "plots")]
 use crate::report::plots::{overlay, PlotError};
+use crate::report::Provenance;
 use crate::template::Template;
 use std::path::{Path, PathBuf};
 
@@ -56,6 +57,8 @@ pub struct CaseRunReport {
     pub backend: String,
     /// The cup and its uncertainty.
     pub cup: CupReport,
+    /// Version, command line, backend and adapter, threads, seed.
+    pub provenance: Provenance,
     /// The cup sphere.
     pub sphere: crate::geom::Sphere,
     /// What the solver did.
@@ -78,13 +81,26 @@ fn file_safe(s: &str) -> String {
 }
 
 /// Reconstruct the case at `path` and write reconstruction.ply, cup.json, report.json and
-/// overlay-<view>.png into `out`.
+/// overlay-<view>.png into `out` (the provenance names no adapter: `run_case_with` does).
 pub fn run_case(
     path: &Path,
     out: &Path,
     prm: &ReconParams,
     kernels: Kernels,
     up: &UncertaintyParams,
+) -> Result<CaseRunReport, CaseRunError> {
+    let provenance = Provenance::here(kernels.name(), None, 1, up.seed);
+    run_case_with(path, out, prm, kernels, up, provenance)
+}
+
+/// As `run_case`, with the caller's provenance in report.json (its adapter, its threads).
+pub fn run_case_with(
+    path: &Path,
+    out: &Path,
+    prm: &ReconParams,
+    kernels: Kernels,
+    up: &UncertaintyParams,
+    provenance: Provenance,
 ) -> Result<CaseRunReport, CaseRunError> {
     let case = CaseFile::load(path)?;
     let t = std::time::Instant::now();
@@ -129,6 +145,7 @@ pub fn run_case(
                 method: prm.method.name().into(),
                 backend: kernels.name().into(),
                 cup: cup.clone(),
+                provenance: provenance.clone(),
                 sphere: rec.sphere,
                 log: rec.log.clone(),
                 seconds,

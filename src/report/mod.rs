@@ -6,6 +6,7 @@ mod cup;
 mod metrics;
 #[cfg(feature = "plots")]
 pub mod plots;
+mod provenance;
 
 pub use accuracy::{accuracy, accuracy_from, accuracy_samples, write_error_ply, Accuracy};
 pub use cup::{CupCatalogue, CupSize};
@@ -13,3 +14,4 @@ pub use metrics::{
     error_colors, interior_distance, surface_distance, surface_samples, DistanceStats,
     InteriorQuery, SurfaceQuery,
 };
+pub use provenance::Provenance;

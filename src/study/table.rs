@@ -445,7 +445,9 @@ fn study_settings(
         return Err(bad("no \"study\" object".into()));
     };
     let mut study = study.clone();
-    for k in ["shard", "seconds", "merged"] {
+    // What differs between shards of one study: the shard, its time, its command line and
+    // engine counts.
+    for k in ["shard", "seconds", "merged", "provenance", "engine"] {
         study.remove(k);
     }
     Ok(Some(study))

@@ -1,7 +1,7 @@
 //! `acetab reconstruct`: reconstruct a case file.
 
 use crate::common::{engine_on, open_device};
-use acetab::case::run_case;
+use acetab::case::run_case_with;
 use acetab::contours::ContourSource;
 use acetab::correspond::Method;
 use acetab::engine::{BackendChoice, Kernels};
@@ -81,7 +81,14 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         noise_px: None,
         model_sd_mm,
     };
-    let report = run_case(&case, &out, &prm, kernels, &up).map_err(|e| e.to_string())?;
+    let provenance = acetab::report::Provenance::here(
+        kernels.name(),
+        dev.as_ref().map(|d| d.describe()),
+        1,
+        seed,
+    );
+    let report =
+        run_case_with(&case, &out, &prm, kernels, &up, provenance).map_err(|e| e.to_string())?;
     if json {
         println!(
             "{}",

@@ -9,6 +9,7 @@ use acetab::engine::gpu::GpuBatcher;
 use acetab::engine::{BackendChoice, Kernels};
 use acetab::io::fill_dir_atomically;
 use acetab::pipeline::{DeformationParams, ReconParams, UncertaintyParams};
+use acetab::report::Provenance;
 use acetab::sim::{Protocol, RealisticErrors, SimSetup, XrayGeometry};
 use acetab::study::population::{worst_meshes, write_population};
 use acetab::study::{read_csv, run_study, tasks, write_examples, write_tables, StudyConfig};
@@ -180,6 +181,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
     let study = Study {
         cfg: &cfg,
         calibration,
+        adapter: dev.as_ref().map(|d| d.describe()),
         runs,
         seed,
         shard,
@@ -200,6 +202,8 @@ struct Study<'a> {
     cfg: &'a StudyConfig,
     /// Where the cup calibration came from (summary.json).
     calibration: String,
+    /// The GPU adapter, when the kernels run on one (summary.json's provenance).
+    adapter: Option<String>,
     runs: usize,
     seed: u64,
     shard: (usize, usize),
@@ -334,6 +338,7 @@ impl Study<'_> {
         let Study {
             cfg,
             ref calibration,
+            ref adapter,
             runs,
             seed,
             shard,
@@ -350,6 +355,7 @@ impl Study<'_> {
             .map_err(|e| e.to_string())?,
         );
         let start = std::time::Instant::now();
+        let counts_before = batcher.map(|b| b.counts());
         let (rows, examples) = run_study(&truth, cfg, &|| bar.inc(1), kernels)
             .map_err(|e| format!("--gt {gt}: {e}"))?;
         if let Some(b) = batcher {
@@ -393,7 +399,14 @@ impl Study<'_> {
             "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
             "w_obs": cfg.params.weights.obs, "refine_poses": cfg.params.pose.is_some(),
             "cup_model_sd_mm": cfg.uncertainty.as_ref().map(|u| u.model_sd_mm),
-            "calibration": calibration, "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
+            "calibration": calibration,
+            "provenance": Provenance::here(kernels.name(), adapter.clone(), cfg.threads, seed),
+            // This study's kernel requests and the dispatches they were merged into.
+            "engine": batcher.zip(counts_before).map(|(b, (r0, d0))| {
+                let (r, d) = b.counts();
+                serde_json::json!({"requests": r - r0, "dispatches": d - d0})
+            }),
+            "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
         });
         fill_dir_atomically(
             out,
