@@ -585,6 +585,42 @@ fn calibrate_learns_the_model_sd_leaves_a_subject_out_and_names_bad_input() {
     assert!(learn(&[], &both).status.success());
     let cal2 = acetab::pipeline::CupCalibration::read(&both).unwrap();
     assert!(cal2.model_sd_mm > 4.0, "{cal2:?}");
+    // A study calibrated leave-one-subject-out learns without its own subject: here, a mesh of
+    // subject s2 learns from s1 alone.
+    let gt = dir.join("s2_rhip.obj");
+    acetab::io::write_obj(&phantom(&PhantomParams::default()).mesh, &gt).unwrap();
+    let study = dir.join("loso");
+    let o = bin()
+        .args(["simulate", "--gt"])
+        .arg(&gt)
+        .args(ONE_RUN.split(' '))
+        .args(["--uncertainty-samples", "2", "--calibrate-loso"])
+        .arg(&pop)
+        .arg("--out")
+        .arg(&study)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(study.join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(s["study"]["cup_model_sd_mm"], cal.model_sd_mm, "{s}");
+    assert!(s["study"]["calibration"]
+        .as_str()
+        .unwrap()
+        .contains("without subject s2"));
+    // It cannot be given with a calibration file.
+    let mut cmd = bin();
+    cmd.args([
+        "simulate",
+        "--gt",
+        "phantom",
+        "--calibration",
+        "none",
+        "--calibrate-loso",
+    ])
+    .arg(&pop);
+    fails_cleanly_with(cmd, &dir.join("both-flags"), &["--calibrate-loso"], 2);
     // A study whose summary.json holds a model SD has it taken out of its cup SDs first.
     std::fs::write(
         pop.join("s2_rhip/summary.json"),

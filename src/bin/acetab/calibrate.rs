@@ -28,10 +28,17 @@ pub struct CalibrateArgs {
     pub out: PathBuf,
 }
 
-/// The subject of a study folder: its name up to the first '_'.
-pub fn subject_of(dir: &Path) -> String {
-    let name = dir.file_name().map(|n| n.to_string_lossy().into_owned());
-    let name = name.unwrap_or_default();
+/// The subject of a study folder or mesh file: its name (a file's without the extension) up to
+/// the first '_'.
+pub fn subject_of(path: &Path) -> String {
+    let name = if path.is_dir() {
+        path.file_name()
+    } else {
+        path.file_stem()
+    };
+    let name = name
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     name.split('_').next().unwrap_or_default().to_string()
 }
 
@@ -83,12 +90,19 @@ fn model_sd_of(dir: &Path) -> Result<f64, String> {
     }
 }
 
-pub fn run(args: CalibrateArgs) -> Result<(), String> {
-    let dirs = study_dirs(&args.study)?;
+/// Learn a calibration from the `method` runs of the studies under `study`, leaving out the
+/// subjects `leave_out`; `note` is appended to `learned_from`.
+pub fn learn(
+    study: &[PathBuf],
+    leave_out: &[String],
+    method: StudyMethod,
+    note: Option<&str>,
+) -> Result<CupCalibration, String> {
+    let dirs = study_dirs(study)?;
     let mut pairs = Vec::new();
     let mut used = 0;
     for d in &dirs {
-        if args.leave_out.contains(&subject_of(d)) {
+        if leave_out.contains(&subject_of(d)) {
             continue;
         }
         used += 1;
@@ -96,28 +110,30 @@ pub fn run(args: CalibrateArgs) -> Result<(), String> {
         let rows = read_csv(&d.join("runs.csv")).map_err(|e| e.to_string())?;
         for r in rows
             .iter()
-            .filter(|r| r.method == args.method && r.error.is_empty())
+            .filter(|r| r.method == method && r.error.is_empty())
         {
             // The resampled SD alone: the study's SD without the model error it already held.
             let resample = (r.cup_sd_mm * r.cup_sd_mm - model * model).max(0.0).sqrt();
             pairs.push((r.cup_error_mm(), resample));
         }
     }
-    let from = format!(
-        "{} {} runs in {used} studies{}",
-        pairs.len(),
-        args.method.name(),
-        if args.leave_out.is_empty() {
-            String::new()
-        } else {
-            format!(" (left out: {})", args.leave_out.join(", "))
-        }
-    );
-    let from = match &args.note {
-        Some(n) => format!("{from}: {n}"),
-        None => from,
-    };
-    let cal = CupCalibration::learn(&pairs, from).map_err(|e| e.to_string())?;
+    let mut from = format!("{} {} runs in {used} studies", pairs.len(), method.name());
+    if !leave_out.is_empty() {
+        from += &format!(" (left out: {})", leave_out.join(", "));
+    }
+    if let Some(n) = note {
+        from += &format!(": {n}");
+    }
+    CupCalibration::learn(&pairs, from).map_err(|e| e.to_string())
+}
+
+pub fn run(args: CalibrateArgs) -> Result<(), String> {
+    let cal = learn(
+        &args.study,
+        &args.leave_out,
+        args.method,
+        args.note.as_deref(),
+    )?;
     write_atomic(&args.out, cal.to_json().as_bytes())
         .map_err(|e| format!("--out {}: {e}", args.out.display()))?;
     println!(

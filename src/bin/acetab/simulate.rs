@@ -91,6 +91,12 @@ pub struct SimulateArgs {
     /// of the protocol (calibration/ideal.json or realistic.json).
     #[arg(long)]
     pub calibration: Option<String>,
+    /// Leave-one-subject-out calibration: each mesh's study uses a calibration learned (as
+    /// `acetab calibrate` does) from the studies under this folder, less those of the mesh's
+    /// subject (its file name up to the first '_'), so no study is calibrated on its own
+    /// subject.
+    #[arg(long, conflicts_with = "calibration")]
+    pub calibrate_loso: Option<PathBuf>,
     #[arg(long)]
     pub out: PathBuf,
 }
@@ -115,6 +121,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         coarse_nodes,
         uncertainty_samples,
         calibration,
+        calibrate_loso,
         out,
     } = args;
     let (model_sd_mm, calibration) = match protocol {
@@ -182,6 +189,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         cfg: &cfg,
         calibration,
         adapter: dev.as_ref().map(|d| d.describe()),
+        loso: calibrate_loso,
         runs,
         seed,
         shard,
@@ -204,6 +212,8 @@ struct Study<'a> {
     calibration: String,
     /// The GPU adapter, when the kernels run on one (summary.json's provenance).
     adapter: Option<String>,
+    /// `--calibrate-loso`: the studies each mesh's calibration is learned from.
+    loso: Option<PathBuf>,
     runs: usize,
     seed: u64,
     shard: (usize, usize),
@@ -339,6 +349,7 @@ impl Study<'_> {
             cfg,
             ref calibration,
             ref adapter,
+            ref loso,
             runs,
             seed,
             shard,
@@ -346,6 +357,26 @@ impl Study<'_> {
             batcher,
         } = *self;
         let truth = load_truth(gt)?;
+        // Leave-one-subject-out: this mesh's calibration, learned without its subject.
+        let mut own = cfg.clone();
+        let mut calibration = calibration.clone();
+        if let (Some(train), Some(up)) = (loso, own.uncertainty.as_mut()) {
+            let subject = crate::calibrate::subject_of(Path::new(gt));
+            let cal = crate::calibrate::learn(
+                std::slice::from_ref(train),
+                std::slice::from_ref(&subject),
+                acetab::study::StudyMethod::Srvf,
+                None,
+            )
+            .map_err(|e| format!("--calibrate-loso: {e}"))?;
+            up.model_sd_mm = cal.model_sd_mm;
+            calibration = format!(
+                "leave-one-subject-out: {} without subject {subject}: {}",
+                train.display(),
+                cal.learned_from
+            );
+        }
+        let cfg = &own;
         let total = tasks(cfg).len();
         let bar = ProgressBar::new(total as u64);
         bar.set_style(
