@@ -124,6 +124,16 @@ fn a_case_file_reconstructs_through_the_cli() {
     ] {
         assert!(out.join(f).is_file(), "{f}");
     }
+    // A catalogue that cannot hold the cup is refused, naming its range; nothing is written.
+    let mut cmd = bin();
+    cmd.arg("reconstruct")
+        .arg(&case)
+        .args(["--catalogue", "60:70:2"]);
+    fails_cleanly(
+        cmd,
+        &dir.join("small"),
+        &["outside the catalogue's 60-70 mm", "no size is given"],
+    );
 }
 
 #[test]
@@ -198,7 +208,12 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
         ("--threads", "0", "0 is not in 1..=1024"),
         ("--coarse-nodes", "1", "1 is not in 2..=150"),
         ("--shard", "3/2", "expected I/N with 0 <= I < N"),
-        ("--uncertainty-samples", "1001", "1001 is not in 0..=1000"),
+        (
+            "--uncertainty-samples",
+            "1001",
+            "expected 0 (off) or 2 to 1000",
+        ),
+        ("--uncertainty-samples", "1", "one resample has no spread"),
         ("--views", "z:0,q:3", "cannot read \"q:3\""),
         (
             "--views",
@@ -314,10 +329,11 @@ fn align_reports_a_rotation_and_rejects_a_bad_file() {
     assert!(v["distance"].as_f64().unwrap() < 0.02, "{}", v["distance"]);
 }
 
-/// A ground truth in the wrong units (the phantom in centimetres) runs but is warned about; the
-/// same phantom in millimetres is not (the companion that keeps the warning from firing always).
+/// A ground truth in the wrong units (the phantom in centimetres) is refused with the radius
+/// found; the same phantom in millimetres runs (the companion that keeps the refusal from firing
+/// always).
 #[test]
-fn simulate_warns_about_a_ground_truth_in_the_wrong_units() {
+fn simulate_refuses_a_ground_truth_in_the_wrong_units() {
     let dir = tmp("units");
     let mut mesh = phantom(&PhantomParams::default()).mesh;
     acetab::io::write_obj(&mesh, &dir.join("mm.obj")).unwrap();
@@ -325,26 +341,31 @@ fn simulate_warns_about_a_ground_truth_in_the_wrong_units() {
         *v = nalgebra::Point3::from(v.coords * 0.1);
     }
     acetab::io::write_obj(&mesh, &dir.join("cm.obj")).unwrap();
-    let warned = |name: &str| {
-        let o = bin()
-            .arg("simulate")
-            .args(ONE_RUN.split(' '))
-            .arg("--gt")
-            .arg(dir.join(name))
-            .arg("--out")
-            .arg(dir.join(format!("out-{name}")))
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&o.stderr).into_owned();
-        // In millimetres the study runs; 5 mm across, the guards refuse every cup (30-80 mm).
-        assert_eq!(o.status.success(), name == "mm.obj", "{err}");
-        err.contains("warning") && err.contains("is the mesh in millimetres")
-    };
-    assert!(warned("cm.obj"), "no warning for a phantom 5 mm across");
-    assert!(
-        !warned("mm.obj"),
-        "a warning for the phantom in millimetres"
+    let mut cmd = bin();
+    cmd.arg("simulate")
+        .args(ONE_RUN.split(' '))
+        .arg("--gt")
+        .arg(dir.join("cm.obj"));
+    fails_cleanly(
+        cmd,
+        &dir.join("out-cm"),
+        &[
+            "cm.obj",
+            "radius is 2.6",
+            "outside the 15-60 mm",
+            "millimetres?",
+        ],
     );
+    let o = bin()
+        .arg("simulate")
+        .args(ONE_RUN.split(' '))
+        .arg("--gt")
+        .arg(dir.join("mm.obj"))
+        .arg("--out")
+        .arg(dir.join("out-mm"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
 /// `acetab merge` through the CLI: two shards merge into a new folder; merging into one of the

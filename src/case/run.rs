@@ -36,6 +36,18 @@ pub enum CaseRunError {
     #[cfg(feature = "plots")]
     #[error(transparent)]
     Plot(#[from] PlotError),
+    /// The cup is outside the catalogue (`CupCatalogue::holds`).
+    #[error("{path}: the cup is {diameter_mm:.1} mm across, outside the catalogue's {min_mm}-{max_mm} mm (--catalogue): no size is given")]
+    Catalogue {
+        /// The case file.
+        path: PathBuf,
+        /// The cup's diameter.
+        diameter_mm: f64,
+        /// The catalogue's smallest size.
+        min_mm: f64,
+        /// Its largest.
+        max_mm: f64,
+    },
     /// An output file could not be written.
     #[error("{path}: cannot write: {source}")]
     Write {
@@ -110,6 +122,15 @@ pub fn run_case_with(
     };
     let template = Template::standard();
     let rec = reconstruct(&case.input(&template), prm, kernels).map_err(recon_err)?;
+    let catalogue = &prm.cup.catalogue;
+    if !catalogue.holds(rec.sphere.diameter()) {
+        return Err(CaseRunError::Catalogue {
+            path: path.to_path_buf(),
+            diameter_mm: rec.sphere.diameter(),
+            min_mm: catalogue.sizes_mm.first().copied().unwrap_or(f64::NAN),
+            max_mm: catalogue.sizes_mm.last().copied().unwrap_or(f64::NAN),
+        });
+    }
     let cup = cup_report(&rec, &case.observed, prm, kernels, up).map_err(recon_err)?;
     let seconds = t.elapsed().as_secs_f64();
 

@@ -60,6 +60,23 @@ impl CupCatalogue {
         Ok(CupCatalogue { sizes_mm: sizes })
     }
 
+    /// Whether the catalogue can hold a cup of `diameter`: it lies no further below the smallest
+    /// size, or above the largest, than half the step to its neighbour (1 mm for a catalogue
+    /// of one size). A cup outside is not sized: the nearest size would be a guess.
+    pub fn holds(&self, diameter: f64) -> bool {
+        let (Some(&lo), Some(&hi)) = (self.sizes_mm.first(), self.sizes_mm.last()) else {
+            return false;
+        };
+        let n = self.sizes_mm.len();
+        let below = if n > 1 { self.sizes_mm[1] - lo } else { 2.0 };
+        let above = if n > 1 {
+            hi - self.sizes_mm[n - 2]
+        } else {
+            2.0
+        };
+        diameter.is_finite() && diameter >= lo - 0.5 * below && diameter <= hi + 0.5 * above
+    }
+
     /// The nearest catalogue size (ties go to the larger cup). An empty catalogue (one built
     /// by hand; `parse` refuses it) has no size to offer: NaN.
     pub fn nearest(&self, diameter: f64) -> CupSize {
@@ -80,6 +97,15 @@ impl CupCatalogue {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_cup_outside_the_catalogue_is_not_held() {
+        let c = CupCatalogue::parse("60:70:2").unwrap();
+        assert!(c.holds(59.0) && c.holds(71.0) && c.holds(65.3));
+        assert!(!c.holds(51.0) && !c.holds(58.9) && !c.holds(71.1) && !c.holds(f64::NAN));
+        let one = CupCatalogue::parse("52").unwrap();
+        assert!(one.holds(51.5) && !one.holds(49.0));
+    }
 
     #[test]
     fn nearest_size_and_parsing() {

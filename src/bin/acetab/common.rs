@@ -33,12 +33,13 @@ pub fn io_msg(p: &Path, e: std::io::Error) -> String {
     format!("{}: cannot write: {e}", p.display())
 }
 
-/// Sphere diameters (mm) an acetabulum can have; outside them `--gt` is warned about (a mesh in
-/// metres or centimetres still runs, but the solver's tolerances are in millimetres).
-pub const PLAUSIBLE_CUP_MM: (f64, f64) = (20.0, 100.0);
+/// Sphere radii (mm) an acetabulum can have; a `--gt` mesh outside them is refused (in metres or
+/// centimetres it would run, but the solver's tolerances and the guards are in millimetres).
+pub const PLAUSIBLE_RADIUS_MM: (f64, f64) = (15.0, 60.0);
 
-/// The study's ground truth from `--gt` (a mesh file or `phantom`). A surface no sphere fits, or
-/// one the simulated views cannot see, is refused by the study itself before any run.
+/// The study's ground truth from `--gt` (a mesh file or `phantom`). A surface no sphere fits, one
+/// whose sphere's radius is outside `PLAUSIBLE_RADIUS_MM`, or one the simulated views cannot see
+/// is refused before any run.
 pub fn load_truth(gt: &str) -> Result<acetab::geom::Mesh, String> {
     let truth = if gt == "phantom" {
         phantom(&PhantomParams::default()).mesh
@@ -46,15 +47,15 @@ pub fn load_truth(gt: &str) -> Result<acetab::geom::Mesh, String> {
         let mesh = read_mesh(Path::new(gt)).map_err(|e| format!("--gt: {e}"))?;
         ground_truth_surface(&mesh).map_err(|e| format!("--gt {gt}: {e}"))?
     };
-    let d = fit_sphere(&truth.vertices)
+    let r = fit_sphere(&truth.vertices)
         .map_err(|e| format!("--gt {gt}: ground truth sphere fit: {e}"))?
-        .diameter();
-    if !(PLAUSIBLE_CUP_MM.0..=PLAUSIBLE_CUP_MM.1).contains(&d) {
-        eprintln!(
-            "acetab: warning: --gt {gt}: the fitted sphere is {d:.3} mm across, outside the {}-{} mm \
-             of an acetabulum; is the mesh in millimetres? (the solver's tolerances are in mm)",
-            PLAUSIBLE_CUP_MM.0, PLAUSIBLE_CUP_MM.1
-        );
+        .radius;
+    let (lo, hi) = PLAUSIBLE_RADIUS_MM;
+    if !(lo..=hi).contains(&r) {
+        return Err(format!(
+            "--gt {gt}: the fitted sphere's radius is {r:.3} mm, outside the {lo}-{hi} mm of an \
+             acetabulum: is the mesh in millimetres?"
+        ));
     }
     Ok(truth)
 }
@@ -165,6 +166,16 @@ pub fn methods(s: &str) -> Result<Methods, String> {
         StudyMethod::from_name(&x.to_ascii_lowercase())
     })
     .map(Methods)
+}
+
+/// `--uncertainty-samples` of a study: 0 (off) or 2 to 1000 (one resample has no spread).
+pub fn study_samples(s: &str) -> Result<u64, String> {
+    match s.trim().parse::<u64>() {
+        Ok(n) if n == 0 || (2..=1000).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "{s:?}: expected 0 (off) or 2 to 1000 (one resample has no spread)"
+        )),
+    }
 }
 
 /// Parse one study method (names in any case).

@@ -24,8 +24,9 @@ pub struct ReconstructArgs {
     /// the first view fixes the frame).
     #[arg(long)]
     pub refine_poses: bool,
-    /// Resamples for the cup size's uncertainty (contour noise + bootstrap weights).
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(1..=1000))]
+    /// Resamples for the cup size's uncertainty (contour noise + bootstrap weights), 2 to 1000
+    /// (one resample has no spread).
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(2..=1000))]
     pub uncertainty_samples: u64,
     /// Cup calibration (JSON from `acetab calibrate`; the model-error SD added to the
     /// resamples' spread), or "none" (the resamples alone). Default: the shipped calibration

@@ -84,7 +84,7 @@ pub struct SimulateArgs {
     /// Resamples for every run's cup uncertainty (cup_sd_mm, size_probability and brier in
     /// runs.csv; the same resampling as `acetab reconstruct`, seeded by the run's seed); 0
     /// turns it off.
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(0..=1000))]
+    #[arg(long, default_value_t = 16, value_parser = crate::common::study_samples)]
     pub uncertainty_samples: u64,
     /// Cup calibration (JSON from `acetab calibrate`: the model-error SD added to the
     /// resamples' spread), or "none" (the resamples alone). Default: the shipped calibration
