@@ -704,3 +704,38 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
     let rows = acetab::study::read_csv(&out.join("runs.csv")).unwrap();
     assert!(rows[0].cup_sd_mm >= shipped, "{}", rows[0].cup_sd_mm);
 }
+
+/// A picture that cannot be drawn (here: ACETAB_FONT names no font) loses nothing: the study's
+/// tables are written and the picture is a warning. Without ACETAB_FONT the shipped font draws
+/// every picture and nothing is warned about (the companion).
+#[test]
+fn a_picture_that_cannot_be_drawn_is_a_warning_not_a_lost_study() {
+    let dir = tmp("font");
+    let run = |font: Option<&Path>, out: &Path| {
+        let mut cmd = bin();
+        cmd.args(["simulate", "--gt", "phantom"])
+            .args(ONE_RUN.split(' '))
+            .args(["--uncertainty-samples", "0", "--out"])
+            .arg(out)
+            .env_remove("ACETAB_FONT");
+        if let Some(f) = font {
+            cmd.env("ACETAB_FONT", f);
+        }
+        cmd.output().unwrap()
+    };
+    let out = dir.join("no-font");
+    let o = run(Some(&dir.join("missing.ttf")), &out);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("warning: errors.png not drawn") && err.contains("missing.ttf"),
+        "{err}"
+    );
+    assert!(out.join("runs.csv").is_file() && out.join("summary.json").is_file());
+    assert!(!out.join("errors.png").exists());
+    let out = dir.join("shipped");
+    let o = run(None, &out);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && !err.contains("warning"), "{err}");
+    assert!(out.join("errors.png").is_file() && out.join("example-srvf/view0.png").is_file());
+}

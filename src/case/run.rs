@@ -9,7 +9,7 @@ use crate::io::{write_ply, MeshIoError};
 use crate::pipeline::{cup_report, CupReport, UncertaintyParams};
 use crate::pipeline::{reconstruct, ReconError, ReconParams};
 #[cfg(feature = "plots")]
-use crate::report::plots::{overlay, PlotError};
+use crate::report::plots::overlay;
 use crate::report::Provenance;
 use crate::template::Template;
 use std::path::{Path, PathBuf};
@@ -32,10 +32,6 @@ pub enum CaseRunError {
     /// The reconstruction could not be written.
     #[error(transparent)]
     Mesh(#[from] MeshIoError),
-    /// An overlay could not be drawn.
-    #[cfg(feature = "plots")]
-    #[error(transparent)]
-    Plot(#[from] PlotError),
     /// The cup is outside the catalogue (`CupCatalogue::holds`).
     #[error("{path}: the cup is {diameter_mm:.1} mm across, outside the catalogue's {min_mm}-{max_mm} mm (--catalogue): no size is given")]
     Catalogue {
@@ -79,6 +75,8 @@ pub struct CaseRunReport {
     pub seconds: f64,
     /// The files written.
     pub files: Vec<String>,
+    /// Pictures that could not be drawn, and why (the rest is written regardless).
+    pub warnings: Vec<String>,
 }
 
 #[cfg(feature = "plots")]
@@ -143,19 +141,23 @@ pub fn run_case_with(
         out,
         |stage| {
             let mut files = vec!["reconstruction.ply".to_string()];
+            #[allow(unused_mut)]
+            let mut warnings = Vec::new();
             write_ply(&rec.mesh, None, &stage.join("reconstruction.ply"))?;
             #[cfg(feature = "plots")]
             for (k, cam) in case.cameras.iter().enumerate() {
                 let name = format!("overlay-{k}-{}.png", file_safe(&case.names[k]));
-                overlay(
+                match overlay(
                     (cam.width, cam.height),
                     case.images[k].as_deref(),
                     &rec.initial_contours[k].points,
                     &rec.final_contours[k].points,
                     &case.observed[k],
                     &stage.join(&name),
-                )?;
-                files.push(name);
+                ) {
+                    Ok(()) => files.push(name),
+                    Err(e) => warnings.push(format!("{name} not drawn: {e}")),
+                }
             }
             #[cfg(not(feature = "plots"))]
             let _ = &case.images; // overlays need the `plots` feature
@@ -171,6 +173,7 @@ pub fn run_case_with(
                 log: rec.log.clone(),
                 seconds,
                 files,
+                warnings,
             };
             std::fs::write(stage.join("cup.json"), pretty(&cup))
                 .map_err(|e| write_err(stage, e))?;

@@ -1,6 +1,6 @@
 //! Pictures: the study's error box plots and per-view contour overlays, drawn with plotters into
-//! an RGB buffer and saved as PNG with `image`. Text needs a TrueType font: DejaVu Sans
-//! (Debian's fonts-dejavu-core, which ci/install-deps.sh installs) or the file in ACETAB_FONT.
+//! an RGB buffer and saved as PNG with `image`. Text uses DejaVu Sans, shipped inside the program
+//! (the `dejavu` crate), so no system font is needed; ACETAB_FONT names another TrueType file.
 
 use crate::geom::Curve;
 use crate::io::write_atomic;
@@ -13,8 +13,8 @@ use std::sync::OnceLock;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum PlotError {
-    /// No TrueType font could be loaded (the paths tried).
-    #[error("no TrueType font found (looked at ACETAB_FONT and {0}); install fonts-dejavu-core")]
+    /// The font could not be loaded (which one, and why).
+    #[error("font: {0}")]
     NoFont(String),
     /// plotters or the PNG encoder failed (their message).
     #[error("drawing failed: {0}")]
@@ -29,30 +29,19 @@ pub enum PlotError {
     },
 }
 
-const FONT_PATHS: [&str; 3] = [
-    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/TTF/DejaVuSans.ttf",
-    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
-];
-
 fn ensure_font() -> Result<(), PlotError> {
     static DONE: OnceLock<Result<(), String>> = OnceLock::new();
     DONE.get_or_init(|| {
-        let candidates: Vec<String> = std::env::var("ACETAB_FONT")
-            .ok()
-            .into_iter()
-            .chain(FONT_PATHS.iter().map(|s| s.to_string()))
-            .collect();
-        for p in &candidates {
-            if let Ok(bytes) = std::fs::read(p) {
+        let (bytes, what): (&'static [u8], String) = match std::env::var("ACETAB_FONT") {
+            Ok(p) => match std::fs::read(&p) {
                 // The font lives for the whole program: plotters keeps a 'static reference.
-                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-                if plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok() {
-                    return Ok(());
-                }
-            }
-        }
-        Err(candidates.join(", "))
+                Ok(b) => (Box::leak(b.into_boxed_slice()), format!("ACETAB_FONT={p}")),
+                Err(e) => return Err(format!("ACETAB_FONT={p}: {e}")),
+            },
+            Err(_) => (dejavu::sans::regular(), "the shipped DejaVu Sans".into()),
+        };
+        plotters::style::register_font("sans-serif", FontStyle::Normal, bytes)
+            .map_err(|_| format!("{what} is not a TrueType font plotters can read"))
     })
     .clone()
     .map_err(PlotError::NoFont)

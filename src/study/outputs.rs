@@ -10,8 +10,14 @@ use crate::report::plots::{box_plots, overlay};
 use crate::report::write_error_ply;
 use std::path::Path;
 
-/// Everything but the examples: the tables and the box plots.
-pub fn write_tables(rows: &[Row], dir: &Path, meta: &serde_json::Value) -> Result<(), StudyError> {
+/// Everything but the examples: the tables, then the box plots. A picture that cannot be drawn
+/// does not lose the study: the tables are written first, and the picture's failure comes back
+/// as a warning (the returned list), not an error.
+pub fn write_tables(
+    rows: &[Row],
+    dir: &Path,
+    meta: &serde_json::Value,
+) -> Result<Vec<String>, StudyError> {
     let werr = |p: &Path, e: String| StudyError::Write {
         path: p.to_path_buf(),
         source: std::io::Error::other(e),
@@ -25,9 +31,13 @@ pub fn write_tables(rows: &[Row], dir: &Path, meta: &serde_json::Value) -> Resul
         path: p.clone(),
         source,
     })?;
+    #[allow(unused_mut)]
+    let mut warnings = Vec::new();
     #[cfg(feature = "plots")]
-    write_box_plots(rows, dir)?;
-    Ok(())
+    if let Err(e) = write_box_plots(rows, dir) {
+        warnings.push(format!("errors.png not drawn: {e}"));
+    }
+    Ok(warnings)
 }
 
 /// errors.png: MAE and cup error per level, a box per method.
@@ -74,8 +84,15 @@ fn write_box_plots(rows: &[Row], dir: &Path) -> Result<(), StudyError> {
     .map_err(|e| werr(&p, e.to_string()))
 }
 
-/// The example runs: `example-<method>/reconstruction.ply` and `view<k>.png`.
-pub fn write_examples(examples: &[ExampleRun], truth: &Mesh, dir: &Path) -> Result<(), StudyError> {
+/// The example runs: `example-<method>/reconstruction.ply` and `view<k>.png`; an overlay that
+/// cannot be drawn is a warning (the returned list), as in `write_tables`.
+pub fn write_examples(
+    examples: &[ExampleRun],
+    truth: &Mesh,
+    dir: &Path,
+) -> Result<Vec<String>, StudyError> {
+    #[allow(unused_mut)]
+    let mut warnings = Vec::new();
     for ex in examples {
         let d = dir.join(format!("example-{}", ex.task.method.name()));
         std::fs::create_dir_all(&d).map_err(|source| StudyError::Write {
@@ -90,19 +107,18 @@ pub fn write_examples(examples: &[ExampleRun], truth: &Mesh, dir: &Path) -> Resu
         #[cfg(feature = "plots")]
         for (k, cam) in ex.sim.cameras.iter().enumerate() {
             let p = d.join(format!("view{k}.png"));
-            overlay(
+            if let Err(e) = overlay(
                 (cam.width, cam.height),
                 None,
                 &ex.recon.initial_contours[k].points,
                 &ex.recon.final_contours[k].points,
                 &ex.sim.observed[k],
                 &p,
-            )
-            .map_err(|e| StudyError::Write {
-                path: p.clone(),
-                source: std::io::Error::other(e.to_string()),
-            })?;
+            ) {
+                let shown = p.strip_prefix(dir).unwrap_or(&p);
+                warnings.push(format!("{} not drawn: {e}", shown.display()));
+            }
         }
     }
-    Ok(())
+    Ok(warnings)
 }

@@ -141,12 +141,13 @@ pub fn worst_meshes(rows: &[PopulationRow]) -> Vec<(StudyMethod, String, f64)> {
         .collect()
 }
 
-/// Write population.csv, population.json and (with `plots`) population.png into `dir`.
+/// Write population.csv, population.json and then (with `plots`) population.png into `dir`: the
+/// rows, and the warning when the picture could not be drawn (the tables are written anyway).
 pub fn write_population(
     dir: &Path,
     meshes: &[(String, Vec<Row>)],
     meta: &serde_json::Value,
-) -> Result<Vec<PopulationRow>, StudyError> {
+) -> Result<(Vec<PopulationRow>, Option<String>), StudyError> {
     let rows = population_rows(meshes);
     let werr = |path: &Path, e: String| StudyError::Write {
         path: path.to_path_buf(),
@@ -168,6 +169,8 @@ pub fn write_population(
         serde_json::json!({"study": meta, "meshes": meshes.len(), "rows": rows, "worst": worst});
     let text = serde_json::to_string_pretty(&json).map_err(|e| werr(&p, e.to_string()))?;
     write_atomic(&p, text.as_bytes()).map_err(|e| werr(&p, e.to_string()))?;
+    #[allow(unused_mut)]
+    let mut warning = None;
     #[cfg(feature = "plots")]
     {
         let p = dir.join("population.png");
@@ -184,10 +187,13 @@ pub fn write_population(
                 (m.name().to_string(), v)
             })
             .collect();
-        crate::report::plots::per_mesh(&names, &series, "mean MAE over levels (mm)", &p)
-            .map_err(|e| werr(&p, e.to_string()))?;
+        if let Err(e) =
+            crate::report::plots::per_mesh(&names, &series, "mean MAE over levels (mm)", &p)
+        {
+            warning = Some(format!("population.png not drawn: {e}"));
+        }
     }
-    Ok(rows)
+    Ok((rows, warning))
 }
 
 #[cfg(test)]

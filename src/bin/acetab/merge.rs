@@ -31,7 +31,12 @@ pub fn run(args: MergeArgs) -> Result<(), String> {
     let meta = merge_meta(&dirs).map_err(|e| e.to_string())?;
     fill_dir_atomically(
         &out,
-        |d| write_tables(&rows, d, &meta).map_err(|e| e.to_string()),
+        |d| {
+            for w in write_tables(&rows, d, &meta).map_err(|e| e.to_string())? {
+                eprintln!("acetab: warning: {w}");
+            }
+            Ok(())
+        },
         io_msg,
     )?;
     eprintln!("{} runs merged into {}", rows.len(), out.display());

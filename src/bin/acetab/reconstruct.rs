@@ -90,6 +90,9 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
     );
     let report =
         run_case_with(&case, &out, &prm, kernels, &up, provenance).map_err(|e| e.to_string())?;
+    for w in &report.warnings {
+        eprintln!("acetab: warning: {w}");
+    }
     if json {
         println!(
             "{}",

@@ -303,7 +303,10 @@ fn sweep(study: &Study, meshes: &[(String, PathBuf)], out: &Path) -> Result<(), 
         "views": study.cfg.geometry.views.iter().map(|v| v.to_string()).collect::<Vec<_>>(),
         "seed": study.seed, "protocol": study.cfg.protocol, "sweep_seconds": start.elapsed().as_secs_f64(),
     });
-    let rows = write_population(out, &tables, &meta).map_err(|e| e.to_string())?;
+    let (rows, warning) = write_population(out, &tables, &meta).map_err(|e| e.to_string())?;
+    if let Some(w) = warning {
+        eprintln!("acetab: warning: {w}");
+    }
     println!(
         "{:<17} {:>5} {:>6} {:>6} {:>9} {:>12} {:>11} {:>10}",
         "method", "level", "runs", "failed", "fallbacks", "catastrophic", "cup<=1mm", "exact size"
@@ -442,8 +445,12 @@ impl Study<'_> {
         fill_dir_atomically(
             out,
             |d| {
-                write_tables(&rows, d, &meta).map_err(|e| e.to_string())?;
-                write_examples(&examples, &truth, d).map_err(|e| e.to_string())
+                let mut warnings = write_tables(&rows, d, &meta).map_err(|e| e.to_string())?;
+                warnings.extend(write_examples(&examples, &truth, d).map_err(|e| e.to_string())?);
+                for w in warnings {
+                    eprintln!("acetab: warning: {w}");
+                }
+                Ok(())
             },
             io_msg,
         )?;
