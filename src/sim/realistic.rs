@@ -160,14 +160,7 @@ impl SimSetup {
                 .map_err(|source| SimError::Contour { view, source })?;
             observed.push(vec![curve]);
         }
-        Ok(SimCase {
-            cameras: self.cameras.clone(),
-            observed,
-            truth_placement: self.placement.clone(),
-            truth_sphere: self.sphere,
-            init,
-            seed,
-        })
+        Ok(self.case_of(observed, init, seed))
     }
 }
 

@@ -285,14 +285,19 @@ impl SimSetup {
             })
             .collect();
         let init = perturb(&self.placement, level, &mut rng)?;
-        Ok(SimCase {
+        Ok(self.case_of(observed, init, seed))
+    }
+
+    /// A case in this set-up's nominal views with these outlines and start.
+    pub(super) fn case_of(&self, observed: Vec<Vec<Curve>>, init: Placement, seed: u64) -> SimCase {
+        SimCase {
             cameras: self.cameras.clone(),
             observed,
             truth_placement: self.placement.clone(),
             truth_sphere: self.sphere,
             init,
             seed,
-        })
+        }
     }
 }
 
