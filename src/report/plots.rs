@@ -303,6 +303,12 @@ pub fn overlay(
             INITIAL.stroke_width(2),
         ))
         .map_err(draw_err)?;
+        root.draw(&PathElement::new(
+            to_px(result, true),
+            RESULT.stroke_width(2),
+        ))
+        .map_err(draw_err)?;
+        // The observation on top: where the annotation leaves a gap, the result shows through.
         for c in observed {
             root.draw(&PathElement::new(
                 to_px(&c.points, c.closed),
@@ -310,11 +316,6 @@ pub fn overlay(
             ))
             .map_err(draw_err)?;
         }
-        root.draw(&PathElement::new(
-            to_px(result, true),
-            RESULT.stroke_width(2),
-        ))
-        .map_err(draw_err)?;
         if ensure_font().is_ok() && w >= 140 && h >= 70 {
             let entries = [
                 ("initial", INITIAL),
