@@ -399,6 +399,41 @@ fn merge_joins_shards_and_refuses_to_overwrite_one_or_read_a_bad_cell() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let all = std::fs::read_to_string(dir.join("all/runs.csv")).unwrap();
     assert_eq!(all.lines().count(), 3, "header and two runs: {all}");
+    // A shard set with a gap is refused, naming the missing shard.
+    let o = merge(&["s1"], &dir.join("gap"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("shards 0/2 of 2 are missing"), "{err}");
+    assert!(!dir.join("gap").exists());
+    // One mesh given relatively to one shard and absolutely to the other: the same study.
+    let mesh = dir.join("m.obj");
+    acetab::io::write_obj(&phantom(&PhantomParams::default()).mesh, &mesh).unwrap();
+    for (i, gt) in [(0, mesh.clone()), (1, PathBuf::from("m.obj"))] {
+        let o = bin()
+            .current_dir(&*dir)
+            .arg("simulate")
+            .arg("--gt")
+            .arg(&gt)
+            .args([
+                "--levels",
+                "1",
+                "--runs",
+                "2",
+                "--methods",
+                "srvf",
+                "--threads",
+                "1",
+            ])
+            .args(["--uncertainty-samples", "0", "--shard"])
+            .arg(format!("{i}/2"))
+            .arg("--out")
+            .arg(dir.join(format!("m{i}")))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let o = merge(&["m0", "m1"], &dir.join("m-all"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // The truth's cup and its outline-vertex sphere travel with the settings; the phantom is
     // wider in depth than the views see, so the two differ.
     let study: serde_json::Value =

@@ -167,6 +167,16 @@ pub enum StudyError {
         /// The second shard.
         path: PathBuf,
     },
+    /// The shards given are not the whole set their summary.json files name.
+    #[error("shards {missing} of {count} are missing (the folders given hold {present}); merge every shard of the study")]
+    ShardGap {
+        /// The missing shard indices, as "I/N" joined by commas.
+        missing: String,
+        /// The shard count N.
+        count: usize,
+        /// The shards present.
+        present: String,
+    },
 }
 
 fn six<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
@@ -395,11 +405,19 @@ pub fn summarize(rows: &[Row]) -> Vec<Summary> {
 /// `merged`.
 pub fn merge_meta(dirs: &[PathBuf]) -> Result<serde_json::Value, StudyError> {
     let mut common: Option<(PathBuf, serde_json::Map<String, serde_json::Value>)> = None;
+    let mut shards: Vec<(PathBuf, usize, usize)> = Vec::new();
+    let mut all_sharded = true;
     for d in dirs {
         let path = d.join("summary.json");
         let Some(study) = study_settings(&path)? else {
             continue;
         };
+        match shard_of(&path) {
+            Some((i, n)) => shards.push((path.clone(), i, n)),
+            // A merged folder (or one from before shards were recorded) holds shards of its
+            // own: the set cannot be checked.
+            None => all_sharded = false,
+        }
         let Some((first, c)) = &common else {
             common = Some((path, study));
             continue;
@@ -414,9 +432,55 @@ pub fn merge_meta(dirs: &[PathBuf]) -> Result<serde_json::Value, StudyError> {
             });
         }
     }
+    if all_sharded {
+        check_shard_set(&shards)?;
+    }
     let mut meta = common.map(|(_, c)| c).unwrap_or_default();
     meta.insert("merged".into(), serde_json::json!(dirs));
     Ok(serde_json::Value::Object(meta))
+}
+
+/// The shard "I/N" a summary.json's study names, if it names one (and the file can be read).
+fn shard_of(path: &Path) -> Option<(usize, usize)> {
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).ok()?).ok()?;
+    let (i, n) = v.pointer("/study/shard")?.as_str()?.split_once('/')?;
+    Some((i.trim().parse().ok()?, n.trim().parse().ok()?))
+}
+
+/// Shards named by the summaries (path, I, N) must share N and be the whole set 0..N: shards of
+/// different counts, or a merge with a gap, are refused.
+fn check_shard_set(shards: &[(PathBuf, usize, usize)]) -> Result<(), StudyError> {
+    let Some((first, i0, count)) = shards.first() else {
+        return Ok(());
+    };
+    if let Some((path, i, n)) = shards.iter().find(|s| s.2 != *count) {
+        return Err(StudyError::Mismatch {
+            path: path.clone(),
+            field: "shard".into(),
+            value: format!("\"{i}/{n}\""),
+            first: first.clone(),
+            expected: format!("\"{i0}/{count}\""),
+        });
+    }
+    let mut present: Vec<usize> = shards.iter().map(|s| s.1).collect();
+    present.sort_unstable();
+    present.dedup();
+    let missing: Vec<String> = (0..*count)
+        .filter(|i| present.binary_search(i).is_err())
+        .map(|i| format!("{i}/{count}"))
+        .collect();
+    if missing.is_empty() {
+        return Ok(());
+    }
+    Err(StudyError::ShardGap {
+        missing: missing.join(", "),
+        count: *count,
+        present: present
+            .iter()
+            .map(|i| format!("{i}/{count}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+    })
 }
 
 /// The `study` object of a summary.json without the fields that differ between shards; None
@@ -569,6 +633,17 @@ mod tests {
         let v = serde_json::json!({"study": m.clone(), "summary": []});
         std::fs::write(joined.join("summary.json"), v.to_string()).unwrap();
         assert_eq!(merge_meta(&[joined, a.clone()]).unwrap()["seed"], 1);
+        // A shard set with a gap is refused, naming what is missing; one shard of a study made
+        // in one shard is whole.
+        let e = merge_meta(std::slice::from_ref(&b))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("shards 0/2 of 2 are missing") && e.contains("hold 1/2"),
+            "{e}"
+        );
+        let whole = write("whole", 1, "0/1");
+        assert!(merge_meta(&[whole]).is_ok());
         // The companion: a shard of another study (seed 2) is refused, naming the field.
         let e = merge_meta(&[a, c]).unwrap_err().to_string();
         assert!(e.contains("\"seed\" is 2") && e.contains("has 1"), "{e}");

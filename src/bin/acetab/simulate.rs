@@ -423,7 +423,9 @@ impl Study<'_> {
             Err(_) => (None, None),
         };
         let meta = serde_json::json!({
-            "gt": gt, "truth_cup_diameter_mm": truth_cup,
+            // A mesh by its canonical path, so shards given it relatively and absolutely agree.
+            "gt": std::fs::canonicalize(gt).map_or_else(|_| gt.to_string(), |p| p.display().to_string()),
+            "truth_cup_diameter_mm": truth_cup,
             "truth_outline_sphere_diameter_mm": outline_cup,
             "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
             "views": cfg.geometry.views.iter().map(|v| v.to_string()).collect::<Vec<_>>(),
