@@ -774,3 +774,56 @@ fn a_picture_that_cannot_be_drawn_is_a_warning_not_a_lost_study() {
     assert!(o.status.success() && !err.contains("warning"), "{err}");
     assert!(out.join("errors.png").is_file() && out.join("example-srvf/view0.png").is_file());
 }
+
+/// One vocabulary: the singular flags are aliases of the plural ones, and simulate and merge
+/// print their summary as JSON with --json (the table without it).
+#[test]
+fn singular_aliases_and_json_summaries() {
+    let dir = tmp("vocab");
+    let out = dir.join("study");
+    let o = bin()
+        .args(["simulate", "--gt", "phantom", "--level", "1", "--runs", "1"])
+        .args([
+            "--method",
+            "srvf",
+            "--threads",
+            "1",
+            "--uncertainty-samples",
+            "0",
+        ])
+        .arg("--json")
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v[0]["method"], "srvf");
+    assert_eq!(v[0]["level"], 1);
+    let o = bin()
+        .arg("merge")
+        .arg(&out)
+        .arg("--json")
+        .arg("--out")
+        .arg(dir.join("merged"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let m: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // The merge of one whole study is that study (to runs.csv's six decimals).
+    assert_eq!(
+        (&m[0]["method"], &m[0]["runs"]),
+        (&v[0]["method"], &v[0]["runs"])
+    );
+    let mae = |x: &serde_json::Value| x[0]["mae_mean"].as_f64().unwrap();
+    assert!((mae(&m) - mae(&v)).abs() < 1e-5, "{m} {v}");
+    // Companion: without --json the table is printed, which is not JSON.
+    let o = bin()
+        .arg("merge")
+        .arg(&out)
+        .arg("--out")
+        .arg(dir.join("table"))
+        .output()
+        .unwrap();
+    assert!(serde_json::from_slice::<serde_json::Value>(&o.stdout).is_err());
+}

@@ -6,7 +6,9 @@ use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct AlignArgs {
+    /// The first curve: a CSV of x,y per line (header optional).
     pub a: PathBuf,
+    /// The second curve, aligned to the first.
     pub b: PathBuf,
     /// Both curves closed (default).
     #[arg(long, conflicts_with_all = ["open", "partial"])]

@@ -6,6 +6,7 @@ use acetab::engine::gpu::GpuDevice;
 
 #[derive(clap::Args)]
 pub struct BenchArgs {
+    /// Print the report as one JSON object instead of the table.
     #[arg(long)]
     pub json: bool,
     /// Study runs per backend (0 skips the study).

@@ -217,6 +217,18 @@ pub fn shard(s: &str) -> Result<(usize, usize), String> {
     Ok((i, n))
 }
 
+/// The study's summary (summary.json's `summary` array) as one JSON line on stdout, or the table.
+pub fn print_summary_as(rows: &[acetab::study::Row], json: bool) -> Result<(), String> {
+    if json {
+        let v = serde_json::to_string(&summarize(rows)).map_err(|e| e.to_string())?;
+        println!("{v}");
+    } else {
+        print_summary(rows);
+    }
+    Ok(())
+}
+
+/// The study's summary as a table on stdout.
 pub fn print_summary(rows: &[acetab::study::Row]) {
     println!(
         "{:<17} {:>5} {:>5} {:>6} {:>9} {:>9} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9} {:>9} {:>6}",

@@ -20,9 +20,10 @@ pub struct DemoArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Initialisation noise level 0..5.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, visible_alias = "levels", default_value_t = 3)]
     pub level: u32,
-    #[arg(long, value_enum, default_value_t = Method::Srvf)]
+    /// Correspondence method: srvf (ours), icp or icp-normvec.
+    #[arg(long, visible_alias = "methods", value_enum, default_value_t = Method::Srvf)]
     pub method: Method,
     /// Where the kernels run: cpu, gpu, or auto (the GPU when an adapter exists).
     #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]

@@ -1,20 +1,25 @@
 //! `acetab merge`: join the runs of several `acetab simulate --shard` folders.
 
-use crate::common::{io_msg, print_summary};
+use crate::common::{io_msg, print_summary_as};
 use acetab::io::fill_dir_atomically;
 use acetab::study::{merge_dirs, merge_meta, write_tables};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct MergeArgs {
+    /// The shard folders (`acetab simulate --shard I/N --out DIR`), every shard of one study.
     #[arg(required = true)]
     pub dirs: Vec<PathBuf>,
+    /// Where the merged study is written (a new folder; not one of the shards).
     #[arg(long)]
     pub out: PathBuf,
+    /// Print the merged summary (summary.json's `summary`) as one JSON line instead of the table.
+    #[arg(long)]
+    pub json: bool,
 }
 
 pub fn run(args: MergeArgs) -> Result<(), String> {
-    let MergeArgs { dirs, out } = args;
+    let MergeArgs { dirs, out, json } = args;
     // Merging into one of the shards would overwrite the shard's own tables.
     let same = |d: &PathBuf| match (d.canonicalize(), out.canonicalize()) {
         (Ok(a), Ok(b)) => a == b,
@@ -40,6 +45,5 @@ pub fn run(args: MergeArgs) -> Result<(), String> {
         io_msg,
     )?;
     eprintln!("{} runs merged into {}", rows.len(), out.display());
-    print_summary(&rows);
-    Ok(())
+    print_summary_as(&rows, json)
 }

@@ -8,19 +8,25 @@ pub struct PoseStudyArgs {
     /// Ground truth mesh or "phantom".
     #[arg(long, default_value = "phantom")]
     pub gt: String,
+    /// Runs, each with its own pose errors and start.
     #[arg(long, default_value_t = 10, value_parser = count_in(1, MAX_RUNS))]
     pub runs: usize,
+    /// Rotation error of views 1 and 2, degrees, about a random axis through the object.
     #[arg(long, default_value_t = 2.0)]
     pub deg: f64,
+    /// Translation error of views 1 and 2, mm, in a random direction.
     #[arg(long, default_value_t = 5.0)]
     pub mm: f64,
     /// Initialisation noise level 1..5.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=5))]
+    #[arg(long, visible_alias = "levels", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=5))]
     pub level: u32,
+    /// Study seed; each run's seed is derived from it.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long, value_parser = count_in(1, MAX_THREADS))]
     pub threads: Option<usize>,
+    /// Print the rows as one JSON array instead of the table.
     #[arg(long)]
     pub json: bool,
 }

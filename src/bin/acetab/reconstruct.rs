@@ -12,10 +12,13 @@ use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct ReconstructArgs {
+    /// The case file (JSON: views, outlines, start; see README, "Case format").
     pub case: PathBuf,
+    /// Where the outputs are written (made in a staging folder and moved there at the end).
     #[arg(long)]
     pub out: PathBuf,
-    #[arg(long, value_enum, default_value_t = Method::Srvf)]
+    /// Correspondence method: srvf (ours), icp or icp-normvec.
+    #[arg(long, visible_alias = "methods", value_enum, default_value_t = Method::Srvf)]
     pub method: Method,
     /// Cup catalogue: "min:max:step" or a list "44,46,48".
     #[arg(long, default_value = "40:70:2")]
@@ -42,6 +45,7 @@ pub struct ReconstructArgs {
     /// Model contours from alpha shapes or rasterised silhouettes.
     #[arg(long, value_enum, default_value_t = ContourSource::AlphaShape)]
     pub contours: ContourSource,
+    /// Print the report (report.json's content) as one JSON object instead of the line.
     #[arg(long)]
     pub json: bool,
 }

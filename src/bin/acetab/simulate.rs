@@ -1,7 +1,7 @@
 //! `acetab simulate`: the simulation study, levels x runs x methods on a ground-truth surface.
 
 use crate::common::{
-    count_in, engine_on, io_msg, levels, load_truth, methods, open_device, print_summary, shard,
+    count_in, engine_on, io_msg, levels, load_truth, methods, open_device, print_summary_as, shard,
     threads_or_all, views, Levels, Methods, Views, MAX_RUNS, MAX_THREADS,
 };
 use acetab::contours::ContourSource;
@@ -31,13 +31,15 @@ pub struct SimulateArgs {
     /// then population.csv, population.json and population.png over all of them.
     #[arg(long, num_args = 1.., required = true)]
     pub gt: Vec<String>,
-    #[arg(long, default_value = "1,2,3,4,5", value_parser = levels)]
+    /// Start-noise levels 1 to 5 (the paper's: rotation, translation and scale of the template's start).
+    #[arg(long, visible_alias = "level", default_value = "1,2,3,4,5", value_parser = levels)]
     pub levels: Levels,
     /// The X-ray views: each the antero-posterior view turned about body axes, x left-right
     /// (inlet/outlet tilts), y antero-posterior, z longitudinal (obliques); a view may chain
     /// turns ("z:20+x:-15")
     #[arg(long, default_value = "z:0,z:20,z:-20", value_parser = views)]
     pub views: Views,
+    /// Runs per level and method.
     #[arg(long, default_value_t = 10, value_parser = count_in(1, MAX_RUNS))]
     pub runs: usize,
     /// How each run's X-rays are made: ideal (the nominal views, whole outlines, 2 px noise per
@@ -53,7 +55,7 @@ pub struct SimulateArgs {
     /// Methods: srvf, icp, icp-normvec (every stage of ours, each on its own
     /// correspondences), and srvf-paper, icp-paper, icp-normvec-paper (the seed paper's
     /// protocol: the deformation alone, from the perturbed template).
-    #[arg(long, default_value = "srvf,icp,icp-normvec", value_parser = methods)]
+    #[arg(long, visible_alias = "method", default_value = "srvf,icp,icp-normvec", value_parser = methods)]
     pub methods: Methods,
     /// Study seed; each run's seed is derived from it, the level and the run number.
     #[arg(long, default_value_t = 1)]
@@ -73,8 +75,10 @@ pub struct SimulateArgs {
     /// ED energy weights w_rot, w_reg, w_obs (defaults: the published 1, 10, 100).
     #[arg(long, default_value_t = 1.0)]
     pub w_rot: f64,
+    /// See --w-rot.
     #[arg(long, default_value_t = 10.0)]
     pub w_reg: f64,
+    /// See --w-rot.
     #[arg(long, default_value_t = 100.0)]
     pub w_obs: f64,
     /// Coarse-to-fine deformation: a graph of this many nodes in every correspondence round
@@ -97,8 +101,13 @@ pub struct SimulateArgs {
     /// subject.
     #[arg(long, conflicts_with = "calibration")]
     pub calibrate_loso: Option<PathBuf>,
+    /// Where the study is written (a sweep: one folder per mesh under it).
     #[arg(long)]
     pub out: PathBuf,
+    /// Print the summary (a single study: summary.json's `summary`; a sweep: population.json's
+    /// rows) as one JSON line on stdout instead of the table.
+    #[arg(long)]
+    pub json: bool,
 }
 
 pub fn run(args: SimulateArgs) -> Result<(), String> {
@@ -123,6 +132,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         calibration,
         calibrate_loso,
         out,
+        json,
     } = args;
     let (model_sd_mm, calibration) = match protocol {
         ProtocolArg::Ideal => crate::common::calibration(
@@ -199,10 +209,9 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
     let meshes = population_meshes(&gt)?;
     if meshes.is_empty() {
         let rows = study.run(&gt[0], &out)?;
-        print_summary(&rows);
-        return Ok(());
+        return print_summary_as(&rows, json);
     }
-    sweep(&study, &meshes, &out)
+    sweep(&study, &meshes, &out, json)
 }
 
 /// One study's settings, shared by every mesh of a sweep.
@@ -274,7 +283,12 @@ fn population_meshes(gt: &[String]) -> Result<Vec<(String, PathBuf)>, String> {
 
 /// The sweep: each mesh's study in --out/<name> unless its runs.csv is there already, then the
 /// population table over all of them.
-fn sweep(study: &Study, meshes: &[(String, PathBuf)], out: &Path) -> Result<(), String> {
+fn sweep(
+    study: &Study,
+    meshes: &[(String, PathBuf)],
+    out: &Path,
+    json: bool,
+) -> Result<(), String> {
     let start = std::time::Instant::now();
     std::fs::create_dir_all(out).map_err(|e| io_msg(out, e))?;
     let mut failed = Vec::new();
@@ -306,6 +320,19 @@ fn sweep(study: &Study, meshes: &[(String, PathBuf)], out: &Path) -> Result<(), 
     let (rows, warning) = write_population(out, &tables, &meta).map_err(|e| e.to_string())?;
     if let Some(w) = warning {
         eprintln!("acetab: warning: {w}");
+    }
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string(&rows).map_err(|e| e.to_string())?
+        );
+        eprintln!(
+            "{} meshes in {:.1} s; population table in {}",
+            tables.len(),
+            start.elapsed().as_secs_f64(),
+            out.display()
+        );
+        return Ok(());
     }
     println!(
         "{:<17} {:>5} {:>6} {:>6} {:>9} {:>12} {:>11} {:>10}",
