@@ -827,3 +827,51 @@ fn singular_aliases_and_json_summaries() {
         .unwrap();
     assert!(serde_json::from_slice::<serde_json::Value>(&o.stdout).is_err());
 }
+
+/// A reused --out is refused (an earlier result's files would mix with the new ones) unless
+/// --force; the refusal leaves the folder as it was.
+#[test]
+fn a_reused_out_is_refused_unless_forced() {
+    let dir = tmp("reuse");
+    let out = dir.join("study");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("old.txt"), "earlier").unwrap();
+    let sim = |force: bool| {
+        let mut c = bin();
+        c.args(["simulate", "--gt", "phantom"])
+            .args(ONE_RUN.split(' '))
+            .args(["--uncertainty-samples", "0", "--out"])
+            .arg(&out);
+        if force {
+            c.arg("--force");
+        }
+        c.output().unwrap()
+    };
+    let o = sim(false);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("exists and is not empty") && err.contains("--force"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read_dir(&out).unwrap().count(),
+        1,
+        "the folder was touched"
+    );
+    // Companion: with --force the study is written beside the old file.
+    let o = sim(true);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join("runs.csv").is_file() && out.join("old.txt").is_file());
+    // An empty folder is as good as a new one.
+    let empty = dir.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let o = bin()
+        .args(["simulate", "--gt", "phantom"])
+        .args(ONE_RUN.split(' '))
+        .args(["--uncertainty-samples", "0", "--out"])
+        .arg(&empty)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

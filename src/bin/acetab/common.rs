@@ -28,6 +28,27 @@ pub fn open_device(choice: BackendChoice) -> Result<Option<GpuDevice>, String> {
     }
 }
 
+/// `--out` must be new or empty: a reused folder would mix an earlier result's files with this
+/// one's. `force` lets it be reused (same-named files are replaced, others stay).
+pub fn check_out(out: &Path, force: bool) -> Result<(), String> {
+    if force {
+        return Ok(());
+    }
+    let used = match std::fs::read_dir(out) {
+        Ok(mut entries) => entries.next().is_some(),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
+        Err(_) => out.exists(),
+    };
+    if used {
+        return Err(format!(
+            "--out {}: exists and is not empty (an earlier result's files would mix with this \
+             one's); choose a new folder, or pass --force to write into it",
+            out.display()
+        ));
+    }
+    Ok(())
+}
+
 /// An I/O error on an output path, for `fill_dir_atomically`.
 pub fn io_msg(p: &Path, e: std::io::Error) -> String {
     format!("{}: cannot write: {e}", p.display())

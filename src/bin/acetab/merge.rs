@@ -13,13 +13,21 @@ pub struct MergeArgs {
     /// Where the merged study is written (a new folder; not one of the shards).
     #[arg(long)]
     pub out: PathBuf,
+    /// Write into an --out that is not empty (same-named files are replaced, others stay).
+    #[arg(long)]
+    pub force: bool,
     /// Print the merged summary (summary.json's `summary`) as one JSON line instead of the table.
     #[arg(long)]
     pub json: bool,
 }
 
 pub fn run(args: MergeArgs) -> Result<(), String> {
-    let MergeArgs { dirs, out, json } = args;
+    let MergeArgs {
+        dirs,
+        out,
+        force,
+        json,
+    } = args;
     // Merging into one of the shards would overwrite the shard's own tables.
     let same = |d: &PathBuf| match (d.canonicalize(), out.canonicalize()) {
         (Ok(a), Ok(b)) => a == b,
@@ -32,6 +40,7 @@ pub fn run(args: MergeArgs) -> Result<(), String> {
             d.display()
         ));
     }
+    crate::common::check_out(&out, force)?;
     let rows = merge_dirs(&dirs).map_err(|e| e.to_string())?;
     let meta = merge_meta(&dirs).map_err(|e| e.to_string())?;
     fill_dir_atomically(

@@ -17,6 +17,9 @@ pub struct ReconstructArgs {
     /// Where the outputs are written (made in a staging folder and moved there at the end).
     #[arg(long)]
     pub out: PathBuf,
+    /// Write into an --out that is not empty (same-named files are replaced, others stay).
+    #[arg(long)]
+    pub force: bool,
     /// Correspondence method: srvf (ours), icp or icp-normvec.
     #[arg(long, visible_alias = "methods", value_enum, default_value_t = Method::Srvf)]
     pub method: Method,
@@ -54,6 +57,7 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
     let ReconstructArgs {
         case,
         out,
+        force,
         method,
         catalogue,
         backend,
@@ -69,6 +73,7 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         acetab::pipeline::CupCalibration::shipped_realistic,
         "realistic",
     )?;
+    crate::common::check_out(&out, force)?;
     let catalogue = CupCatalogue::parse(&catalogue).map_err(|e| format!("--catalogue: {e}"))?;
     let prm = ReconParams {
         method,

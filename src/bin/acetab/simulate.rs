@@ -104,6 +104,9 @@ pub struct SimulateArgs {
     /// Where the study is written (a sweep: one folder per mesh under it).
     #[arg(long)]
     pub out: PathBuf,
+    /// Write into an --out that is not empty (same-named files are replaced, others stay).
+    #[arg(long)]
+    pub force: bool,
     /// Print the summary (a single study: summary.json's `summary`; a sweep: population.json's
     /// rows) as one JSON line on stdout instead of the table.
     #[arg(long)]
@@ -132,6 +135,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         calibration,
         calibrate_loso,
         out,
+        force,
         json,
     } = args;
     let (model_sd_mm, calibration) = match protocol {
@@ -208,6 +212,9 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
     };
     let meshes = population_meshes(&gt)?;
     if meshes.is_empty() {
+        // A single study's folder must be new (a sweep's is resumed: its meshes' folders are
+        // checked one by one).
+        crate::common::check_out(&out, force)?;
         let rows = study.run(&gt[0], &out)?;
         return print_summary_as(&rows, json);
     }
