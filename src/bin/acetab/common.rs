@@ -49,6 +49,33 @@ pub fn check_out(out: &Path, force: bool) -> Result<(), String> {
     Ok(())
 }
 
+/// `msg` with the hidden staging folder of `out` (`fill_dir_atomically`'s `.NAME.partial-XXXX`
+/// beside it) replaced by `out` itself: errors name the user's folder, not ours.
+pub fn unstage(msg: &str, out: &Path) -> String {
+    let Some(name) = out.file_name() else {
+        return msg.to_string();
+    };
+    let marker = format!(".{}.partial-", name.to_string_lossy());
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let mut rest = msg;
+    let mut done = String::new();
+    while let Some(k) = rest.find(&marker) {
+        let after = &rest[k + marker.len()..];
+        let end = after.find(['/', ':', ' ']).unwrap_or(after.len());
+        // Drop the parent folder written before the marker, then put `out` in its place.
+        let head = &rest[..k];
+        let prefix = format!("{}/", parent.display());
+        done.push_str(head.strip_suffix(prefix.as_str()).unwrap_or(head));
+        done.push_str(&out.display().to_string());
+        rest = &after[end..];
+    }
+    done.push_str(rest);
+    done
+}
+
 /// An I/O error on an output path, for `fill_dir_atomically`.
 pub fn io_msg(p: &Path, e: std::io::Error) -> String {
     format!("{}: cannot write: {e}", p.display())
@@ -291,5 +318,23 @@ pub fn print_summary(rows: &[acetab::study::Row]) {
             s.brier_mean
                 .map_or_else(|| "-".to_string(), |b| format!("{b:.3}"))
         );
+    }
+}
+
+#[cfg(test)]
+mod unstage_tests {
+    use super::*;
+
+    #[test]
+    fn the_staging_folder_is_named_as_the_users() {
+        let out = Path::new("/data/run1");
+        let msg = "/data/.run1.partial-Ab12Cd/example-srvf/view0.png: cannot write: disk full";
+        assert_eq!(
+            unstage(msg, out),
+            "/data/run1/example-srvf/view0.png: cannot write: disk full"
+        );
+        // Companion: a message without the staging folder is left as it is.
+        let plain = "/data/other/x.csv: cannot write: disk full";
+        assert_eq!(unstage(plain, out), plain);
     }
 }

@@ -63,10 +63,11 @@ pub fn run(args: DemoArgs) -> Result<(), String> {
                 .map_err(|e| e.to_string())?;
             write_ply(&truth, None, &d.join("truth.ply")).map_err(|e| e.to_string())?;
             std::fs::write(d.join("report.json"), report_json.as_bytes())
-                .map_err(|e| format!("{}: {e}", d.display()))
+                .map_err(|e| format!("{}: {e}", d.join("report.json").display()))
         },
         io_msg,
-    )?;
+    )
+    .map_err(|e| crate::common::unstage(&e, &out))?;
     if json {
         println!(
             "{}",

@@ -52,7 +52,8 @@ pub fn run(args: MergeArgs) -> Result<(), String> {
             Ok(())
         },
         io_msg,
-    )?;
+    )
+    .map_err(|e| crate::common::unstage(&e, &out))?;
     eprintln!("{} runs merged into {}", rows.len(), out.display());
     print_summary_as(&rows, json)
 }

@@ -97,8 +97,8 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         1,
         seed,
     );
-    let report =
-        run_case_with(&case, &out, &prm, kernels, &up, provenance).map_err(|e| e.to_string())?;
+    let report = run_case_with(&case, &out, &prm, kernels, &up, provenance)
+        .map_err(|e| crate::common::unstage(&e.to_string(), &out))?;
     for w in &report.warnings {
         eprintln!("acetab: warning: {w}");
     }

@@ -484,12 +484,13 @@ impl Study<'_> {
                 let mut warnings = write_tables(&rows, d, &meta).map_err(|e| e.to_string())?;
                 warnings.extend(write_examples(&examples, &truth, d).map_err(|e| e.to_string())?);
                 for w in warnings {
-                    eprintln!("acetab: warning: {w}");
+                    eprintln!("acetab: warning: {}", crate::common::unstage(&w, out));
                 }
                 Ok(())
             },
             io_msg,
-        )?;
+        )
+        .map_err(|e| crate::common::unstage(&e, out))?;
         eprintln!(
             "{} runs in {:.1} s (seed {seed}); results in {}",
             rows.len(),
