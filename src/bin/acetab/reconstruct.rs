@@ -12,7 +12,7 @@ use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct ReconstructArgs {
-    /// The case file (JSON: views, outlines, start; see README, "Case format").
+    /// The case file (JSON: views, outlines, start; see README, "The case file").
     pub case: PathBuf,
     /// Where the outputs are written (made in a staging folder and moved there at the end).
     #[arg(long)]

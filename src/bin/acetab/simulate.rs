@@ -82,7 +82,7 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 100.0)]
     pub w_obs: f64,
     /// Coarse-to-fine deformation: a graph of this many nodes in every correspondence round
-    /// but the last (default: the full graph throughout; see README).
+    /// but the last (default: the full graph throughout; see docs/study.md).
     #[arg(long, value_parser = count_in(2, acetab::solve::GraphParams::default().nodes))]
     pub coarse_nodes: Option<usize>,
     /// Resamples for every run's cup uncertainty (cup_sd_mm, size_probability and brier in
