@@ -257,6 +257,17 @@ pub fn write_stl_ascii(mesh: &Mesh, path: &Path) -> Result<(), MeshIoError> {
 
 /// Write an ASCII PLY with optional per-vertex colour (red, green, blue as uchar).
 pub fn write_ply(mesh: &Mesh, colors: Option<&[Rgb]>, path: &Path) -> Result<(), MeshIoError> {
+    write_ply_with(mesh, colors, None, path)
+}
+
+/// As `write_ply`, with one more per-vertex float property (name, values; NaN where a vertex
+/// has none) that a viewer can map to colours itself.
+pub fn write_ply_with(
+    mesh: &Mesh,
+    colors: Option<&[Rgb]>,
+    scalar: Option<(&str, &[f64])>,
+    path: &Path,
+) -> Result<(), MeshIoError> {
     use ply_rs::ply::{
         Addable, DefaultElement, ElementDef, Encoding, Ply, Property, PropertyDef, PropertyType,
         ScalarType,
@@ -277,6 +288,12 @@ pub fn write_ply(mesh: &Mesh, colors: Option<&[Rgb]>, path: &Path) -> Result<(),
                 PropertyType::Scalar(ScalarType::UChar),
             ));
         }
+    }
+    if let Some((name, _)) = scalar {
+        vdef.properties.add(PropertyDef::new(
+            name.to_string(),
+            PropertyType::Scalar(ScalarType::Float),
+        ));
     }
     ply.header.elements.add(vdef);
     let mut fdef = ElementDef::new("face".to_string());
@@ -302,6 +319,10 @@ pub fn write_ply(mesh: &Mesh, colors: Option<&[Rgb]>, path: &Path) -> Result<(),
                 for k in ["red", "green", "blue"] {
                     e.insert(k.into(), Property::UChar(200));
                 }
+            }
+            if let Some((name, values)) = scalar {
+                let v = values.get(i).copied().unwrap_or(f64::NAN);
+                e.insert(name.into(), Property::Float(v as f32));
             }
             e
         })

@@ -6,6 +6,6 @@ mod mesh_file;
 
 pub use atomic::{fill_dir_atomically, write_atomic};
 pub use mesh_file::{
-    read_mesh, write_mesh, write_obj, write_ply, write_stl_ascii, write_stl_binary, MeshIoError,
-    Rgb,
+    read_mesh, write_mesh, write_obj, write_ply, write_ply_with, write_stl_ascii, write_stl_binary,
+    MeshIoError, Rgb,
 };

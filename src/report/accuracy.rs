@@ -2,7 +2,7 @@
 
 use super::{error_colors, surface_distance, surface_samples, DistanceStats};
 use crate::geom::Mesh;
-use crate::io::{write_ply, MeshIoError};
+use crate::io::{write_ply_with, MeshIoError};
 use serde::Serialize;
 use std::path::Path;
 
@@ -42,8 +42,62 @@ pub fn accuracy_from(samples: &[nalgebra::Point3<f64>], recon: &Mesh) -> Accurac
     }
 }
 
-/// Write the reconstruction as a PLY coloured by its distance to the truth (0..3 mm).
+/// Write the reconstruction as a PLY coloured by its distance to the truth (blue 0 mm to red
+/// 3 mm) with the distance itself as the vertex property `error_mm`. Where no truth surface lies
+/// under a vertex (its closest truth point is on the truth's border: parts the truth does not
+/// cover) the error is NaN and the vertex grey, instead of the distance to the truth's edge.
 pub fn write_error_ply(recon: &Mesh, truth: &Mesh, path: &Path) -> Result<(), MeshIoError> {
-    let err = surface_distance(&recon.vertices, truth);
-    write_ply(recon, Some(&error_colors(&err, 3.0)), path)
+    let err = match super::InteriorQuery::new(truth) {
+        Some(q) => q.per_vertex(recon),
+        None => surface_distance(&recon.vertices, truth),
+    };
+    write_ply_with(
+        recon,
+        Some(&error_colors(&err, 3.0)),
+        Some(("error_mm", &err)),
+        path,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::template::spherical_cap;
+
+    #[test]
+    fn the_error_ply_maps_the_covered_part_and_greys_what_the_truth_lacks() {
+        // The truth: a 60-degree cap; the result: a 90-degree cap of the same sphere, 0.5 mm
+        // larger. Under the truth the error is 0.5 mm; beyond its rim there is no truth.
+        let truth = spherical_cap(25.0, 2000, 60f64.to_radians());
+        let recon = spherical_cap(25.5, 2000, 90f64.to_radians());
+        let tmp = tempfile::tempdir().unwrap();
+        let p = tmp.path().join("e.ply");
+        write_error_ply(&recon, &truth, &p).unwrap();
+        let text = std::fs::read_to_string(&p).unwrap();
+        assert!(text.contains("property float error_mm"));
+        let body: Vec<&str> = text
+            .split("end_header\n")
+            .nth(1)
+            .unwrap()
+            .lines()
+            .take(recon.vertex_count())
+            .collect();
+        let err: Vec<f64> = body
+            .iter()
+            .map(|l| l.split_whitespace().nth(6).unwrap().parse::<f64>().unwrap())
+            .collect();
+        let covered: Vec<f64> = err.iter().copied().filter(|e| !e.is_nan()).collect();
+        let uncovered = err.len() - covered.len();
+        assert!(
+            uncovered > err.len() / 5,
+            "{uncovered} of {} grey",
+            err.len()
+        );
+        let mean = covered.iter().sum::<f64>() / covered.len() as f64;
+        assert!((mean - 0.5).abs() < 0.05, "mean covered error {mean}");
+        // Companion: the old measure (distance to the truth, edge included) calls the uncovered
+        // part an error of millimetres.
+        let raw = crate::report::surface_distance(&recon.vertices, &truth);
+        assert!(raw.iter().cloned().fold(0.0, f64::max) > 5.0);
+    }
 }

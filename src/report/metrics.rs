@@ -142,11 +142,22 @@ impl InteriorQuery {
         Some(InteriorQuery { query, border })
     }
 
-    /// From each vertex of `from` to the surface, mm.
+    /// From each vertex of `from` to the surface, mm, leaving out the vertices whose closest
+    /// point lies on the surface's border.
     pub fn distances(&self, from: &Mesh) -> Vec<f64> {
+        self.per_vertex(from)
+            .into_iter()
+            .filter(|d| !d.is_nan())
+            .collect()
+    }
+
+    /// From each vertex of `from` to the surface, mm, in vertex order; NaN where the closest
+    /// point lies on the surface's border (no surface under the vertex: the distance there is to
+    /// the edge, not an error of the shape).
+    pub fn per_vertex(&self, from: &Mesh) -> Vec<f64> {
         from.vertices
             .iter()
-            .filter_map(|p| {
+            .map(|p| {
                 let c = self.query.closest_point(p);
                 let on_border = self.border.iter().any(|(a, b)| {
                     let ab = b - a;
@@ -157,17 +168,28 @@ impl InteriorQuery {
                     };
                     (a + ab * u - c).norm() < 1e-6
                 });
-                (!on_border).then(|| (c - p).norm())
+                if on_border {
+                    f64::NAN
+                } else {
+                    (c - p).norm()
+                }
             })
             .collect()
     }
 }
 
-/// Per-vertex colours for an error map: blue (0 mm) through green to red (>= `max_mm`).
+/// Colour of a vertex with no error to show (NaN): neutral grey.
+pub const NO_ERROR_COLOR: [u8; 3] = [160, 160, 160];
+
+/// Per-vertex colours for an error map: blue (0 mm) through green to red (>= `max_mm`); grey
+/// (`NO_ERROR_COLOR`) where the error is NaN.
 pub fn error_colors(errors: &[f64], max_mm: f64) -> Vec<[u8; 3]> {
     errors
         .iter()
         .map(|e| {
+            if e.is_nan() {
+                return NO_ERROR_COLOR;
+            }
             let u = (e / max_mm.max(1e-9)).clamp(0.0, 1.0);
             let (r, g, b) = if u < 0.5 {
                 (0.0, 2.0 * u, 1.0 - 2.0 * u)
