@@ -9,7 +9,7 @@ use crate::io::{write_ply, MeshIoError};
 use crate::pipeline::{cup_report, CupReport, UncertaintyParams};
 use crate::pipeline::{reconstruct, ReconError, ReconParams};
 #[cfg(feature = "plots")]
-use crate::report::plots::overlay;
+use crate::report::plots::{overlay, OverlayMarks};
 use crate::report::Provenance;
 use crate::template::Template;
 use std::path::{Path, PathBuf};
@@ -147,12 +147,22 @@ pub fn run_case_with(
             #[cfg(feature = "plots")]
             for (k, cam) in case.cameras.iter().enumerate() {
                 let name = format!("overlay-{k}-{}.png", file_safe(&case.names[k]));
+                let center = rec.sphere.center_point();
+                let marks = OverlayMarks {
+                    view: Some(case.names[k].clone()),
+                    px_per_mm: Some(cam.pixels_per_mm_at(&center)),
+                    cup: Some((
+                        cam.sphere_outline(&center, 0.5 * cup.catalogue_mm, 120),
+                        cup.catalogue_mm,
+                    )),
+                };
                 match overlay(
                     (cam.width, cam.height),
                     case.images[k].as_deref(),
                     &rec.initial_contours[k].points,
                     &rec.final_contours[k].points,
                     &case.observed[k],
+                    &marks,
                     &stage.join(&name),
                 ) {
                     Ok(()) => files.push(name),

@@ -230,21 +230,39 @@ const INITIAL: RGBColor = RGBColor(40, 200, 60);
 const RESULT: RGBColor = RGBColor(60, 120, 255);
 const OBSERVED: RGBColor = RGBColor(230, 40, 40);
 
+const CUP: RGBColor = RGBColor(250, 210, 40);
+
+/// What an overlay shows besides the contours, each optional: the view's name (upper right), a
+/// 10 mm scale bar at the object's depth (`px_per_mm`, lower left), and the chosen catalogue
+/// cup's outline in the view (yellow), labelled with its size, as a templating film shows it.
+#[derive(Clone, Debug, Default)]
+pub struct OverlayMarks {
+    /// The view's name.
+    pub view: Option<String>,
+    /// Pixels per millimetre at the object.
+    pub px_per_mm: Option<f64>,
+    /// The catalogue cup's outline (`Camera::sphere_outline`) and its size, mm.
+    pub cup: Option<(Vec<Point2<f64>>, f64)>,
+}
+
 /// A view's contours over its X-ray (or a dark canvas), cropped around them: initial model
-/// contour green, result blue, observation red (closed where the curve is), as in the paper's
-/// Fig. 3, with a legend in the upper left when a font is found.
+/// contour green, result blue, observation red on top (closed where the curve is), as in the
+/// paper's Fig. 3, with a legend in the upper left when a font is found, and `marks`.
 pub fn overlay(
     size: (u32, u32),
     background: Option<&Path>,
     initial: &[Point2<f64>],
     result: &[Point2<f64>],
     observed: &[Curve],
+    marks: &OverlayMarks,
     path: &Path,
 ) -> Result<(), PlotError> {
+    let cup_pts: &[Point2<f64>] = marks.cup.as_ref().map_or(&[], |(c, _)| c.as_slice());
     let all: Vec<&Point2<f64>> = initial
         .iter()
         .chain(result)
         .chain(observed.iter().flat_map(|c| c.points.iter()))
+        .chain(cup_pts)
         .collect();
     if all.is_empty() {
         return Err(PlotError::Draw("no contours to draw".into()));
@@ -254,7 +272,7 @@ pub fn overlay(
         .max(0.0)
         .floor();
     // Room above the contours for the legend.
-    let y0 = (all.iter().map(|p| p.y).fold(f64::INFINITY, f64::min) - margin - 70.0)
+    let y0 = (all.iter().map(|p| p.y).fold(f64::INFINITY, f64::min) - margin - 90.0)
         .max(0.0)
         .floor();
     let x1 = (all.iter().map(|p| p.x).fold(f64::NEG_INFINITY, f64::max) + margin)
@@ -303,6 +321,10 @@ pub fn overlay(
             INITIAL.stroke_width(2),
         ))
         .map_err(draw_err)?;
+        if !cup_pts.is_empty() {
+            root.draw(&PathElement::new(to_px(cup_pts, true), CUP.stroke_width(1)))
+                .map_err(draw_err)?;
+        }
         root.draw(&PathElement::new(
             to_px(result, true),
             RESULT.stroke_width(2),
@@ -316,14 +338,44 @@ pub fn overlay(
             ))
             .map_err(draw_err)?;
         }
-        if ensure_font().is_ok() && w >= 140 && h >= 70 {
-            let entries = [
+        let font = ensure_font().is_ok();
+        if let (Some(ppm), true) = (marks.px_per_mm, font && h >= 60) {
+            // 10 mm at the object, lower left.
+            let len = (10.0 * ppm).round() as i32;
+            let (x, y) = (12, h as i32 - 16);
+            root.draw(&PathElement::new(
+                vec![(x, y), (x + len, y)],
+                WHITE.stroke_width(3),
+            ))
+            .map_err(draw_err)?;
+            root.draw(&Text::new(
+                "10 mm",
+                (x + len + 6, y - 8),
+                ("sans-serif", 14).into_font().color(&WHITE),
+            ))
+            .map_err(draw_err)?;
+        }
+        if let (Some(name), true) = (&marks.view, font) {
+            let x = (w as i32 - 8 - 8 * name.chars().count() as i32).max(120);
+            root.draw(&Text::new(
+                name.as_str(),
+                (x, 8),
+                ("sans-serif", 16).into_font().color(&WHITE),
+            ))
+            .map_err(draw_err)?;
+        }
+        let cup_label = marks.cup.as_ref().map(|(_, mm)| format!("cup {mm:.0} mm"));
+        if font && w >= 140 && h >= 70 {
+            let mut entries = vec![
                 ("initial", INITIAL),
                 ("result", RESULT),
                 ("observed", OBSERVED),
             ];
+            if let Some(l) = &cup_label {
+                entries.push((l.as_str(), CUP));
+            }
             root.draw(&Rectangle::new(
-                [(4, 4), (112, 10 + 18 * entries.len() as i32)],
+                [(4, 4), (124, 10 + 18 * entries.len() as i32)],
                 RGBColor(0, 0, 0).mix(0.6).filled(),
             ))
             .map_err(draw_err)?;

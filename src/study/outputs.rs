@@ -6,7 +6,7 @@ use super::table::{summarize, write_csv, Row, StudyError};
 use crate::geom::Mesh;
 use crate::io::write_atomic;
 #[cfg(feature = "plots")]
-use crate::report::plots::{box_plots, overlay};
+use crate::report::plots::{box_plots, overlay, OverlayMarks};
 use crate::report::write_error_ply;
 use std::path::Path;
 
@@ -107,12 +107,22 @@ pub fn write_examples(
         #[cfg(feature = "plots")]
         for (k, cam) in ex.sim.cameras.iter().enumerate() {
             let p = d.join(format!("view{k}.png"));
+            let center = ex.recon.sphere.center_point();
+            let marks = OverlayMarks {
+                view: Some(format!("view {k}")),
+                px_per_mm: Some(cam.pixels_per_mm_at(&center)),
+                cup: Some((
+                    cam.sphere_outline(&center, 0.5 * ex.recon.cup.catalogue_mm, 120),
+                    ex.recon.cup.catalogue_mm,
+                )),
+            };
             if let Err(e) = overlay(
                 (cam.width, cam.height),
                 None,
                 &ex.recon.initial_contours[k].points,
                 &ex.recon.final_contours[k].points,
                 &ex.sim.observed[k],
+                &marks,
                 &p,
             ) {
                 let shown = p.strip_prefix(dir).unwrap_or(&p);

@@ -93,6 +93,37 @@ impl Camera {
         Point3::from(-(self.r.inverse() * self.t))
     }
 
+    /// The outline of a sphere (centre, radius, mm) in this view, `n` points around it: the
+    /// projection of the circle where the rays from the source graze the sphere. Empty when the
+    /// source is inside the sphere or a point cannot be projected.
+    pub fn sphere_outline(&self, center: &Point3<f64>, radius: f64, n: usize) -> Vec<Point2<f64>> {
+        let o = self.center();
+        let to_c = center - o;
+        let d = to_c.norm();
+        if !(radius > 0.0 && d > radius) {
+            return Vec::new();
+        }
+        let w = to_c / d;
+        // The grazing circle: radius r sqrt(1 - r^2/d^2), centred r^2/d from the centre toward
+        // the source.
+        let rc = radius * (1.0 - (radius / d).powi(2)).sqrt();
+        let c = center - w * (radius * radius / d);
+        let a = if w.x.abs() < 0.9 {
+            nalgebra::Vector3::x()
+        } else {
+            nalgebra::Vector3::y()
+        };
+        let u = w.cross(&a).normalize();
+        let v = w.cross(&u);
+        (0..n)
+            .map(|k| {
+                let t = std::f64::consts::TAU * k as f64 / n as f64;
+                self.project(&(c + (u * t.cos() + v * t.sin()) * rc))
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .unwrap_or_default()
+    }
+
     /// Pixels per millimetre at the depth of world point `p` (mean of fx and fy over depth).
     pub fn pixels_per_mm_at(&self, p: &Point3<f64>) -> f64 {
         let z = self.to_camera(p).z.max(MIN_DEPTH);
@@ -132,6 +163,29 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn a_spheres_outline_grazes_it() {
+        let c = Point3::new(5.0, -3.0, 2.0);
+        let cams = simulated_views(&XrayGeometry::default(), &c);
+        for cam in &cams {
+            let outline = cam.sphere_outline(&c, 26.0, 90);
+            assert_eq!(outline.len(), 90);
+            // Every outline point's ray passes the centre at the radius, and no point of the
+            // sphere projects outside the outline's span.
+            let o = cam.center();
+            for p in &outline {
+                let d = cam.ray(p).normalize();
+                let dist = (c - o).cross(&d).norm();
+                assert!((dist - 26.0).abs() < 1e-6, "{dist}");
+            }
+            // Companion: a smaller sphere's outline does not graze the larger one.
+            let small = cam.sphere_outline(&c, 20.0, 8);
+            let d = cam.ray(&small[0]).normalize();
+            assert!(((c - o).cross(&d).norm() - 26.0).abs() > 5.0);
+        }
+        assert!(cams[0].sphere_outline(&cams[0].center(), 5.0, 8).is_empty());
     }
 
     #[test]
