@@ -875,3 +875,29 @@ fn a_reused_out_is_refused_unless_forced() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// pose-study writes its summary (settings, means, rows, provenance) into --out.
+#[test]
+fn pose_study_writes_its_summary_into_out() {
+    let dir = tmp("pose-out");
+    let out = dir.join("pose");
+    let o = bin()
+        .args(["pose-study", "--runs", "1", "--threads", "1", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["runs"], 1);
+    assert_eq!(s["rows"].as_array().unwrap().len(), 1);
+    assert_eq!(s["provenance"]["command_line"][1], "pose-study");
+    // Companion: the same --out again is refused without --force.
+    let o = bin()
+        .args(["pose-study", "--runs", "1", "--threads", "1", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("exists and is not empty"));
+}

@@ -29,6 +29,12 @@ pub struct PoseStudyArgs {
     /// Print the rows as one JSON array instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// Also write the study here: summary.json (settings, means, every row, provenance).
+    #[arg(long)]
+    pub out: Option<std::path::PathBuf>,
+    /// Write into an --out that is not empty (same-named files are replaced, others stay).
+    #[arg(long)]
+    pub force: bool,
 }
 
 pub fn run(args: PoseStudyArgs) -> Result<(), String> {
@@ -41,7 +47,12 @@ pub fn run(args: PoseStudyArgs) -> Result<(), String> {
         seed,
         threads,
         json,
+        out,
+        force,
     } = args;
+    if let Some(o) = &out {
+        crate::common::check_out(o, force)?;
+    }
     if !(deg.is_finite() && mm.is_finite() && deg >= 0.0 && mm >= 0.0) {
         return Err(format!(
             "--deg {deg} / --mm {mm}: must be finite and non-negative"
@@ -81,8 +92,21 @@ pub fn run(args: PoseStudyArgs) -> Result<(), String> {
         "cup_abs_error_with_mm": mean(&|r| r.cup_error_with_mm.abs()),
         "failed": rows.len() - ok.len(),
         "seconds": t.elapsed().as_secs_f64(),
+        "provenance": acetab::report::Provenance::here("cpu", None, cfg.threads, seed),
         "rows": rows,
     });
+    if let Some(o) = &out {
+        let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+        acetab::io::fill_dir_atomically(
+            o,
+            |d| {
+                std::fs::write(d.join("summary.json"), text.as_bytes())
+                    .map_err(|e| crate::common::io_msg(&d.join("summary.json"), e))
+            },
+            crate::common::io_msg,
+        )
+        .map_err(|e| crate::common::unstage(&e, o))?;
+    }
     if json {
         println!(
             "{}",
