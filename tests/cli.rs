@@ -901,3 +901,52 @@ fn pose_study_writes_its_summary_into_out() {
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("exists and is not empty"));
 }
+
+/// Several cases: one folder each under --out and cases.csv, a line per case; a case that fails
+/// is a line with its error and the others still run.
+#[test]
+fn several_cases_reconstruct_into_one_folder_each_and_a_table() {
+    let dir = tmp("cases");
+    let good = phantom_case(&dir);
+    std::fs::copy(&good, dir.join("left.json")).unwrap();
+    std::fs::write(dir.join("broken.json"), "{").unwrap();
+    let out = dir.join("out");
+    let o = bin()
+        .arg("reconstruct")
+        .arg(&good)
+        .arg(dir.join("broken.json"))
+        .arg(dir.join("left.json"))
+        .args(["--uncertainty-samples", "2", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("2 of 3 cases reconstructed"), "{err}");
+    for name in ["case", "left"] {
+        assert!(out.join(name).join("cup.json").is_file(), "{name}");
+    }
+    assert!(!out.join("broken").exists());
+    let table = std::fs::read_to_string(out.join("cases.csv")).unwrap();
+    let lines: Vec<&str> = table.lines().collect();
+    assert_eq!(lines.len(), 4, "{table}");
+    assert!(
+        lines[2].starts_with("broken,") && lines[2].contains("NaN"),
+        "{table}"
+    );
+    assert!(
+        lines[1].starts_with("case,") && !lines[1].contains("NaN"),
+        "{table}"
+    );
+    // Companion: two cases of one name would share a folder and are refused up front.
+    let o = bin()
+        .arg("reconstruct")
+        .arg(&good)
+        .arg(&good)
+        .arg("--out")
+        .arg(dir.join("twice"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("two cases are named"));
+}

@@ -12,8 +12,11 @@ use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct ReconstructArgs {
-    /// The case file (JSON: views, outlines, start; see README, "The case file").
-    pub case: PathBuf,
+    /// The case file(s) (JSON: views, outlines, start; see README, "The case file"). Several
+    /// cases are written one folder each under --out (named after the file), with cases.csv, a
+    /// line per case (a case that fails is a line with its error; the others still run).
+    #[arg(required = true)]
+    pub case: Vec<PathBuf>,
     /// Where the outputs are written (made in a staging folder and moved there at the end).
     #[arg(long)]
     pub out: PathBuf,
@@ -97,15 +100,96 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         1,
         seed,
     );
-    let report = run_case_with(&case, &out, &prm, kernels, &up, provenance)
-        .map_err(|e| crate::common::unstage(&e.to_string(), &out))?;
+    if let [one] = case.as_slice() {
+        let report = run_case_with(one, &out, &prm, kernels, &up, provenance)
+            .map_err(|e| crate::common::unstage(&e.to_string(), &out))?;
+        print_report(&report, json, &out)?;
+        return Ok(());
+    }
+    // Several cases: one folder each, then the table.
+    let mut names: Vec<String> = Vec::new();
+    for c in &case {
+        let stem = c
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "case".into());
+        if names.contains(&stem) {
+            return Err(format!(
+                "{}: two cases are named {stem:?}; their folders would collide",
+                c.display()
+            ));
+        }
+        names.push(stem);
+    }
+    std::fs::create_dir_all(&out).map_err(|e| crate::common::io_msg(&out, e))?;
+    let mut table = String::from(
+        "case,file,diameter_mm,catalogue_mm,sd_mm,size_probability,reprojection_rms_px,fallback,error\n",
+    );
+    let mut failed = 0;
+    for (c, name) in case.iter().zip(&names) {
+        let dir = out.join(name);
+        match run_case_with(c, &dir, &prm, kernels, &up, provenance.clone()) {
+            Ok(r) => {
+                print_report(&r, json, &dir)?;
+                table += &format!(
+                    "{name},{},{:.6},{},{:.6},{:.6},{:.6},{},\n",
+                    csv_text(&c.display().to_string()),
+                    r.cup.diameter_mm,
+                    r.cup.catalogue_mm,
+                    r.cup.sd_mm,
+                    r.cup.probability_of(r.cup.catalogue_mm),
+                    r.log.reprojection_rms_px,
+                    r.log.fallback.map(|f| f.to_string()).unwrap_or_default(),
+                );
+            }
+            Err(e) => {
+                let e = crate::common::unstage(&e.to_string(), &dir);
+                eprintln!("acetab: error: {e}");
+                failed += 1;
+                table += &format!(
+                    "{name},{},NaN,NaN,NaN,NaN,NaN,,{}\n",
+                    csv_text(&c.display().to_string()),
+                    csv_text(&e)
+                );
+            }
+        }
+    }
+    acetab::io::write_atomic(&out.join("cases.csv"), table.as_bytes())
+        .map_err(|e| crate::common::io_msg(&out.join("cases.csv"), e))?;
+    eprintln!(
+        "{} of {} cases reconstructed; cases.csv in {}",
+        case.len() - failed,
+        case.len(),
+        out.display()
+    );
+    if failed == case.len() {
+        return Err(format!("all {} cases failed (see cases.csv)", case.len()));
+    }
+    Ok(())
+}
+
+/// One CSV cell: quoted when it holds a comma, a quote or a line break.
+fn csv_text(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+/// A case's report: its warnings, then the JSON or the terminal line.
+fn print_report(
+    report: &acetab::case::CaseRunReport,
+    json: bool,
+    out: &std::path::Path,
+) -> Result<(), String> {
     for w in &report.warnings {
         eprintln!("acetab: warning: {w}");
     }
     if json {
         println!(
             "{}",
-            serde_json::to_string(&report).map_err(|e| e.to_string())?
+            serde_json::to_string(report).map_err(|e| e.to_string())?
         );
     } else {
         println!(
