@@ -828,6 +828,19 @@ fn singular_aliases_and_json_summaries() {
     assert!(serde_json::from_slice::<serde_json::Value>(&o.stdout).is_err());
 }
 
+/// `acetab simulate --gt phantom` with ONE_RUN and no resampling into `out`, and `extra` flags.
+fn quick_study(out: &Path, extra: &[&str]) -> std::process::Output {
+    bin()
+        .args(["simulate", "--gt", "phantom"])
+        .args(ONE_RUN.split(' '))
+        .args(["--uncertainty-samples", "0"])
+        .args(extra)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
 /// A reused --out is refused (an earlier result's files would mix with the new ones) unless
 /// --force; the refusal leaves the folder as it was.
 #[test]
@@ -836,18 +849,7 @@ fn a_reused_out_is_refused_unless_forced() {
     let out = dir.join("study");
     std::fs::create_dir_all(&out).unwrap();
     std::fs::write(out.join("old.txt"), "earlier").unwrap();
-    let sim = |force: bool| {
-        let mut c = bin();
-        c.args(["simulate", "--gt", "phantom"])
-            .args(ONE_RUN.split(' '))
-            .args(["--uncertainty-samples", "0", "--out"])
-            .arg(&out);
-        if force {
-            c.arg("--force");
-        }
-        c.output().unwrap()
-    };
-    let o = sim(false);
+    let o = quick_study(&out, &[]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(
@@ -860,19 +862,13 @@ fn a_reused_out_is_refused_unless_forced() {
         "the folder was touched"
     );
     // Companion: with --force the study is written beside the old file.
-    let o = sim(true);
+    let o = quick_study(&out, &["--force"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(out.join("runs.csv").is_file() && out.join("old.txt").is_file());
     // An empty folder is as good as a new one.
     let empty = dir.join("empty");
     std::fs::create_dir_all(&empty).unwrap();
-    let o = bin()
-        .args(["simulate", "--gt", "phantom"])
-        .args(ONE_RUN.split(' '))
-        .args(["--uncertainty-samples", "0", "--out"])
-        .arg(&empty)
-        .output()
-        .unwrap();
+    let o = quick_study(&empty, &[]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
