@@ -132,7 +132,8 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
             Ok(r) => {
                 print_report(&r, json, &dir)?;
                 table += &format!(
-                    "{name},{},{:.6},{},{:.6},{:.6},{:.6},{},\n",
+                    "{},{},{:.6},{},{:.6},{:.6},{:.6},{},\n",
+                    csv_text(name),
                     csv_text(&c.display().to_string()),
                     r.cup.diameter_mm,
                     r.cup.catalogue_mm,
@@ -147,7 +148,8 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
                 eprintln!("acetab: error: {e}");
                 failed += 1;
                 table += &format!(
-                    "{name},{},NaN,NaN,NaN,NaN,NaN,,{}\n",
+                    "{},{},NaN,NaN,NaN,NaN,NaN,,{}\n",
+                    csv_text(name),
                     csv_text(&c.display().to_string()),
                     csv_text(&e)
                 );
