@@ -77,11 +77,19 @@ fn demo_json_has_the_documented_fields_and_writes_its_files() {
         );
     }
     assert_eq!(v["seed"], 7);
-    for f in ["reconstruction.ply", "truth.ply", "report.json"] {
+    for f in [
+        "reconstruction.ply",
+        "reconstruction.png",
+        "truth.ply",
+        "report.json",
+    ] {
         assert!(out.join(f).is_file(), "{f}");
     }
     let ply = std::fs::read_to_string(out.join("reconstruction.ply")).unwrap();
-    assert!(ply.contains("property uchar red"));
+    assert!(ply.contains("property uchar red") && ply.contains("property float error_mm"));
+    // The 3D picture: two viewpoints and a colour bar, 950 x 460.
+    let png = image::open(out.join("reconstruction.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (950, 460));
 }
 
 #[test]
@@ -121,6 +129,7 @@ fn a_case_file_reconstructs_through_the_cli() {
         "report.json",
         "cup.json",
         "overlay-0-view0.png",
+        "reconstruction.png",
     ] {
         assert!(out.join(f).is_file(), "{f}");
     }

@@ -169,6 +169,29 @@ pub fn run_case_with(
                     Err(e) => warnings.push(format!("{name} not drawn: {e}")),
                 }
             }
+            // The result from two viewpoints, coloured by its distance to the cup sphere.
+            #[cfg(feature = "plots")]
+            {
+                let c = rec.sphere.center_point();
+                let dist: Vec<f64> = rec
+                    .mesh
+                    .vertices
+                    .iter()
+                    .map(|v| ((v - c).norm() - rec.sphere.radius).abs())
+                    .collect();
+                let axis = crate::report::plots::opening_axis(&rec.mesh, &rec.sphere);
+                match crate::report::plots::surface_views(
+                    &rec.mesh,
+                    &dist,
+                    &axis,
+                    3.0,
+                    "off the cup sphere (mm)",
+                    &stage.join("reconstruction.png"),
+                ) {
+                    Ok(()) => files.push("reconstruction.png".into()),
+                    Err(e) => warnings.push(format!("reconstruction.png not drawn: {e}")),
+                }
+            }
             #[cfg(not(feature = "plots"))]
             let _ = &case.images; // overlays need the `plots` feature
             files.push("cup.json".into());

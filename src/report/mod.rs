@@ -12,6 +12,6 @@ pub use accuracy::{accuracy, accuracy_from, accuracy_samples, write_error_ply, A
 pub use cup::{CupCatalogue, CupSize};
 pub use metrics::{
     error_colors, interior_distance, surface_distance, surface_samples, DistanceStats,
-    InteriorQuery, SurfaceQuery,
+    InteriorQuery, SurfaceQuery, NO_ERROR_COLOR,
 };
 pub use provenance::Provenance;

@@ -466,3 +466,196 @@ pub fn per_mesh(
     }
     save_png(buf, w, h, path)
 }
+
+/// The opening axis of a cup-shaped surface on its sphere: from the surface's centroid through the
+/// sphere's centre (z when they coincide); `surface_views` looks along it.
+pub fn opening_axis(
+    mesh: &crate::geom::Mesh,
+    sphere: &crate::geom::Sphere,
+) -> nalgebra::Unit<nalgebra::Vector3<f64>> {
+    nalgebra::Unit::try_new(
+        sphere.center_point() - crate::geom::centroid(&mesh.vertices),
+        1e-9,
+    )
+    .unwrap_or(nalgebra::Vector3::z_axis())
+}
+
+/// A picture of a surface from two viewpoints side by side, coloured per triangle by `values`
+/// (per vertex, mm; blue 0 to red `max_mm`, grey where NaN), with a colour bar labelled `label`:
+/// left, looking into the cup along `axis` (from the opening); right, from the side (the axis
+/// turned 90 degrees about the long axis z). Orthographic, painter's order (far triangles
+/// first), drawn with plotters on the CPU.
+pub fn surface_views(
+    mesh: &crate::geom::Mesh,
+    values: &[f64],
+    axis: &nalgebra::Unit<nalgebra::Vector3<f64>>,
+    max_mm: f64,
+    label: &str,
+    path: &Path,
+) -> Result<(), PlotError> {
+    use nalgebra::Vector3;
+    ensure_font()?;
+    if mesh.triangles.is_empty() || values.len() != mesh.vertex_count() {
+        return Err(PlotError::Draw(
+            "no triangles, or not one value per vertex".into(),
+        ));
+    }
+    let (panel, bar_w, h) = (420u32, 110u32, 460u32);
+    let w = 2 * panel + bar_w;
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    let c = crate::geom::centroid(&mesh.vertices);
+    let a = axis.into_inner();
+    let up_hint = if a.z.abs() < 0.9 {
+        Vector3::z()
+    } else {
+        Vector3::x()
+    };
+    // Into the cup: look against the opening axis. From the side: look along the axis turned
+    // about z.
+    let side = Vector3::z()
+        .cross(&a)
+        .try_normalize(1e-9)
+        .unwrap_or(Vector3::x());
+    let views = [(-a, "into the cup"), (side, "from the side")];
+    let colors = super::error_colors(values, max_mm);
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let extent = mesh
+            .vertices
+            .iter()
+            .map(|p| (p - c).norm())
+            .fold(1e-9, f64::max);
+        let scale = 0.45 * panel as f64 / extent;
+        for (k, (look, title)) in views.iter().enumerate() {
+            let wv = look.normalize();
+            let hint = if wv.dot(&up_hint).abs() > 0.95 {
+                Vector3::y()
+            } else {
+                up_hint
+            };
+            let u = hint.cross(&wv).normalize();
+            let v = wv.cross(&u);
+            let x_off = (k as u32 * panel) as f64 + 0.5 * panel as f64;
+            let y_off = 0.5 * h as f64 + 10.0;
+            let to_px = |p: &nalgebra::Point3<f64>| {
+                let d = p - c;
+                (
+                    (x_off + scale * d.dot(&u)) as i32,
+                    (y_off - scale * d.dot(&v)) as i32,
+                )
+            };
+            // Far triangles first: depth along the viewing direction, largest first.
+            let mut order: Vec<(f64, usize)> = mesh
+                .triangles
+                .iter()
+                .enumerate()
+                .map(|(t, tri)| {
+                    let m = tri
+                        .iter()
+                        .map(|&i| (mesh.vertices[i as usize] - c).dot(&wv))
+                        .sum::<f64>();
+                    (m, t)
+                })
+                .collect();
+            order.sort_by(|x, y| y.0.total_cmp(&x.0));
+            for (_, t) in order {
+                let tri = mesh.triangles[t];
+                let pts: Vec<(i32, i32)> = tri
+                    .iter()
+                    .map(|&i| to_px(&mesh.vertices[i as usize]))
+                    .collect();
+                let mut col = [0u32; 3];
+                for &i in &tri {
+                    for (ch, x) in col.iter_mut().zip(colors[i as usize]) {
+                        *ch += x as u32;
+                    }
+                }
+                let fill = RGBColor((col[0] / 3) as u8, (col[1] / 3) as u8, (col[2] / 3) as u8);
+                root.draw(&Polygon::new(pts, fill.filled()))
+                    .map_err(draw_err)?;
+            }
+            root.draw(&Text::new(
+                *title,
+                ((k as u32 * panel + 12) as i32, 10),
+                ("sans-serif", 16).into_font().color(&BLACK),
+            ))
+            .map_err(draw_err)?;
+        }
+        // The colour bar: 0 at the bottom, max at the top, grey for "no value".
+        let (bx, top, bottom) = ((2 * panel + 20) as i32, 50i32, h as i32 - 90);
+        for y in top..=bottom {
+            let f = (bottom - y) as f64 / (bottom - top) as f64;
+            let [r, g, b] = super::error_colors(&[f * max_mm], max_mm)[0];
+            root.draw(&PathElement::new(
+                vec![(bx, y), (bx + 20, y)],
+                RGBColor(r, g, b).stroke_width(1),
+            ))
+            .map_err(draw_err)?;
+        }
+        for (f, text) in [
+            (0.0, "0".to_string()),
+            (0.5, format!("{:.1}", 0.5 * max_mm)),
+            (1.0, format!(">= {max_mm:.1}")),
+        ] {
+            let y = bottom - (f * (bottom - top) as f64) as i32;
+            root.draw(&Text::new(
+                text,
+                (bx + 26, y - 7),
+                ("sans-serif", 13).into_font().color(&BLACK),
+            ))
+            .map_err(draw_err)?;
+        }
+        let [r, g, b] = super::NO_ERROR_COLOR;
+        root.draw(&Rectangle::new(
+            [(bx, bottom + 20), (bx + 20, bottom + 34)],
+            RGBColor(r, g, b).filled(),
+        ))
+        .map_err(draw_err)?;
+        root.draw(&Text::new(
+            "none",
+            (bx + 26, bottom + 20),
+            ("sans-serif", 13).into_font().color(&BLACK),
+        ))
+        .map_err(draw_err)?;
+        root.draw(&Text::new(
+            label.to_string(),
+            (bx - 4, 28),
+            ("sans-serif", 13).into_font().color(&BLACK),
+        ))
+        .map_err(draw_err)?;
+        root.present().map_err(draw_err)?;
+    }
+    save_png(buf, w, h, path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn surface_views_draws_a_cap_and_refuses_values_that_do_not_fit() {
+        let cap = crate::template::spherical_cap(25.0, 800, 80f64.to_radians());
+        let sphere = crate::geom::fit_sphere(&cap.vertices).unwrap();
+        let axis = opening_axis(&cap, &sphere);
+        // The cap is built about the z axis: its opening axis is z (either sign).
+        assert!(axis.z.abs() > 0.99, "{axis:?}");
+        let tmp = tempfile::tempdir().unwrap();
+        let p = tmp.path().join("s.png");
+        let values: Vec<f64> = (0..cap.vertex_count())
+            .map(|i| (i % 30) as f64 / 10.0)
+            .collect();
+        surface_views(&cap, &values, &axis, 3.0, "error (mm)", &p).unwrap();
+        let img = image::open(&p).unwrap().to_rgb8();
+        // Something was drawn in each panel (not only the white canvas).
+        for x0 in [0u32, 420] {
+            let coloured = (x0..x0 + 420)
+                .flat_map(|x| (0..460).map(move |y| (x, y)))
+                .filter(|&(x, y)| img.get_pixel(x, y).0 != [255, 255, 255])
+                .count();
+            assert!(coloured > 10_000, "panel at {x0}: {coloured}");
+        }
+        // Companion: one value short is refused, not drawn.
+        assert!(surface_views(&cap, &values[1..], &axis, 3.0, "x", &p).is_err());
+    }
+}

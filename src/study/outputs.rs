@@ -105,6 +105,26 @@ pub fn write_examples(
             source: std::io::Error::other(e.to_string()),
         })?;
         #[cfg(feature = "plots")]
+        {
+            let err = match crate::report::InteriorQuery::new(truth) {
+                Some(q) => q.per_vertex(&ex.recon.mesh),
+                None => crate::report::surface_distance(&ex.recon.mesh.vertices, truth),
+            };
+            let axis = crate::report::plots::opening_axis(&ex.recon.mesh, &ex.recon.sphere);
+            let p = d.join("reconstruction.png");
+            if let Err(e) = crate::report::plots::surface_views(
+                &ex.recon.mesh,
+                &err,
+                &axis,
+                3.0,
+                "error (mm)",
+                &p,
+            ) {
+                let shown = p.strip_prefix(dir).unwrap_or(&p);
+                warnings.push(format!("{} not drawn: {e}", shown.display()));
+            }
+        }
+        #[cfg(feature = "plots")]
         for (k, cam) in ex.sim.cameras.iter().enumerate() {
             let p = d.join(format!("view{k}.png"));
             let center = ex.recon.sphere.center_point();

@@ -62,6 +62,22 @@ pub fn run(args: DemoArgs) -> Result<(), String> {
             write_error_ply(&rec.mesh, &truth, &d.join("reconstruction.ply"))
                 .map_err(|e| e.to_string())?;
             write_ply(&truth, None, &d.join("truth.ply")).map_err(|e| e.to_string())?;
+            // The result from two viewpoints, coloured by its error (a warning if not drawn).
+            let err = match acetab::report::InteriorQuery::new(&truth) {
+                Some(q) => q.per_vertex(&rec.mesh),
+                None => acetab::report::surface_distance(&rec.mesh.vertices, &truth),
+            };
+            let axis = acetab::report::plots::opening_axis(&rec.mesh, &rec.sphere);
+            if let Err(e) = acetab::report::plots::surface_views(
+                &rec.mesh,
+                &err,
+                &axis,
+                3.0,
+                "error (mm)",
+                &d.join("reconstruction.png"),
+            ) {
+                eprintln!("acetab: warning: reconstruction.png not drawn: {e}");
+            }
             std::fs::write(d.join("report.json"), report_json.as_bytes())
                 .map_err(|e| format!("{}: {e}", d.join("report.json").display()))
         },
