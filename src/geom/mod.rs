@@ -16,4 +16,4 @@ pub use polyline::{
 };
 pub use pool::pool_map;
 pub use sphere::{fit_sphere, fit_sphere_robust, Sphere, SphereFitError};
-pub use stats::{centroid, mean, mean_sd, quantile_sorted};
+pub use stats::{centroid, mean, mean_sd, opening_axis, quantile_sorted};

@@ -8,6 +8,12 @@ pub fn centroid(p: &[Point3<f64>]) -> Point3<f64> {
     Point3::from(p.iter().map(|v| v.coords).sum::<Vector3<f64>>() / p.len().max(1) as f64)
 }
 
+/// The opening axis of a cup-shaped point set on a sphere centred at `center`: from the points'
+/// centroid through the centre (the z axis when they coincide).
+pub fn opening_axis(p: &[Point3<f64>], center: &Point3<f64>) -> nalgebra::Unit<Vector3<f64>> {
+    nalgebra::Unit::try_new(center - centroid(p), 1e-9).unwrap_or(Vector3::z_axis())
+}
+
 /// Mean of the values (NaN for none).
 pub fn mean(v: &[f64]) -> f64 {
     if v.is_empty() {

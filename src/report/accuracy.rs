@@ -42,19 +42,29 @@ pub fn accuracy_from(samples: &[nalgebra::Point3<f64>], recon: &Mesh) -> Accurac
     }
 }
 
-/// Write the reconstruction as a PLY coloured by its distance to the truth (blue 0 mm to red
-/// 3 mm) with the distance itself as the vertex property `error_mm`. Where no truth surface lies
-/// under a vertex (its closest truth point is on the truth's border: parts the truth does not
-/// cover) the error is NaN and the vertex grey, instead of the distance to the truth's edge.
-pub fn write_error_ply(recon: &Mesh, truth: &Mesh, path: &Path) -> Result<(), MeshIoError> {
-    let err = match super::InteriorQuery::new(truth) {
+/// Per vertex of `recon`, its distance to the truth's surface, mm; NaN where no truth surface lies
+/// under the vertex (its closest truth point is on the truth's border: parts the truth does not
+/// cover), rather than the distance to the truth's edge.
+pub fn vertex_errors(recon: &Mesh, truth: &Mesh) -> Vec<f64> {
+    match super::InteriorQuery::new(truth) {
         Some(q) => q.per_vertex(recon),
         None => surface_distance(&recon.vertices, truth),
-    };
+    }
+}
+
+/// Write the reconstruction as a PLY coloured by its distance to the truth (blue 0 mm to red
+/// 3 mm, grey where NaN) with the distance itself as the vertex property `error_mm`
+/// (`vertex_errors`).
+pub fn write_error_ply(recon: &Mesh, truth: &Mesh, path: &Path) -> Result<(), MeshIoError> {
+    write_errors_ply(recon, &vertex_errors(recon, truth), path)
+}
+
+/// As `write_error_ply`, with the errors already measured (one per vertex).
+pub fn write_errors_ply(recon: &Mesh, errors: &[f64], path: &Path) -> Result<(), MeshIoError> {
     write_ply_with(
         recon,
-        Some(&error_colors(&err, 3.0)),
-        Some(("error_mm", &err)),
+        Some(&error_colors(errors, 3.0)),
+        Some(("error_mm", errors)),
         path,
     )
 }

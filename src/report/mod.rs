@@ -8,7 +8,10 @@ mod metrics;
 pub mod plots;
 mod provenance;
 
-pub use accuracy::{accuracy, accuracy_from, accuracy_samples, write_error_ply, Accuracy};
+pub use accuracy::{
+    accuracy, accuracy_from, accuracy_samples, vertex_errors, write_error_ply, write_errors_ply,
+    Accuracy,
+};
 pub use cup::{CupCatalogue, CupSize};
 pub use metrics::{
     error_colors, interior_distance, surface_distance, surface_samples, DistanceStats,

@@ -467,17 +467,13 @@ pub fn per_mesh(
     save_png(buf, w, h, path)
 }
 
-/// The opening axis of a cup-shaped surface on its sphere: from the surface's centroid through the
-/// sphere's centre (z when they coincide); `surface_views` looks along it.
+/// The opening axis of a cup-shaped surface on its sphere (`geom::opening_axis`);
+/// `surface_views` looks along it.
 pub fn opening_axis(
     mesh: &crate::geom::Mesh,
     sphere: &crate::geom::Sphere,
 ) -> nalgebra::Unit<nalgebra::Vector3<f64>> {
-    nalgebra::Unit::try_new(
-        sphere.center_point() - crate::geom::centroid(&mesh.vertices),
-        1e-9,
-    )
-    .unwrap_or(nalgebra::Vector3::z_axis())
+    crate::geom::opening_axis(&mesh.vertices, &sphere.center_point())
 }
 
 /// A picture of a surface from two viewpoints side by side, coloured per triangle by `values`

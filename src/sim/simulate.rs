@@ -4,7 +4,6 @@
 
 use crate::contours::{model_contour, ContourError};
 
-use crate::geom::centroid;
 use crate::geom::Curve;
 use crate::geom::Mesh;
 use crate::geom::{fit_sphere, Sphere, SphereFitError};
@@ -12,7 +11,7 @@ use crate::pipeline::Input;
 use crate::sim::{simulated_views, GeometryError, XrayGeometry};
 use crate::template::{Placement, Template};
 use crate::views::Camera;
-use nalgebra::{Point3, Rotation3, Unit, Vector3};
+use nalgebra::{Point3, Rotation3, Vector3};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
@@ -125,8 +124,7 @@ pub(super) fn gaussian(field: &'static str, sd: f64) -> Result<Normal<f64>, SimE
 pub fn fit_placement(truth: &Mesh) -> Result<(Placement, Sphere), SphereFitError> {
     let s = fit_sphere(&truth.vertices)?;
     let c = s.center_point();
-    let dir = c - centroid(&truth.vertices);
-    let axis = Unit::try_new(dir, 1e-9).unwrap_or(Vector3::z_axis());
+    let axis = crate::geom::opening_axis(&truth.vertices, &c);
     Ok((
         Placement {
             center: c,
@@ -355,7 +353,7 @@ mod tests {
         let place = Placement {
             center: Point3::new(80.0, 10.0, -500.0),
             radius: 26.0,
-            axis: Unit::new_normalize(Vector3::new(1.0, 0.3, -0.8)),
+            axis: nalgebra::Unit::new_normalize(Vector3::new(1.0, 0.3, -0.8)),
         };
         let cap = place.place(&crate::template::spherical_cap(
             1.0,

@@ -7,7 +7,7 @@ use crate::geom::Mesh;
 use crate::io::write_atomic;
 #[cfg(feature = "plots")]
 use crate::report::plots::{box_plots, overlay, OverlayMarks};
-use crate::report::write_error_ply;
+use crate::report::{vertex_errors, write_errors_ply};
 use std::path::Path;
 
 /// Everything but the examples: the tables, then the box plots. A picture that cannot be drawn
@@ -100,16 +100,13 @@ pub fn write_examples(
             source,
         })?;
         let p = d.join("reconstruction.ply");
-        write_error_ply(&ex.recon.mesh, truth, &p).map_err(|e| StudyError::Write {
+        let err = vertex_errors(&ex.recon.mesh, truth);
+        write_errors_ply(&ex.recon.mesh, &err, &p).map_err(|e| StudyError::Write {
             path: p.clone(),
             source: std::io::Error::other(e.to_string()),
         })?;
         #[cfg(feature = "plots")]
         {
-            let err = match crate::report::InteriorQuery::new(truth) {
-                Some(q) => q.per_vertex(&ex.recon.mesh),
-                None => crate::report::surface_distance(&ex.recon.mesh.vertices, truth),
-            };
             let axis = crate::report::plots::opening_axis(&ex.recon.mesh, &ex.recon.sphere);
             let p = d.join("reconstruction.png");
             if let Err(e) = crate::report::plots::surface_views(

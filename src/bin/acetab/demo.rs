@@ -7,7 +7,7 @@ use acetab::engine::{BackendChoice, Kernels};
 use acetab::io::fill_dir_atomically;
 use acetab::io::write_ply;
 use acetab::pipeline::ReconParams;
-use acetab::report::write_error_ply;
+use acetab::report::{vertex_errors, write_errors_ply};
 use acetab::sim::run_demo;
 use std::path::PathBuf;
 
@@ -59,14 +59,11 @@ pub fn run(args: DemoArgs) -> Result<(), String> {
     fill_dir_atomically(
         &out,
         |d| {
-            write_error_ply(&rec.mesh, &truth, &d.join("reconstruction.ply"))
+            let err = vertex_errors(&rec.mesh, &truth);
+            write_errors_ply(&rec.mesh, &err, &d.join("reconstruction.ply"))
                 .map_err(|e| e.to_string())?;
             write_ply(&truth, None, &d.join("truth.ply")).map_err(|e| e.to_string())?;
             // The result from two viewpoints, coloured by its error (a warning if not drawn).
-            let err = match acetab::report::InteriorQuery::new(&truth) {
-                Some(q) => q.per_vertex(&rec.mesh),
-                None => acetab::report::surface_distance(&rec.mesh.vertices, &truth),
-            };
             let axis = acetab::report::plots::opening_axis(&rec.mesh, &rec.sphere);
             if let Err(e) = acetab::report::plots::surface_views(
                 &rec.mesh,
