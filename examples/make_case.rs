@@ -3,12 +3,17 @@
 //! rim contours (two closed, one open where the blurred wall is left out), the cameras and a
 //! perturbed template placement. Seeded (seed 1), so the files are reproducible.
 //!
-//! Run: cargo run --release --example make_case [-- OUT_DIR]
+//! With `--dicom` the images are Digital X-Ray DICOM files (12-bit, Deflated Explicit VR Little
+//! Endian) carrying the pixel spacing and the source distances, and the case file leaves out `k`
+//! and the image size: they are read from the tags (examples/case-dicom/).
+//!
+//! Run: cargo run --release --example make_case [-- OUT_DIR] [--dicom]
 
 use acetab::case::CaseFile;
 use acetab::engine::cpu::project::{project, ViewRows};
 use acetab::engine::cpu::silhouette::for_each_covered;
 use acetab::geom::Curve;
+use acetab::io::{write_dicom_xray, DicomXray, SpacingTag};
 use acetab::sim::XrayGeometry;
 use acetab::sim::{phantom, PhantomParams};
 use acetab::sim::{simulate_case, NoiseLevel};
@@ -50,16 +55,27 @@ fn blur(v: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
 }
 
 fn main() -> ExitCode {
-    let out: PathBuf = std::env::args()
-        .nth(1)
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let dicom = args.iter().any(|a| a == "--dicom");
+    let out: PathBuf = args
+        .iter()
+        .find(|a| !a.starts_with("--"))
         .map(PathBuf::from)
-        .unwrap_or_else(|| "examples/case".into());
+        .unwrap_or_else(|| {
+            if dicom {
+                "examples/case-dicom"
+            } else {
+                "examples/case"
+            }
+            .into()
+        });
+    let geometry = XrayGeometry::default();
     let run = || -> Result<(), String> {
         std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
         let truth = phantom(&PhantomParams::default()).mesh;
         let sim = simulate_case(
             &truth,
-            &XrayGeometry::default(),
+            &geometry,
             2.0,
             &NoiseLevel::level(2).ok_or("level")?,
             1,
@@ -87,22 +103,47 @@ fn main() -> ExitCode {
                 let bg = 50.0 + 30.0 * (y as f32 / h as f32);
                 image::Luma([(bg + 70.0 * acc[y as usize * w + x as usize]).min(255.0) as u8])
             });
-            let name = format!("view{k}.png");
-            img.save(out.join(&name))
-                .map_err(|e| format!("{name}: {e}"))?;
+            let view = ["AP", "oblique +20", "oblique -20"]
+                .get(k)
+                .unwrap_or(&"view")
+                .to_string();
+            let name = if dicom {
+                let name = format!("view{k}.dcm");
+                let x = DicomXray {
+                    columns: w as u32,
+                    rows: h as u32,
+                    // 8-bit grey to 12 bits.
+                    pixels: img.pixels().map(|p| u16::from(p.0[0]) * 16).collect(),
+                    spacing: Some((
+                        [geometry.pixel_size, geometry.pixel_size],
+                        SpacingTag::Imager,
+                    )),
+                    sid_mm: Some(geometry.source_to_detector),
+                    sod_mm: Some(geometry.source_to_object),
+                    view: view.clone(),
+                    uid_seed: 1 + k as u64,
+                };
+                write_dicom_xray(&out.join(&name), &x).map_err(|e| e.to_string())?;
+                // The intrinsics and the size come from the tags.
+                file.views[k].k = None;
+                file.views[k].width = None;
+                file.views[k].height = None;
+                name
+            } else {
+                let name = format!("view{k}.png");
+                img.save(out.join(&name))
+                    .map_err(|e| format!("{name}: {e}"))?;
+                name
+            };
             file.views[k].image = Some(PathBuf::from(&name));
-            file.views[k].name = Some(
-                ["AP", "oblique +20", "oblique -20"]
-                    .get(k)
-                    .unwrap_or(&"view")
-                    .to_string(),
-            );
+            file.views[k].name = Some(view);
         }
         let text = serde_json::to_string_pretty(&file).map_err(|e| e.to_string())?;
         std::fs::write(out.join("case.json"), text).map_err(|e| e.to_string())?;
         println!(
-            "wrote {}/case.json and view0..2.png (seed 1)",
-            out.display()
+            "wrote {}/case.json and view0..2.{} (seed 1)",
+            out.display(),
+            if dicom { "dcm" } else { "png" }
         );
         Ok(())
     };

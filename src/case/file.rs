@@ -10,18 +10,23 @@ use nalgebra::{Matrix3, Point2, Point3, Rotation3, Unit, Vector3};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// Intrinsics as written in a case file.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+/// Intrinsics as written in a case file. A field left out is taken from the view's DICOM image:
+/// fx, fy = source-to-detector distance / pixel spacing, cx, cy = the image centre.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct IntrinsicsFile {
     /// Focal length in x, pixels.
-    pub fx: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fx: Option<f64>,
     /// Focal length in y, pixels.
-    pub fy: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fy: Option<f64>,
     /// Principal point x, pixels.
-    pub cx: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cx: Option<f64>,
     /// Principal point y, pixels.
-    pub cy: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cy: Option<f64>,
 }
 
 /// What an annotated contour covers.
@@ -59,17 +64,20 @@ pub struct ViewFile {
     /// The view's name (AP, oblique, ...).
     #[serde(default)]
     pub name: Option<String>,
-    /// Intrinsics.
-    pub k: IntrinsicsFile,
+    /// Intrinsics (may be left out, whole or in part, when `image` is an X-ray DICOM file).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub k: Option<IntrinsicsFile>,
     /// World-to-camera rotation, rows.
     pub r: [[f64; 3]; 3],
     /// World-to-camera translation, mm.
     pub t: [f64; 3],
-    /// Image width, pixels.
-    pub width: u32,
-    /// Image height, pixels.
-    pub height: u32,
-    /// Optional X-ray image (PNG or JPEG), relative to the case file.
+    /// Image width, pixels (may be left out when `image` is given).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub width: Option<u32>,
+    /// Image height, pixels (may be left out when `image` is given).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub height: Option<u32>,
+    /// Optional X-ray image (PNG, JPEG or a DX/CR DICOM file), relative to the case file.
     #[serde(default)]
     pub image: Option<PathBuf>,
     /// The rim annotated in this view (one or more contours).
@@ -111,6 +119,34 @@ pub struct Case {
     pub images: Vec<Option<PathBuf>>,
     /// Per view, its name.
     pub names: Vec<String>,
+    /// Per view, where its intrinsics came from and what its DICOM file says.
+    pub geometry: Vec<ViewGeometry>,
+    /// What the case's views disagree on (a k that differs from its DICOM tags by over 1 %).
+    pub warnings: Vec<String>,
+}
+
+/// Where a view's intrinsics came from, and the magnification they imply at the object.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ViewGeometry {
+    /// The view's name.
+    pub view: String,
+    /// The intrinsics used.
+    pub k: [f64; 4],
+    /// Per value of `k` (fx, fy, cx, cy): "case", "dicom" (SID / spacing) or "image centre".
+    pub k_source: [&'static str; 4],
+    /// The DICOM image, when the view's image is one.
+    pub dicom_file: Option<String>,
+    /// What the DICOM file says.
+    pub dicom: Option<crate::io::DicomGeometry>,
+    /// fx, fy from the DICOM tags, when they give them.
+    pub dicom_focal_px: Option<[f64; 2]>,
+    /// Magnification at the object: SID / SOD from the DICOM tags, when both are there.
+    pub magnification_dicom: Option<f64>,
+    /// Pixels per mm at the template's centre as the views place it (fx / depth).
+    pub px_per_mm_at_object: f64,
+    /// The magnification at the template's centre: pixel spacing x pixels per mm, when the
+    /// spacing is known.
+    pub magnification_at_object: Option<f64>,
 }
 
 /// A case file is unusable.
@@ -145,6 +181,16 @@ pub enum CaseError {
         /// What it must be.
         reason: String,
     },
+    /// A view's DICOM image cannot give what the view needs.
+    #[error("{path}: field {field}: {source}")]
+    Dicom {
+        /// The case file.
+        path: PathBuf,
+        /// The field (views[0].image).
+        field: String,
+        /// What the DICOM file lacks.
+        source: Box<crate::io::DicomError>,
+    },
 }
 
 fn field_err(
@@ -163,6 +209,58 @@ fn field_err(
 
 /// Largest coordinate magnitude accepted anywhere (mm or px): beyond it the input is absurd.
 const ABSURD: f64 = 1e7;
+
+/// A view's image as the case names it: where it is, its size, and its DICOM geometry.
+struct ViewImage {
+    path: PathBuf,
+    size: (u32, u32),
+    dicom: Option<crate::io::DicomGeometry>,
+}
+
+/// Read the image's header now, so a bad image fails before any work is done.
+fn view_image(case: &Path, field: &str, full: &Path) -> Result<ViewImage, CaseError> {
+    if !full.is_file() {
+        return Err(field_err(
+            case,
+            field,
+            full.display(),
+            "image file not found or unreadable",
+        ));
+    }
+    if crate::io::is_dicom(full) {
+        let d = crate::io::read_dicom_geometry(full).map_err(|source| CaseError::Dicom {
+            path: case.to_path_buf(),
+            field: field.into(),
+            source: Box::new(source),
+        })?;
+        return Ok(ViewImage {
+            path: full.to_path_buf(),
+            size: (d.columns, d.rows),
+            dicom: Some(d),
+        });
+    }
+    let size = image::image_dimensions(full).map_err(|e| {
+        let hint = if full
+            .extension()
+            .is_some_and(|x| x.eq_ignore_ascii_case("dcm"))
+        {
+            " (and it is not a DICOM Part 10 file: no DICM after the 128-byte preamble)"
+        } else {
+            ""
+        };
+        field_err(
+            case,
+            field,
+            full.display(),
+            format!("cannot be decoded: {e}{hint}"),
+        )
+    })?;
+    Ok(ViewImage {
+        path: full.to_path_buf(),
+        size,
+        dicom: None,
+    })
+}
 
 impl Case {
     /// The reconstruction's input: this case's views, outlines and start, with `template`.
@@ -243,10 +341,105 @@ impl CaseFile {
             init,
             images: Vec::new(),
             names: Vec::new(),
+            geometry: Vec::new(),
+            warnings: Vec::new(),
         };
         for (vi, v) in self.views.iter().enumerate() {
             let f = |name: &str| format!("views[{vi}].{name}");
-            for (name, val) in [("k.fx", v.k.fx), ("k.fy", v.k.fy)] {
+            // The image first: a DICOM file may give the size and the intrinsics.
+            let image = match &v.image {
+                Some(p) => Some(view_image(path, &f("image"), &base.join(p))?),
+                None => None,
+            };
+            let from_image = image.as_ref().map(|i| i.size);
+            let (width, height) =
+                match (v.width, v.height, from_image) {
+                    (Some(w), Some(h), _) => (w, h),
+                    (None, None, Some(s)) => s,
+                    (w, h, _) => return Err(field_err(
+                        path,
+                        f("width/height"),
+                        format!("{w:?}x{h:?}"),
+                        "give both width and height, or neither with an image to take them from",
+                    )),
+                };
+            if width == 0 || height == 0 || width > 65536 || height > 65536 {
+                return Err(field_err(
+                    path,
+                    f("width/height"),
+                    format!("{width}x{height}"),
+                    "image size must be 1..65536 pixels",
+                ));
+            }
+            if let (Some((w, h)), Some(img)) = (from_image, &image) {
+                if (w, h) != (width, height) {
+                    return Err(field_err(
+                        path,
+                        f("image"),
+                        img.path.display(),
+                        format!("the image is {w}x{h}, the view says {width}x{height}"),
+                    ));
+                }
+            }
+            let dicom = image.as_ref().and_then(|i| i.dicom.clone());
+            let dicom_focal = match &dicom {
+                Some(d) if d.spacing_mm.is_some() && d.sid_mm.is_some() => {
+                    let p = image.as_ref().map_or(path, |i| i.path.as_path());
+                    d.focal_px(p).ok()
+                }
+                _ => None,
+            };
+            let kf = v.k.clone().unwrap_or_default();
+            let mut k_source = ["case"; 4];
+            let focal = |given: Option<f64>, i: usize, src: &mut [&'static str; 4]| {
+                if let Some(val) = given {
+                    return Ok(val);
+                }
+                src[i] = "dicom";
+                match (&dicom, &image) {
+                    (Some(d), Some(img)) => d
+                        .focal_px(&img.path)
+                        .map(|(fx, fy)| if i == 0 { fx } else { fy })
+                        .map_err(|source| CaseError::Dicom {
+                            path: path.to_path_buf(),
+                            field: f("k"),
+                            source: Box::new(source),
+                        }),
+                    _ => Err(field_err(
+                        path,
+                        f(if i == 0 { "k.fx" } else { "k.fy" }),
+                        "missing",
+                        "give k (fx, fy, cx, cy), or an X-ray DICOM image whose pixel spacing and source-to-detector distance give it",
+                    )),
+                }
+            };
+            let fx = focal(kf.fx, 0, &mut k_source)?;
+            let fy = focal(kf.fy, 1, &mut k_source)?;
+            let mut centre = |given: Option<f64>, i: usize, half: u32| {
+                given.unwrap_or_else(|| {
+                    k_source[i] = "image centre";
+                    0.5 * half as f64
+                })
+            };
+            let (cx, cy) = (centre(kf.cx, 2, width), centre(kf.cy, 3, height));
+            let mut warnings = Vec::new();
+            if let (Some((dfx, dfy)), Some(img)) = (dicom_focal, &image) {
+                for (name, given, tags) in [("k.fx", kf.fx, dfx), ("k.fy", kf.fy, dfy)] {
+                    if let Some(g) = given {
+                        let off = g / tags - 1.0;
+                        if off.abs() > 0.01 {
+                            warnings.push(format!(
+                                "{}: {} = {g} in the case, {} gives SID / spacing = {tags:.1} ({:+.1} %); the case's value is used",
+                                path.display(),
+                                f(name),
+                                img.path.display(),
+                                100.0 * off
+                            ));
+                        }
+                    }
+                }
+            }
+            for (name, val) in [("k.fx", fx), ("k.fy", fy)] {
                 if !(val.is_finite() && val > 0.0 && val < ABSURD) {
                     return Err(field_err(
                         path,
@@ -256,7 +449,7 @@ impl CaseFile {
                     ));
                 }
             }
-            for (name, val) in [("k.cx", v.k.cx), ("k.cy", v.k.cy)] {
+            for (name, val) in [("k.cx", cx), ("k.cy", cy)] {
                 if !val.is_finite() || val.abs() > ABSURD {
                     return Err(field_err(
                         path,
@@ -265,14 +458,6 @@ impl CaseFile {
                         "principal point must be finite",
                     ));
                 }
-            }
-            if v.width == 0 || v.height == 0 || v.width > 65536 || v.height > 65536 {
-                return Err(field_err(
-                    path,
-                    f("width/height"),
-                    format!("{}x{}", v.width, v.height),
-                    "image size must be 1..65536 pixels",
-                ));
             }
             let r = Matrix3::from_fn(|i, j| v.r[i][j]);
             if !r.iter().all(|x| x.is_finite()) {
@@ -312,16 +497,11 @@ impl CaseFile {
                 }
             }
             let cam = Camera {
-                k: Intrinsics {
-                    fx: v.k.fx,
-                    fy: v.k.fy,
-                    cx: v.k.cx,
-                    cy: v.k.cy,
-                },
+                k: Intrinsics { fx, fy, cx, cy },
                 r: Rotation3::from_matrix(&r),
                 t: Vector3::from(v.t),
-                width: v.width,
-                height: v.height,
+                width,
+                height,
             };
             if let Err(e) = cam.project(&case.init.center) {
                 return Err(field_err(
@@ -342,7 +522,7 @@ impl CaseFile {
             let mut curves = Vec::new();
             for (ci, c) in v.contours.iter().enumerate() {
                 let cf = |name: &str| format!("views[{vi}].contours[{ci}].{name}");
-                let margin = 0.5 * (v.width.max(v.height)) as f64;
+                let margin = 0.5 * (width.max(height)) as f64;
                 for (pi, p) in c.points.iter().enumerate() {
                     if !p[0].is_finite() || !p[1].is_finite() {
                         return Err(field_err(
@@ -354,14 +534,14 @@ impl CaseFile {
                     }
                     if p[0] < -margin
                         || p[1] < -margin
-                        || p[0] > v.width as f64 + margin
-                        || p[1] > v.height as f64 + margin
+                        || p[0] > width as f64 + margin
+                        || p[1] > height as f64 + margin
                     {
                         return Err(field_err(
                             path,
                             cf(&format!("points[{pi}]")),
                             format!("{p:?}"),
-                            format!("outside the {}x{} image", v.width, v.height),
+                            format!("outside the {width}x{height} image"),
                         ));
                     }
                 }
@@ -410,50 +590,31 @@ impl CaseFile {
                     closed,
                 });
             }
-            let image = match &v.image {
-                Some(p) => {
-                    let full = if p.is_absolute() {
-                        p.clone()
-                    } else {
-                        base.join(p)
-                    };
-                    if !full.is_file() {
-                        return Err(field_err(
-                            path,
-                            f("image"),
-                            full.display(),
-                            "image file not found or unreadable",
-                        ));
-                    }
-                    // Read the header now, so a bad image fails before any work is done.
-                    let (w, h) = image::image_dimensions(&full).map_err(|e| {
-                        field_err(
-                            path,
-                            f("image"),
-                            full.display(),
-                            format!("cannot be decoded: {e}"),
-                        )
-                    })?;
-                    if (w, h) != (v.width, v.height) {
-                        return Err(field_err(
-                            path,
-                            f("image"),
-                            full.display(),
-                            format!(
-                                "the image is {w}x{h}, the view says {}x{}",
-                                v.width, v.height
-                            ),
-                        ));
-                    }
-                    Some(full)
-                }
-                None => None,
-            };
+            let name = v.name.clone().unwrap_or_else(|| format!("view{vi}"));
+            let centre = case.init.center;
+            let px_per_mm = cam.pixels_per_mm_at(&centre);
+            case.geometry.push(ViewGeometry {
+                view: name.clone(),
+                k: [fx, fy, cx, cy],
+                k_source,
+                dicom_file: dicom
+                    .as_ref()
+                    .and(image.as_ref())
+                    .map(|i| i.path.display().to_string()),
+                magnification_dicom: dicom.as_ref().and_then(|d| d.magnification()),
+                magnification_at_object: dicom
+                    .as_ref()
+                    .and_then(|d| d.spacing_mm)
+                    .map(|s| px_per_mm * 0.5 * (s[0] + s[1])),
+                dicom_focal_px: dicom_focal.map(|(a, b)| [a, b]),
+                dicom,
+                px_per_mm_at_object: px_per_mm,
+            });
+            case.warnings.extend(warnings);
             case.cameras.push(cam);
             case.observed.push(curves);
-            case.images.push(image);
-            case.names
-                .push(v.name.clone().unwrap_or_else(|| format!("view{vi}")));
+            case.images.push(image.map(|i| i.path));
+            case.names.push(name);
         }
         Ok(case)
     }
@@ -467,16 +628,16 @@ impl CaseFile {
                 .enumerate()
                 .map(|(i, (c, curves))| ViewFile {
                     name: Some(format!("view{i}")),
-                    k: IntrinsicsFile {
-                        fx: c.k.fx,
-                        fy: c.k.fy,
-                        cx: c.k.cx,
-                        cy: c.k.cy,
-                    },
+                    k: Some(IntrinsicsFile {
+                        fx: Some(c.k.fx),
+                        fy: Some(c.k.fy),
+                        cx: Some(c.k.cx),
+                        cy: Some(c.k.cy),
+                    }),
                     r: [0, 1, 2].map(|row| [0, 1, 2].map(|col| c.r.matrix()[(row, col)])),
                     t: [c.t.x, c.t.y, c.t.z],
-                    width: c.width,
-                    height: c.height,
+                    width: Some(c.width),
+                    height: Some(c.height),
                     image: None,
                     contours: curves
                         .iter()

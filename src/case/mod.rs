@@ -6,5 +6,6 @@ mod run;
 
 pub use file::{
     Case, CaseError, CaseFile, ContourFile, ContourKind, IntrinsicsFile, TemplateFile, ViewFile,
+    ViewGeometry,
 };
-pub use run::{run_case, run_case_with, CaseRunError, CaseRunReport};
+pub use run::{run_case, run_case_with, solve_case, CaseRunError, CaseRunReport};

@@ -3,11 +3,11 @@
 //! and moved into place only when all of it succeeded (`fsutil::fill_dir_atomically`), so a
 //! failed run leaves no files.
 
-use crate::case::{CaseError, CaseFile};
+use crate::case::{Case, CaseError, CaseFile};
 use crate::engine::Kernels;
 use crate::io::{write_ply, MeshIoError};
 use crate::pipeline::{cup_report, CupReport, UncertaintyParams};
-use crate::pipeline::{reconstruct, ReconError, ReconParams};
+use crate::pipeline::{reconstruct, ReconError, ReconParams, Reconstruction};
 #[cfg(feature = "plots")]
 use crate::report::plots::{overlay, OverlayMarks};
 use crate::report::Provenance;
@@ -69,13 +69,16 @@ pub struct CaseRunReport {
     pub provenance: Provenance,
     /// The cup sphere.
     pub sphere: crate::geom::Sphere,
+    /// Per view: its intrinsics, where they came from (case or DICOM tags), the magnification.
+    pub views: Vec<crate::case::ViewGeometry>,
     /// What the solver did.
     pub log: crate::pipeline::SolveLog,
     /// Seconds for the reconstruction and the uncertainty.
     pub seconds: f64,
     /// The files written.
     pub files: Vec<String>,
-    /// Pictures that could not be drawn, and why (the rest is written regardless).
+    /// What the case's views disagree on, and pictures that could not be drawn, and why (the
+    /// rest is written regardless).
     pub warnings: Vec<String>,
 }
 
@@ -114,22 +117,7 @@ pub fn run_case_with(
 ) -> Result<CaseRunReport, CaseRunError> {
     let case = CaseFile::load(path)?;
     let t = std::time::Instant::now();
-    let recon_err = |source| CaseRunError::Recon {
-        path: path.to_path_buf(),
-        source,
-    };
-    let template = Template::standard();
-    let rec = reconstruct(&case.input(&template), prm, kernels).map_err(recon_err)?;
-    let catalogue = &prm.cup.catalogue;
-    if !catalogue.holds(rec.sphere.diameter()) {
-        return Err(CaseRunError::Catalogue {
-            path: path.to_path_buf(),
-            diameter_mm: rec.sphere.diameter(),
-            min_mm: catalogue.sizes_mm.first().copied().unwrap_or(f64::NAN),
-            max_mm: catalogue.sizes_mm.last().copied().unwrap_or(f64::NAN),
-        });
-    }
-    let cup = cup_report(&rec, &case.observed, prm, kernels, up).map_err(recon_err)?;
+    let (rec, cup) = solve_case(&case, path, prm, kernels, up)?;
     let seconds = t.elapsed().as_secs_f64();
 
     let write_err = |p: &Path, source| CaseRunError::Write {
@@ -142,7 +130,7 @@ pub fn run_case_with(
         |stage| {
             let mut files = vec!["reconstruction.ply".to_string()];
             #[allow(unused_mut)]
-            let mut warnings = Vec::new();
+            let mut warnings = case.warnings.clone();
             write_ply(&rec.mesh, None, &stage.join("reconstruction.ply"))?;
             #[cfg(feature = "plots")]
             for (k, cam) in case.cameras.iter().enumerate() {
@@ -203,6 +191,7 @@ pub fn run_case_with(
                 cup: cup.clone(),
                 provenance: provenance.clone(),
                 sphere: rec.sphere,
+                views: case.geometry.clone(),
                 log: rec.log.clone(),
                 seconds,
                 files,
@@ -218,6 +207,35 @@ pub fn run_case_with(
         write_err,
     )?;
     Ok(report.expect("set by the successful fill"))
+}
+
+/// Reconstruct a validated case and report its cup (with its uncertainty), writing nothing:
+/// refused when the reconstruction fails or the catalogue cannot hold the cup. `path` names the
+/// case in the errors.
+pub fn solve_case(
+    case: &Case,
+    path: &Path,
+    prm: &ReconParams,
+    kernels: Kernels,
+    up: &UncertaintyParams,
+) -> Result<(Reconstruction, CupReport), CaseRunError> {
+    let recon_err = |source| CaseRunError::Recon {
+        path: path.to_path_buf(),
+        source,
+    };
+    let template = Template::standard();
+    let rec = reconstruct(&case.input(&template), prm, kernels).map_err(recon_err)?;
+    let catalogue = &prm.cup.catalogue;
+    if !catalogue.holds(rec.sphere.diameter()) {
+        return Err(CaseRunError::Catalogue {
+            path: path.to_path_buf(),
+            diameter_mm: rec.sphere.diameter(),
+            min_mm: catalogue.sizes_mm.first().copied().unwrap_or(f64::NAN),
+            max_mm: catalogue.sizes_mm.last().copied().unwrap_or(f64::NAN),
+        });
+    }
+    let cup = cup_report(&rec, &case.observed, prm, kernels, up).map_err(recon_err)?;
+    Ok((rec, cup))
 }
 
 /// Pretty JSON of a report (the two report types serialise infallibly: plain fields).

@@ -1,11 +1,27 @@
-//! Files in and out: mesh files (STL, PLY, OBJ) and atomic writes, so that a failed run never
+//! Files in and out: mesh files (STL, PLY, OBJ), X-ray DICOM files and atomic writes, so that a failed run never
 //! leaves a half-written file or folder behind.
 
 mod atomic;
+mod dicom;
 mod mesh_file;
 
 pub use atomic::{fill_dir_atomically, write_atomic};
+pub use dicom::{
+    is_dicom, read_dicom_geometry, read_dicom_image, write_dicom_xray, DicomError, DicomGeometry,
+    DicomXray, SpacingTag,
+};
 pub use mesh_file::{
     read_mesh, write_mesh, write_obj, write_ply, write_ply_with, write_stl_ascii, write_stl_binary,
     MeshIoError, Rgb,
 };
+
+/// An X-ray for drawing: a DICOM file's pixels (`read_dicom_image`) or a PNG or JPEG.
+pub fn read_xray_image(path: &std::path::Path) -> Result<image::DynamicImage, String> {
+    if is_dicom(path) {
+        read_dicom_image(path)
+            .map(image::DynamicImage::ImageLuma8)
+            .map_err(|e| e.to_string())
+    } else {
+        image::open(path).map_err(|e| e.to_string())
+    }
+}

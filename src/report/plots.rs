@@ -284,10 +284,10 @@ pub fn overlay(
     let (w, h) = (((x1 - x0).max(16.0)) as u32, ((y1 - y0).max(16.0)) as u32);
     let mut buf = match background {
         Some(p) => {
-            let img = image::open(p)
-                .map_err(|e| PlotError::File {
+            let img = crate::io::read_xray_image(p)
+                .map_err(|reason| PlotError::File {
                     path: p.to_path_buf(),
-                    reason: e.to_string(),
+                    reason,
                 })?
                 .to_rgb8();
             let mut b = vec![0u8; (w * h * 3) as usize];

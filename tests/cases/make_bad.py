@@ -45,7 +45,10 @@ def setv(path, val):
     return f
 case("missing_views.json", "missing field `views`", drop(["views"]))
 case("missing_template.json", "missing field `template`", drop(["template"]))
-case("missing_k.json", "missing field `k`", drop(["views", 0, "k"]))
+case("missing_k.json", "views[0].k.fx", drop(["views", 0, "k"]))
+case("missing_fy.json", "views[1].k.fy", drop(["views", 1, "k", "fy"]))
+case("missing_height.json", "views[0].width/height", drop(["views", 0, "height"]))
+case("missing_size_without_image.json", "views[2].width/height", lambda d: (drop(["views", 2, "height"])(d), drop(["views", 2, "width"])(d)))
 case("missing_closed.json", "closed/kind", drop(["views", 1, "contours", 0, "closed"]))
 case("closed_and_kind_disagree.json", "closed/kind", setv(["views", 1, "contours", 0, "kind"], "open"))
 case("unknown_contour_kind.json", "unknown variant `half`", setv(["views", 1, "contours", 0, "kind"], "half"))
