@@ -6,6 +6,7 @@ mod geometry;
 mod phantom;
 mod realistic;
 mod simulate;
+mod truth;
 
 pub use demo::{phantom_case, run_demo, DemoError, DemoReport, DEMO_NOISE_PX};
 pub use geometry::{simulated_views, BodyAxis, GeometryError, ViewRotation, XrayGeometry};
@@ -15,3 +16,4 @@ pub use simulate::{
     fit_placement, ground_truth_surface, observed_alpha, perturb, perturb_poses, simulate_case,
     NoiseLevel, SimCase, SimError, SimSetup, OBSERVED_ALPHA_FRACTION,
 };
+pub use truth::{load_truth, TruthError, PLAUSIBLE_RADIUS_MM};

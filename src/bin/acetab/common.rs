@@ -3,10 +3,6 @@
 
 use acetab::engine::gpu::GpuDevice;
 use acetab::engine::BackendChoice;
-use acetab::geom::fit_sphere;
-use acetab::io::read_mesh;
-use acetab::sim::ground_truth_surface;
-use acetab::sim::{phantom, PhantomParams};
 use acetab::study::summarize;
 use std::path::Path;
 
@@ -81,31 +77,9 @@ pub fn io_msg(p: &Path, e: std::io::Error) -> String {
     format!("{}: cannot write: {e}", p.display())
 }
 
-/// Sphere radii (mm) an acetabulum can have; a `--gt` mesh outside them is refused (in metres or
-/// centimetres it would run, but the solver's tolerances and the guards are in millimetres).
-pub const PLAUSIBLE_RADIUS_MM: (f64, f64) = (15.0, 60.0);
-
-/// The study's ground truth from `--gt` (a mesh file or `phantom`). A surface no sphere fits, one
-/// whose sphere's radius is outside `PLAUSIBLE_RADIUS_MM`, or one the simulated views cannot see
-/// is refused before any run.
+/// The study's ground truth from `--gt` (`acetab::sim::load_truth`).
 pub fn load_truth(gt: &str) -> Result<acetab::geom::Mesh, String> {
-    let truth = if gt == "phantom" {
-        phantom(&PhantomParams::default()).mesh
-    } else {
-        let mesh = read_mesh(Path::new(gt)).map_err(|e| format!("--gt: {e}"))?;
-        ground_truth_surface(&mesh).map_err(|e| format!("--gt {gt}: {e}"))?
-    };
-    let r = fit_sphere(&truth.vertices)
-        .map_err(|e| format!("--gt {gt}: ground truth sphere fit: {e}"))?
-        .radius;
-    let (lo, hi) = PLAUSIBLE_RADIUS_MM;
-    if !(lo..=hi).contains(&r) {
-        return Err(format!(
-            "--gt {gt}: the fitted sphere's radius is {r:.3} mm, outside the {lo}-{hi} mm of an \
-             acetabulum: is the mesh in millimetres?"
-        ));
-    }
-    Ok(truth)
+    acetab::sim::load_truth(gt).map_err(|e| e.to_string())
 }
 
 /// The engine on the device, if any (its pipelines compile here).

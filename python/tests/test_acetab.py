@@ -1,0 +1,185 @@
+"""The Python package against the command line and against itself (run by .ci/run after the Rust
+tests: python -m pytest python/tests)."""
+
+import json
+import math
+import os
+import pathlib
+import subprocess
+
+import numpy as np
+import pytest
+
+import acetab
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+CASE = ROOT / "examples" / "case" / "case.json"
+DICOM_CASE = ROOT / "examples" / "case-dicom" / "case.json"
+
+
+def cli_reconstruct(case, out, *args):
+    """`acetab reconstruct CASE --json` through cargo (built already by the Rust tests)."""
+    cmd = ["cargo", "run", "--release", "-q", "--bin", "acetab", "--", "reconstruct",
+           str(case), "--out", str(out), "--json", *args]
+    done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)
+
+
+def test_reconstruct_case_gives_the_cli_cup(tmp_path):
+    cli = cli_reconstruct(CASE, tmp_path / "cli")
+    py = acetab.reconstruct_case(CASE, tmp_path / "py")
+    assert abs(py["cup"]["diameter_mm"] - cli["cup"]["diameter_mm"]) < 1e-6
+    assert py["cup"]["catalogue_mm"] == cli["cup"]["catalogue_mm"]
+    assert py["cup"]["probabilities"] == cli["cup"]["probabilities"]
+    # The same object as the command line's: every key of report.json.
+    assert set(py) == set(cli)
+    assert (tmp_path / "py" / "reconstruction.ply").is_file()
+    assert json.loads((tmp_path / "py" / "report.json").read_text())["cup"] == py["cup"]
+
+
+def test_another_method_is_not_the_cli_cup(tmp_path):
+    # The companion: a wrong answer (ICP instead of SRVF) is told apart at the same tolerance.
+    cli = cli_reconstruct(CASE, tmp_path / "cli")
+    icp = acetab.reconstruct_case(CASE, method="icp", uncertainty_samples=2)
+    assert icp["method"] == "icp"
+    assert abs(icp["cup"]["diameter_mm"] - cli["cup"]["diameter_mm"]) > 1e-6
+
+
+def test_the_dicom_case_gives_the_png_case_cup():
+    png = acetab.reconstruct_case(CASE, uncertainty_samples=2)
+    dcm = acetab.reconstruct_case(DICOM_CASE, uncertainty_samples=2)
+    assert abs(png["cup"]["diameter_mm"] - dcm["cup"]["diameter_mm"]) < 0.05
+    view = dcm["views"][0]
+    assert view["k_source"] == ["dicom", "dicom", "image centre", "image centre"]
+    assert view["dicom"]["spacing_tag"] == "ImagerPixelSpacing (0018,1164)"
+    assert math.isclose(view["magnification_dicom"], 1100 / 900)
+
+
+def case_arrays(path):
+    case = json.loads(pathlib.Path(path).read_text())
+    cameras = [
+        {
+            "k": [v["k"][n] for n in ("fx", "fy", "cx", "cy")],
+            "r": np.array(v["r"]),
+            "t": np.array(v["t"]),
+            "width": v["width"],
+            "height": v["height"],
+            "name": v["name"],
+        }
+        for v in case["views"]
+    ]
+    contours = [
+        [{"points": np.array(c["points"]), "closed": c["closed"]} for c in v["contours"]]
+        for v in case["views"]
+    ]
+    return cameras, contours, case["template"]
+
+
+def test_reconstruct_from_arrays_matches_the_case_file():
+    cameras, contours, template = case_arrays(CASE)
+    r = acetab.reconstruct(cameras, contours, template, uncertainty_samples=2)
+    ref = acetab.reconstruct_case(CASE, uncertainty_samples=2)
+    assert r["cup"]["diameter_mm"] == ref["cup"]["diameter_mm"]
+    v, f = r["vertices"], r["faces"]
+    assert v.dtype == np.float64 and v.ndim == 2 and v.shape[1] == 3
+    assert f.dtype == np.int64 and f.shape[1] == 3 and f.max() < len(v) and f.min() >= 0
+    # The vertices lie about the cup sphere.
+    c, rad = np.array(r["sphere"]["center"]), r["sphere"]["radius"]
+    assert abs(np.median(np.linalg.norm(v - c, axis=1)) - rad) < 2.0
+    assert "vertices" not in ref
+    # A (3, 3) K is the same camera.
+    k = cameras[0]["k"]
+    cameras[0]["k"] = np.array([[k[0], 0, k[2]], [0, k[1], k[3]], [0, 0, 1]])
+    r2 = acetab.reconstruct(cameras, contours, template, uncertainty_samples=2)
+    assert r2["cup"]["diameter_mm"] == r["cup"]["diameter_mm"]
+
+
+def test_a_wrong_focal_length_moves_the_cup():
+    cameras, contours, template = case_arrays(CASE)
+    ref = acetab.reconstruct(cameras, contours, template, uncertainty_samples=2)
+    for cam in cameras:
+        cam["k"] = [1.1 * cam["k"][0], 1.1 * cam["k"][1], cam["k"][2], cam["k"][3]]
+    moved = acetab.reconstruct(cameras, contours, template, uncertainty_samples=2)
+    assert abs(moved["cup"]["diameter_mm"] - ref["cup"]["diameter_mm"]) > 0.05
+
+
+def test_bad_arrays_are_refused_by_name():
+    cameras, contours, template = case_arrays(CASE)
+    cameras[1]["k"] = [-5500.0, 5500.0, 1024.0, 1024.0]
+    with pytest.raises(acetab.AcetabError, match=r"views\[1\]\.k\.fx"):
+        acetab.reconstruct(cameras, contours, template)
+    cameras, contours, template = case_arrays(CASE)
+    with pytest.raises(ValueError, match=r"cameras\[0\]\['r'\]"):
+        cameras[0]["r"] = np.eye(2)
+        acetab.reconstruct(cameras, contours, template)
+    with pytest.raises(ValueError, match="3 cameras and 2 views"):
+        acetab.reconstruct(*case_arrays(CASE)[:1], contours[:2], template)
+    with pytest.raises(TypeError, match="metod"):
+        acetab.reconstruct(*case_arrays(CASE), metod="icp")
+    with pytest.raises(ValueError, match="method"):
+        acetab.reconstruct(*case_arrays(CASE), method="cpd")
+
+
+def test_reconstruct_case_errors_carry_the_engine_message(tmp_path):
+    bad = json.loads(CASE.read_text())
+    for v in bad["views"]:
+        v.pop("image")
+    bad["views"][0]["t"][2] = -5000.0
+    p = tmp_path / "bad.json"
+    p.write_text(json.dumps(bad))
+    with pytest.raises(acetab.AcetabError, match=r"bad\.json.*views\[0\]\.t.*not in front"):
+        acetab.reconstruct_case(p, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(acetab.AcetabError, match="no_such.json"):
+        acetab.reconstruct_case(tmp_path / "no_such.json")
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "x").write_text("x")
+    with pytest.raises(acetab.AcetabError, match="not empty"):
+        acetab.reconstruct_case(CASE, tmp_path / "full")
+
+
+def ellipse(n, shift=0, scale=1.0, angle=0.0):
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    # No symmetry under a half turn (the cos 2t term), so the rotation is unambiguous.
+    pts = np.c_[30 * np.cos(t) + 5 * np.cos(2 * t), 18 * np.sin(t) + 4 * np.sin(3 * t)]
+    rot = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    return np.roll(scale * pts @ rot.T, shift, axis=0)
+
+
+def test_align_finds_a_moved_copy_and_tells_another_shape():
+    a = ellipse(80)
+    b = ellipse(120, shift=17, scale=2.0, angle=0.3)
+    al = acetab.align(a, b, mode="closed", samples=150)
+    assert al["gamma"].shape == (150,) and al["aligned"].shape == (150, 2)
+    assert np.all(np.diff(al["gamma"]) >= -1e-12)
+    assert al["distance"] < 0.05
+    assert abs(abs(al["rotation_deg"]) - math.degrees(0.3)) < 3.0
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    square = np.concatenate([np.linspace(square[i], square[(i + 1) % 4], 20, endpoint=False)
+                             for i in range(4)])
+    other = acetab.align(a, square, mode="closed", samples=150)
+    assert other["distance"] > 5 * al["distance"] and other["distance"] > 0.05
+    part = acetab.align(ellipse(80)[10:50], b, mode="partial", samples=100)
+    assert part["distance"] < 0.1
+    with pytest.raises(ValueError, match="mode"):
+        acetab.align(a, b, mode="both")
+    with pytest.raises(ValueError, match=r"\(N, 2\)"):
+        acetab.align(a[:, :1], b)
+    with pytest.raises(ValueError, match="samples"):
+        acetab.align(a, b, samples=3)
+
+
+def test_simulate_is_seeded_and_reports_runs():
+    runs = acetab.simulate("phantom", levels=[1], runs=2, methods=["srvf"], seed=7, threads=1)
+    assert len(runs) == 2 and all(r["error"] == "" for r in runs)
+    assert all(r["method"] == "srvf" and r["level"] == 1 for r in runs)
+    assert all(0 < r["mae_mm"] < 3 for r in runs)
+    again = acetab.simulate("phantom", levels=[1], runs=2, methods="srvf", seed=7, threads=2)
+    assert [r["mae_mm"] for r in again] == [r["mae_mm"] for r in runs]
+    other = acetab.simulate("phantom", levels=[1], runs=2, methods=["srvf"], seed=8, threads=1)
+    assert [r["mae_mm"] for r in other] != [r["mae_mm"] for r in runs]
+    with pytest.raises(acetab.AcetabError, match="no_such_mesh.stl"):
+        acetab.simulate("no_such_mesh.stl", levels=[1], runs=1)
+    with pytest.raises(ValueError, match="protocol"):
+        acetab.simulate("phantom", protocol="clinical")
