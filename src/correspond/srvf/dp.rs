@@ -163,6 +163,19 @@ fn dp_in_band(
     band: &[(usize, usize)],
     anchor: Option<Anchor>,
 ) -> Warp {
+    dp_in_band_tables(q1, q2, steps, band, anchor, &mut (Vec::new(), Vec::new()))
+}
+
+/// `dp_in_band` filling `tables` with the banded costs and back-pointers (row-major, row i
+/// holding the band's columns of row i).
+fn dp_in_band_tables(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    steps: &[(usize, usize)],
+    band: &[(usize, usize)],
+    anchor: Option<Anchor>,
+    tables: &mut (Vec<f64>, Vec<u32>),
+) -> Warp {
     let n = q1.len();
     debug_assert_eq!(n, q2.len());
     let prepared = prepare(steps);
@@ -183,76 +196,107 @@ fn dp_in_band(
         offset[i + 1] = offset[i] + (hi[i] + 1 - lo[i]);
     }
     let cells = offset[n];
-    let mut cost = vec![f64::INFINITY; cells];
-    let mut back = vec![u32::MAX; cells];
+    let (cost, back) = tables;
+    cost.clear();
+    cost.resize(cells, f64::INFINITY);
+    back.clear();
+    back.resize(cells, u32::MAX);
     cost[0] = 0.0;
     let (x1, y1): (Vec<f64>, Vec<f64>) = q1.iter().map(|v| (v.x, v.y)).unzip();
     // q2 at every tap of every step, times the step's sqrt slope, for each start column l
     // (0 <= l < n - b): it does not depend on the row, so it is computed once, not per cell.
-    let warped = tap_table(&prepared, n, |st, p, u| {
-        let (qx, qy) = if u == 0.0 {
-            (q2[p].x, q2[p].y)
+    // x and y apart, so the row loops below run over contiguous columns (SIMD).
+    let scaled_tap = |st: &PreparedStep, p: usize, u: f64| {
+        if u == 0.0 {
+            (q2[p].x * st.sqrt_slope, q2[p].y * st.sqrt_slope)
         } else {
             (
-                q2[p].x + (q2[p + 1].x - q2[p].x) * u,
-                q2[p].y + (q2[p + 1].y - q2[p].y) * u,
+                (q2[p].x + (q2[p + 1].x - q2[p].x) * u) * st.sqrt_slope,
+                (q2[p].y + (q2[p + 1].y - q2[p].y) * u) * st.sqrt_slope,
             )
-        };
-        (qx * st.sqrt_slope, qy * st.sqrt_slope)
-    });
+        }
+    };
+    let (wx, wy) = tap_tables_xy(&prepared, n, scaled_tap);
     // B's positions at the same taps (not scaled: the position term ignores the slope).
     let weight = anchor.map_or(0.0, |a| a.weight);
-    let (pa, placed): (&[Vector2<f64>], Vec<Vec<Vector2<f64>>>) = match anchor {
-        Some(an) if weight > 0.0 => (
-            an.a,
-            tap_table(&prepared, n, |_, p, u| {
-                an.b[p] + (an.b[(p + 1).min(n - 1)] - an.b[p]) * u
-            }),
-        ),
-        _ => (&[], Vec::new()),
-    };
+    let anchored = anchor.filter(|_| weight > 0.0);
+    let (ax, ay): (Vec<f64>, Vec<f64>) = anchored.map_or((Vec::new(), Vec::new()), |an| {
+        an.a.iter().map(|v| (v.x, v.y)).unzip()
+    });
+    let (px, py) = anchored.map_or((Vec::new(), Vec::new()), |an| {
+        tap_tables_xy(&prepared, n, |_, p, u| {
+            let v = an.b[p] + (an.b[(p + 1).min(n - 1)] - an.b[p]) * u;
+            (v.x, v.y)
+        })
+    });
+    // Row by row: for each step, every cell of the row it can reach at once (the candidates of
+    // one step over a run of columns), then the best step per cell. Per cell this is the same
+    // arithmetic, in the same order, with the same strict "<" over the steps in order, as a
+    // cell-by-cell loop: the same costs and back-pointers to the bit.
+    let widest = (0..n).map(|i| hi[i] + 1 - lo[i]).max().unwrap_or(0);
+    let mut cand = vec![0.0f64; widest];
+    let mut near = vec![0.0f64; widest];
     for i in 1..n {
-        for j in lo[i]..=hi[i] {
-            let mut best = f64::INFINITY;
-            let mut arg = u32::MAX;
-            for (si, st) in prepared.iter().enumerate() {
-                if st.a > i || st.b > j {
-                    continue;
-                }
-                let (k, l) = (i - st.a, j - st.b);
-                if l < lo[k] || l > hi[k] {
-                    continue;
-                }
-                let prev = cost[offset[k] + l - lo[k]];
-                if prev >= best {
-                    continue; // edge costs are non-negative
-                }
-                let mut c = 0.0;
-                let cols = n - st.b;
-                let w = &warped[si];
-                for r in 0..st.a {
-                    let (qx, qy) = w[r * cols + l];
-                    let dx = x1[k + r] - qx;
-                    let dy = y1[k + r] - qy;
-                    c += dx * dx + dy * dy;
-                }
-                if weight > 0.0 {
-                    let pl = &placed[si];
-                    let mut e = 0.0;
-                    for r in 0..st.a {
-                        e += (pa[k + r] - pl[r * cols + l]).norm_squared();
-                    }
-                    c += weight * e;
-                }
-                let c = prev + c;
-                if c < best {
-                    best = c;
-                    arg = si as u32;
+        // Rows before i are final: read from `done`, write row i.
+        let (done, rest) = cost.split_at_mut(offset[i]);
+        let best_row = &mut rest[..offset[i + 1] - offset[i]];
+        let arg_row = &mut back[offset[i]..offset[i + 1]];
+        best_row.fill(f64::INFINITY);
+        arg_row.fill(u32::MAX);
+        for (si, st) in prepared.iter().enumerate() {
+            if st.a > i {
+                continue;
+            }
+            let k = i - st.a;
+            // Columns j of row i whose predecessor l = j - b lies in row k's band.
+            let j0 = lo[i].max(lo[k] + st.b);
+            let j1 = hi[i].min(hi[k] + st.b);
+            if j0 > j1 {
+                continue;
+            }
+            let m = j1 + 1 - j0;
+            let l0 = j0 - st.b;
+            let cols = n - st.b;
+            let c = &mut cand[..m];
+            c.fill(0.0);
+            for r in 0..st.a {
+                let (qx, qy) = (x1[k + r], y1[k + r]);
+                let tx = &wx[si][r * cols + l0..][..m];
+                let ty = &wy[si][r * cols + l0..][..m];
+                for ((c, &tx), &ty) in c.iter_mut().zip(tx).zip(ty) {
+                    let dx = qx - tx;
+                    let dy = qy - ty;
+                    *c += dx * dx + dy * dy;
                 }
             }
-            let at = offset[i] + j - lo[i];
-            cost[at] = best;
-            back[at] = arg;
+            if anchored.is_some() {
+                let e = &mut near[..m];
+                e.fill(0.0);
+                for r in 0..st.a {
+                    let (qx, qy) = (ax[k + r], ay[k + r]);
+                    let tx = &px[si][r * cols + l0..][..m];
+                    let ty = &py[si][r * cols + l0..][..m];
+                    for ((e, &tx), &ty) in e.iter_mut().zip(tx).zip(ty) {
+                        let dx = qx - tx;
+                        let dy = qy - ty;
+                        *e += dx * dx + dy * dy;
+                    }
+                }
+                for (c, &e) in c.iter_mut().zip(e.iter()) {
+                    *c += weight * e;
+                }
+            }
+            let prev = &done[offset[k] + l0 - lo[k]..][..m];
+            let at = j0 - lo[i];
+            let best = &mut best_row[at..][..m];
+            let arg = &mut arg_row[at..][..m];
+            for (((b, a), &p), &c) in best.iter_mut().zip(arg.iter_mut()).zip(prev).zip(c.iter()) {
+                let v = p + c;
+                if v < *b {
+                    *b = v;
+                    *a = si as u32;
+                }
+            }
         }
     }
     // Traceback through the banded storage.
@@ -286,8 +330,34 @@ fn dp_in_band(
     w
 }
 
+/// `tap_table` of a value with two parts, as two tables (x and y), in one pass.
+#[allow(clippy::type_complexity)]
+fn tap_tables_xy(
+    prepared: &[PreparedStep],
+    n: usize,
+    value: impl Fn(&PreparedStep, usize, f64) -> (f64, f64),
+) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    prepared
+        .iter()
+        .map(|st| {
+            let cols = n.saturating_sub(st.b);
+            let mut x = Vec::with_capacity(st.taps.len() * cols);
+            let mut y = Vec::with_capacity(st.taps.len() * cols);
+            for &(off, u) in &st.taps {
+                for l in 0..cols {
+                    let (a, b) = value(st, l + off, u);
+                    x.push(a);
+                    y.push(b);
+                }
+            }
+            (x, y)
+        })
+        .unzip()
+}
+
 /// `value(step, p, u)` at every tap (p, u) of every step, for each start column l < n - b (the
 /// tap's sample is l + its offset), laid out tap by tap: the DP's per-step tables.
+#[cfg(test)]
 fn tap_table<T>(
     prepared: &[PreparedStep],
     n: usize,
@@ -644,5 +714,158 @@ mod tests {
         assert!(w.gamma.windows(2).all(|g| g[1] >= g[0]));
         let diag: Vec<(usize, usize)> = (0..n).map(|i| (i, i)).collect();
         assert!(path_cost(&q1, &q2, &w.path) <= path_cost(&q1, &q2, &diag) + 1e-12);
+    }
+
+    /// The DP as it was before the row-wise loops (commit 663b1dc): cell by cell, skipping a
+    /// step whose predecessor already costs more than the best so far. The oracle of
+    /// `dp_in_band`'s costs and back-pointers, bit for bit.
+    fn cellwise(
+        q1: &[Vector2<f64>],
+        q2: &[Vector2<f64>],
+        steps: &[(usize, usize)],
+        band: &[(usize, usize)],
+        anchor: Option<Anchor>,
+    ) -> (Vec<f64>, Vec<u32>) {
+        let n = q1.len();
+        let prepared = prepare(steps);
+        let mut lo = vec![0usize; n];
+        let mut hi = vec![0usize; n];
+        let mut offset = vec![0usize; n + 1];
+        for i in 1..n {
+            lo[i] = band[i].0.max(1);
+            hi[i] = band[i].1.min(n - 1);
+            if hi[i] < lo[i] {
+                hi[i] = lo[i].min(n - 1);
+                lo[i] = hi[i];
+            }
+        }
+        for i in 0..n {
+            offset[i + 1] = offset[i] + (hi[i] + 1 - lo[i]);
+        }
+        let mut cost = vec![f64::INFINITY; offset[n]];
+        let mut back = vec![u32::MAX; offset[n]];
+        cost[0] = 0.0;
+        let warped = tap_table(&prepared, n, |st, p, u| {
+            let (qx, qy) = if u == 0.0 {
+                (q2[p].x, q2[p].y)
+            } else {
+                (
+                    q2[p].x + (q2[p + 1].x - q2[p].x) * u,
+                    q2[p].y + (q2[p + 1].y - q2[p].y) * u,
+                )
+            };
+            (qx * st.sqrt_slope, qy * st.sqrt_slope)
+        });
+        let weight = anchor.map_or(0.0, |a| a.weight);
+        let (pa, placed): (&[Vector2<f64>], Vec<Vec<Vector2<f64>>>) = match anchor {
+            Some(an) if weight > 0.0 => (
+                an.a,
+                tap_table(&prepared, n, |_, p, u| {
+                    an.b[p] + (an.b[(p + 1).min(n - 1)] - an.b[p]) * u
+                }),
+            ),
+            _ => (&[], Vec::new()),
+        };
+        for i in 1..n {
+            for j in lo[i]..=hi[i] {
+                let mut best = f64::INFINITY;
+                let mut arg = u32::MAX;
+                for (si, st) in prepared.iter().enumerate() {
+                    if st.a > i || st.b > j {
+                        continue;
+                    }
+                    let (k, l) = (i - st.a, j - st.b);
+                    if l < lo[k] || l > hi[k] {
+                        continue;
+                    }
+                    let prev = cost[offset[k] + l - lo[k]];
+                    if prev >= best {
+                        continue;
+                    }
+                    let mut c = 0.0;
+                    let cols = n - st.b;
+                    for r in 0..st.a {
+                        let (qx, qy) = warped[si][r * cols + l];
+                        let dx = q1[k + r].x - qx;
+                        let dy = q1[k + r].y - qy;
+                        c += dx * dx + dy * dy;
+                    }
+                    if weight > 0.0 {
+                        let mut e = 0.0;
+                        for r in 0..st.a {
+                            e += (pa[k + r] - placed[si][r * cols + l]).norm_squared();
+                        }
+                        c += weight * e;
+                    }
+                    let c = prev + c;
+                    if c < best {
+                        best = c;
+                        arg = si as u32;
+                    }
+                }
+                cost[offset[i] + j - lo[i]] = best;
+                back[offset[i] + j - lo[i]] = arg;
+            }
+        }
+        (cost, back)
+    }
+
+    /// Whether two DP tables are the same to the bit (costs) and exactly (back-pointers).
+    fn same_tables(a: &(Vec<f64>, Vec<u32>), b: &(Vec<f64>, Vec<u32>)) -> bool {
+        a.0.len() == b.0.len()
+            && a.0.iter().zip(&b.0).all(|(x, y)| x.to_bits() == y.to_bits())
+            && a.1 == b.1
+    }
+
+    /// (random SRVFs, positions, a band around a wandering path, anchored or not) x sizes.
+    fn table_cases() -> Vec<(Vec<f64>, Vec<u32>, (Vec<f64>, Vec<u32>))> {
+        let mut out = Vec::new();
+        let mut seed = 99u64;
+        for &n in &[9usize, 30, 65, 120] {
+            for anchored in [false, true] {
+                for banded in [false, true] {
+                    let (q1, q2) = (random_q(n, &mut seed), random_q(n, &mut seed));
+                    let (a, b) = (random_q(n, &mut seed), random_q(n, &mut seed));
+                    let anchor = anchored.then_some(Anchor {
+                        a: &a,
+                        b: &b,
+                        weight: 3.0,
+                    });
+                    let band = if banded {
+                        let hint = dp_warp(&q2, &q1, &coprime_steps(3)).path;
+                        band_around(&hint, 1, n, 4)
+                    } else {
+                        vec![(1usize, n - 1); n]
+                    };
+                    let steps = coprime_steps(5);
+                    let mut tables = (Vec::new(), Vec::new());
+                    let w = dp_in_band_tables(&q1, &q2, &steps, &band, anchor, &mut tables);
+                    let oracle = cellwise(&q1, &q2, &steps, &band, anchor);
+                    assert!(w.path.first() == Some(&(0, 0)));
+                    out.push((tables.0, tables.1, oracle));
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn row_wise_dp_gives_the_cell_by_cell_tables_to_the_bit() {
+        for (k, (cost, back, oracle)) in table_cases().into_iter().enumerate() {
+            assert!(same_tables(&(cost, back), &oracle), "case {k}");
+        }
+    }
+
+    #[test]
+    fn a_table_one_back_pointer_or_one_ulp_off_is_not_the_same() {
+        let (cost, back, oracle) = table_cases().swap_remove(5);
+        let mut moved = back.clone();
+        let at = moved.iter().position(|&s| s != u32::MAX && s != 0).unwrap();
+        moved[at] = 0;
+        assert!(!same_tables(&(cost.clone(), moved), &oracle));
+        let mut nudged = cost.clone();
+        let at = nudged.iter().position(|c| c.is_finite() && *c > 0.0).unwrap();
+        nudged[at] = f64::from_bits(nudged[at].to_bits() + 1);
+        assert!(!same_tables(&(nudged, back), &oracle));
     }
 }
