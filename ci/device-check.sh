@@ -26,9 +26,10 @@ log "commit $(cat target/device/commit 2>/dev/null || git rev-parse --short=12 H
 command -v nvidia-smi >/dev/null && nvidia-smi -L | tee -a "$out/check.log"
 ls /usr/share/vulkan/icd.d /etc/vulkan/icd.d 2>/dev/null | tee -a "$out/check.log"
 if [ "${QUICK:-0}" = 1 ]; then
-  meshes=1000,10000; batches=1,64,256; runs=8; repeats=2
+  meshes=1000,10000; batches=1,64,256; runs=8; repeats=2; study_batches=1,4
 else
   meshes=1000,10000,100000; batches=1,64,256,1024,4096; runs=128; repeats=5
+  study_batches=1,64,256,1024
 fi
 # Vulkan first; the GL backend (EGL) if no Vulkan adapter comes up.
 backend=""
@@ -45,6 +46,13 @@ else
   log "kernels: acetab bench --mesh-sizes $meshes --dp-batches $batches --repeats $repeats"
   timeout 240 "$bin" bench --mesh-sizes "$meshes" --dp-batches "$batches" --repeats "$repeats" \
     --study-runs 0 2>"$out/bench.err" | tee "$out/bench.txt" || log "bench failed or ran out of time (see $out/bench.err)"
+  # Study throughput: the CPU path on every core, the GPU backend, and the GPU with runs
+  # batched (runs in flight at once, their kernel requests merged) at each batch size.
+  log "study batches: acetab bench --study-runs $runs --threads $cores --study-batches $study_batches"
+  timeout 200 "$bin" bench --mesh-sizes 1000 --dp-batches 1 --repeats 1 --study-runs "$runs" \
+    --threads "$cores" --study-batches "$study_batches" 2>"$out/batches.err" | grep study \
+    | tee "$out/batches.txt" | tee -a "$out/check.log" \
+    || log "study batches failed or ran out of time (see $out/batches.err)"
 fi
 for be in cpu ${backend:+gpu}; do
   log "study: phantom, srvf, level 3, $runs runs, $cores threads, backend $be"

@@ -742,6 +742,8 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
     assert_eq!(study["calibration"], "shipped realistic");
     assert_eq!(study["provenance"]["command_line"][1], "simulate");
     assert_eq!(study["provenance"]["threads"], 1);
+    assert_eq!(study["engine"]["backend"], "cpu", "{study}");
+    assert!(study["engine"]["adapter"].is_null(), "{study}");
     let shipped = acetab::pipeline::CupCalibration::shipped_realistic().model_sd_mm;
     assert_eq!(study["cup_model_sd_mm"], shipped);
     // The run's SD holds the model error.

@@ -321,6 +321,11 @@ fn study_runs_batched_on_the_gpu_match_the_cpu() {
         let (batched, _) = run_study(&truth, &cfg, &|| {}, Kernels::Batched(&batcher)).unwrap();
         let (req, disp) = batcher.counts();
         eprintln!("{req} requests in {disp} dispatches");
+        // The per-kernel figures (summary.json's engine.kernels) add up to the totals.
+        let st = batcher.stats();
+        assert_eq!(st.deform.requests + st.project.requests, req);
+        assert_eq!(st.deform.dispatches + st.project.dispatches, disp);
+        assert!(disp > 0 && st.deform.device_seconds > 0.0, "{st:?}");
         for ((c, s), b) in cpu.iter().zip(&single).zip(&batched) {
             eprintln!(
                 "run {}: cpu {} gpu {} batched {}",

@@ -37,6 +37,12 @@ pub struct BenchRow {
 pub struct Throughput {
     /// Where the kernels ran.
     pub backend: String,
+    /// Runs in flight at once (the study's threads; on the GPU also the batcher's lanes).
+    pub batch: usize,
+    /// Kernel requests per dispatch on the GPU with runs batched (the mean merge), or None.
+    pub requests_per_dispatch: Option<f64>,
+    /// Seconds the runs waited for the device (batched GPU only), or None.
+    pub device_seconds: Option<f64>,
     /// Runs.
     pub runs: usize,
     /// Seconds.
@@ -69,6 +75,9 @@ pub struct BenchParams {
     pub study_runs: usize,
     /// Worker threads of the study.
     pub threads: usize,
+    /// Batch sizes of the batched GPU study (runs in flight and batcher lanes); empty: one, at
+    /// `threads`.
+    pub study_batches: Vec<usize>,
     /// Repetitions per timing (the median is reported).
     pub repeats: usize,
 }
@@ -81,6 +90,7 @@ impl Default for BenchParams {
             dp_samples: 64,
             study_runs: 6,
             threads: 2,
+            study_batches: Vec::new(),
             repeats: 5,
         }
     }
@@ -226,25 +236,52 @@ pub fn run_bench(
             uncertainty: None,
             ..Default::default()
         };
-        let batcher = crate::engine::gpu::GpuBatcher::new(
-            gpu,
-            cfg.threads,
-            std::time::Duration::from_millis(2),
-        );
-        for kernels in [Kernels::Cpu, Kernels::Gpu(gpu), Kernels::Batched(&batcher)] {
+        let timed = |cfg: &StudyConfig, kernels: Kernels| -> Result<(usize, f64), BenchError> {
             let s = Instant::now();
-            let (rows, _) = run_study(&truth, &cfg, &|| {}, kernels)?;
-            let seconds = s.elapsed().as_secs_f64();
-            study.push(Throughput {
-                backend: match kernels {
-                    Kernels::Batched(_) => "gpu, runs batched".into(),
-                    k => k.name().into(),
-                },
-                runs: rows.len(),
-                seconds,
-                runs_per_second: rows.len() as f64 / seconds,
-            });
+            let (rows, _) = run_study(&truth, cfg, &|| {}, kernels)?;
+            Ok((rows.len(), s.elapsed().as_secs_f64()))
+        };
+        let through = |backend: &str, batch, (runs, seconds): (usize, f64)| Throughput {
+            backend: backend.into(),
+            batch,
+            requests_per_dispatch: None,
+            device_seconds: None,
+            runs,
+            seconds,
+            runs_per_second: runs as f64 / seconds,
+        };
+        for kernels in [Kernels::Cpu, Kernels::Gpu(gpu)] {
+            study.push(through(kernels.name(), cfg.threads, timed(&cfg, kernels)?));
             progress(&format!("study on {}", kernels.name()));
+        }
+        let batches = if p.study_batches.is_empty() {
+            vec![cfg.threads]
+        } else {
+            p.study_batches.clone()
+        };
+        for b in batches {
+            // b runs in flight, their requests merged b at a time.
+            let cfg = StudyConfig {
+                threads: b.max(1),
+                runs: p.study_runs.max(b),
+                ..cfg.clone()
+            };
+            let batcher = crate::engine::gpu::GpuBatcher::new(
+                gpu,
+                cfg.threads,
+                std::time::Duration::from_millis(2),
+            );
+            let mut t = through(
+                "gpu, runs batched",
+                cfg.threads,
+                timed(&cfg, Kernels::Batched(&batcher))?,
+            );
+            let (req, disp) = batcher.counts();
+            let st = batcher.stats();
+            t.requests_per_dispatch = (disp > 0).then(|| req as f64 / disp as f64);
+            t.device_seconds = Some(st.deform.device_seconds + st.project.device_seconds);
+            study.push(t);
+            progress(&format!("study on the gpu, batch {b}"));
         }
     }
     Ok(BenchReport {

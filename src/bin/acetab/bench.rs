@@ -28,6 +28,10 @@ pub struct BenchArgs {
     /// Worker threads of the study part (default 2).
     #[arg(long, default_value_t = 2, value_parser = count_in(1, MAX_THREADS))]
     pub threads: usize,
+    /// Batch sizes of the batched GPU study: runs in flight at once, their kernel requests
+    /// merged (default: --threads).
+    #[arg(long, value_parser = sizes)]
+    pub study_batches: Option<Sizes>,
 }
 
 pub fn run(args: BenchArgs) -> Result<(), String> {
@@ -39,6 +43,7 @@ pub fn run(args: BenchArgs) -> Result<(), String> {
         mesh_sizes,
         dp_batches,
         threads,
+        study_batches,
     } = args;
     let dev = GpuDevice::from_env().map_err(|e| format!("acetab bench: {e}"))?;
     let gpu = dev.engine().map_err(|e| e.to_string())?;
@@ -57,6 +62,9 @@ pub fn run(args: BenchArgs) -> Result<(), String> {
     }
     if let Some(d) = dp_batches {
         prm.dp_batches = d.0;
+    }
+    if let Some(b) = study_batches {
+        prm.study_batches = b.0;
     }
     let report = acetab::study::bench::run_bench(&gpu, &dev.describe(), &prm, &|s| {
         if !json {
@@ -82,9 +90,15 @@ pub fn run(args: BenchArgs) -> Result<(), String> {
             );
         }
         for s in &report.study {
+            let merged = match (s.requests_per_dispatch, s.device_seconds) {
+                (Some(m), Some(d)) => {
+                    format!(", {m:.2} requests per dispatch, {d:.2} s waiting for the device")
+                }
+                _ => String::new(),
+            };
             println!(
-                "study ({} runs, phantom, srvf, level 3) on {}: {:.2} runs/s ({:.1} s)",
-                s.runs, s.backend, s.runs_per_second, s.seconds
+                "study ({} runs, phantom, srvf, level 3) on {}, batch {}: {:.2} runs/s ({:.1} s{merged})",
+                s.runs, s.backend, s.batch, s.runs_per_second, s.seconds
             );
         }
     }

@@ -203,6 +203,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         cfg: &cfg,
         calibration,
         adapter: dev.as_ref().map(|d| d.describe()),
+        adapter_json: dev.as_ref().map(|d| d.adapter_json()),
         loso: calibrate_loso,
         runs,
         seed,
@@ -228,6 +229,8 @@ struct Study<'a> {
     calibration: String,
     /// The GPU adapter, when the kernels run on one (summary.json's provenance).
     adapter: Option<String>,
+    /// The adapter's name, driver, device type and API (summary.json's `engine`).
+    adapter_json: Option<serde_json::Value>,
     /// `--calibrate-loso`: the studies each mesh's calibration is learned from.
     loso: Option<PathBuf>,
     runs: usize,
@@ -386,6 +389,7 @@ impl Study<'_> {
             cfg,
             ref calibration,
             ref adapter,
+            ref adapter_json,
             ref loso,
             runs,
             seed,
@@ -423,7 +427,7 @@ impl Study<'_> {
             .map_err(|e| e.to_string())?,
         );
         let start = std::time::Instant::now();
-        let counts_before = batcher.map(|b| b.counts());
+        let stats_before = batcher.map(|b| b.stats());
         let (rows, examples) = run_study(&truth, cfg, &|| bar.inc(1), kernels)
             .map_err(|e| format!("--gt {gt}: {e}"))?;
         if let Some(b) = batcher {
@@ -471,11 +475,24 @@ impl Study<'_> {
             "cup_model_sd_mm": cfg.uncertainty.as_ref().map(|u| u.model_sd_mm),
             "calibration": calibration,
             "provenance": Provenance::here(kernels.name(), adapter.clone(), cfg.threads, seed),
-            // This study's kernel requests and the dispatches they were merged into.
-            "engine": batcher.zip(counts_before).map(|(b, (r0, d0))| {
-                let (r, d) = b.counts();
-                serde_json::json!({"requests": r - r0, "dispatches": d - d0})
-            }),
+            // Where the kernels ran and, on the GPU, this study's kernel requests, the dispatches
+            // they were merged into and the seconds the runs waited for the device.
+            "engine": match batcher.zip(stats_before) {
+                Some((b, before)) => {
+                    let (r, d) = b.counts();
+                    let (r0, d0) = (before.deform.requests + before.project.requests,
+                        before.deform.dispatches + before.project.dispatches);
+                    serde_json::json!({
+                        "backend": kernels.name(),
+                        "adapter": adapter_json,
+                        "batch": b.lanes(),
+                        "requests": r - r0,
+                        "dispatches": d - d0,
+                        "kernels": b.stats().since(&before),
+                    })
+                }
+                None => serde_json::json!({"backend": kernels.name(), "adapter": null, "batch": 1}),
+            },
             "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
         });
         fill_dir_atomically(

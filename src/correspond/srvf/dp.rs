@@ -725,7 +725,7 @@ mod tests {
         steps: &[(usize, usize)],
         band: &[(usize, usize)],
         anchor: Option<Anchor>,
-    ) -> (Vec<f64>, Vec<u32>) {
+    ) -> Tables {
         let n = q1.len();
         let prepared = prepare(steps);
         let mut lo = vec![0usize; n];
@@ -811,14 +811,21 @@ mod tests {
     }
 
     /// Whether two DP tables are the same to the bit (costs) and exactly (back-pointers).
-    fn same_tables(a: &(Vec<f64>, Vec<u32>), b: &(Vec<f64>, Vec<u32>)) -> bool {
+    fn same_tables(a: &Tables, b: &Tables) -> bool {
         a.0.len() == b.0.len()
-            && a.0.iter().zip(&b.0).all(|(x, y)| x.to_bits() == y.to_bits())
+            && a.0
+                .iter()
+                .zip(&b.0)
+                .all(|(x, y)| x.to_bits() == y.to_bits())
             && a.1 == b.1
     }
 
     /// (random SRVFs, positions, a band around a wandering path, anchored or not) x sizes.
-    fn table_cases() -> Vec<(Vec<f64>, Vec<u32>, (Vec<f64>, Vec<u32>))> {
+    /// Costs and back-pointers of one DP.
+    type Tables = (Vec<f64>, Vec<u32>);
+
+    /// (the row-wise tables, the oracle's) for each case.
+    fn table_cases() -> Vec<(Tables, Tables)> {
         let mut out = Vec::new();
         let mut seed = 99u64;
         for &n in &[9usize, 30, 65, 120] {
@@ -842,7 +849,7 @@ mod tests {
                     let w = dp_in_band_tables(&q1, &q2, &steps, &band, anchor, &mut tables);
                     let oracle = cellwise(&q1, &q2, &steps, &band, anchor);
                     assert!(w.path.first() == Some(&(0, 0)));
-                    out.push((tables.0, tables.1, oracle));
+                    out.push((tables, oracle));
                 }
             }
         }
@@ -851,20 +858,23 @@ mod tests {
 
     #[test]
     fn row_wise_dp_gives_the_cell_by_cell_tables_to_the_bit() {
-        for (k, (cost, back, oracle)) in table_cases().into_iter().enumerate() {
-            assert!(same_tables(&(cost, back), &oracle), "case {k}");
+        for (k, (ours, oracle)) in table_cases().into_iter().enumerate() {
+            assert!(same_tables(&ours, &oracle), "case {k}");
         }
     }
 
     #[test]
     fn a_table_one_back_pointer_or_one_ulp_off_is_not_the_same() {
-        let (cost, back, oracle) = table_cases().swap_remove(5);
+        let ((cost, back), oracle) = table_cases().swap_remove(5);
         let mut moved = back.clone();
         let at = moved.iter().position(|&s| s != u32::MAX && s != 0).unwrap();
         moved[at] = 0;
         assert!(!same_tables(&(cost.clone(), moved), &oracle));
         let mut nudged = cost.clone();
-        let at = nudged.iter().position(|c| c.is_finite() && *c > 0.0).unwrap();
+        let at = nudged
+            .iter()
+            .position(|c| c.is_finite() && *c > 0.0)
+            .unwrap();
         nudged[at] = f64::from_bits(nudged[at].to_bits() + 1);
         assert!(!same_tables(&(nudged, back), &oracle));
     }

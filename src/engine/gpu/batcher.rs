@@ -81,6 +81,49 @@ impl<T> Lane<T> {
 /// One projection request: the vertices, the vertex count per mesh and the views.
 type ProjectJob = (Vec<[f32; 4]>, usize, Vec<ViewRows>);
 
+/// One kernel's work through a batcher: the runs' requests, the dispatches they were merged
+/// into, and the seconds from submit to read-back (upload, dispatch and copy back: what the
+/// runs waited for the device).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct KernelStats {
+    /// Requests from runs.
+    pub requests: usize,
+    /// Dispatches (one submit each).
+    pub dispatches: usize,
+    /// Seconds from submit to read-back, summed over the dispatches.
+    pub device_seconds: f64,
+}
+
+impl KernelStats {
+    /// The work done since `before` (an earlier reading of the same batcher).
+    pub fn since(&self, before: &KernelStats) -> KernelStats {
+        KernelStats {
+            requests: self.requests - before.requests,
+            dispatches: self.dispatches - before.dispatches,
+            device_seconds: self.device_seconds - before.device_seconds,
+        }
+    }
+}
+
+/// Per kernel, what a batcher did: (deform, project).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct BatcherStats {
+    /// The deformation kernel.
+    pub deform: KernelStats,
+    /// The projection kernel.
+    pub project: KernelStats,
+}
+
+impl BatcherStats {
+    /// The work done since `before`.
+    pub fn since(&self, before: &BatcherStats) -> BatcherStats {
+        BatcherStats {
+            deform: self.deform.since(&before.deform),
+            project: self.project.since(&before.project),
+        }
+    }
+}
+
 /// Merges concurrent kernel requests from up to `lanes` runs.
 pub struct GpuBatcher<'g> {
     gpu: &'g Gpu<'g>,
@@ -88,7 +131,7 @@ pub struct GpuBatcher<'g> {
     wait: Duration,
     deform: Lane<DeformBatch>,
     project: Lane<(Vec<[f32; 4]>, usize, Vec<ViewRows>)>,
-    dispatches: Mutex<(usize, usize)>,
+    stats: Mutex<BatcherStats>,
 }
 
 impl<'g> GpuBatcher<'g> {
@@ -101,7 +144,7 @@ impl<'g> GpuBatcher<'g> {
             wait,
             deform: Lane::new(),
             project: Lane::new(),
-            dispatches: Mutex::new((0, 0)),
+            stats: Mutex::new(BatcherStats::default()),
         }
     }
 
@@ -110,15 +153,41 @@ impl<'g> GpuBatcher<'g> {
         self.gpu
     }
 
-    /// (requests, dispatches) so far: their ratio is the mean batch size.
-    pub fn counts(&self) -> (usize, usize) {
-        *self.dispatches.lock().unwrap_or_else(|e| e.into_inner())
+    /// How many runs go at once.
+    pub fn lanes(&self) -> usize {
+        self.lanes
     }
 
-    fn count(&self, requests: usize) {
-        let mut d = self.dispatches.lock().unwrap_or_else(|e| e.into_inner());
-        d.0 += requests;
-        d.1 += 1;
+    /// (requests, dispatches) so far over every kernel: their ratio is the mean batch size.
+    pub fn counts(&self) -> (usize, usize) {
+        let s = self.stats();
+        (
+            s.deform.requests + s.project.requests,
+            s.deform.dispatches + s.project.dispatches,
+        )
+    }
+
+    /// Per kernel, the requests, dispatches and device seconds so far.
+    pub fn stats(&self) -> BatcherStats {
+        *self.stats.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Run one merged dispatch of `requests` requests, counting it under `kernel`.
+    fn count<T>(
+        &self,
+        kernel: fn(&mut BatcherStats) -> &mut KernelStats,
+        requests: usize,
+        dispatch: impl FnOnce() -> T,
+    ) -> T {
+        let t = Instant::now();
+        let out = dispatch();
+        let secs = t.elapsed().as_secs_f64();
+        let mut s = self.stats.lock().unwrap_or_else(|e| e.into_inner());
+        let k = kernel(&mut s);
+        k.requests += requests;
+        k.dispatches += 1;
+        k.device_seconds += secs;
+        out
     }
 
     /// As `Gpu::deform`, merged with other runs' requests of the same shape.
@@ -134,7 +203,6 @@ impl<'g> GpuBatcher<'g> {
                 }
             }
             for g in groups {
-                self.count(g.len());
                 let mut merged = g[0].1.clone();
                 for (_, b) in &g[1..] {
                     merged.mesh_count += b.mesh_count;
@@ -144,7 +212,7 @@ impl<'g> GpuBatcher<'g> {
                     merged.node_index.extend_from_slice(&b.node_index);
                     merged.weight.extend_from_slice(&b.weight);
                 }
-                match self.gpu.deform(&merged) {
+                match self.count(|s| &mut s.deform, g.len(), || self.gpu.deform(&merged)) {
                     Ok(all) => {
                         let mut at = 0;
                         for (id, b) in &g {
@@ -184,11 +252,14 @@ impl<'g> GpuBatcher<'g> {
                     }
                 }
                 for g in groups {
-                    self.count(g.len());
                     let (vc, views) = (g[0].1 .1, g[0].1 .2.clone());
                     let verts: Vec<[f32; 4]> =
                         g.iter().flat_map(|(_, j)| j.0.iter().copied()).collect();
-                    match self.gpu.project(&verts, vc, &views) {
+                    match self.count(
+                        |s| &mut s.project,
+                        g.len(),
+                        || self.gpu.project(&verts, vc, &views),
+                    ) {
                         Ok(all) => {
                             let mut at = 0;
                             for (id, j) in &g {

@@ -106,6 +106,18 @@ impl GpuDevice {
         )
     }
 
+    /// The adapter for reports: name, driver and its version, device type, graphics API.
+    pub fn adapter_json(&self) -> serde_json::Value {
+        let a = &self.adapter;
+        serde_json::json!({
+            "name": a.name,
+            "driver": a.driver,
+            "driver_info": a.driver_info,
+            "device_type": format!("{:?}", a.device_type),
+            "api": format!("{:?}", a.backend),
+        })
+    }
+
     /// The engine on this device.
     pub fn engine(&self) -> Result<Gpu<'_>, GpuError> {
         Gpu::new(&self.device, &self.queue)

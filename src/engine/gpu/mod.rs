@@ -11,7 +11,7 @@ pub mod project;
 pub mod silhouette;
 pub mod srvf_dp;
 
-pub use batcher::GpuBatcher;
+pub use batcher::{BatcherStats, GpuBatcher, KernelStats};
 pub use context::{Gpu, GpuDevice, GpuError};
 
 /// The WGSL sources, by kernel name (validated by the naga test and compiled by `Gpu::new`).
