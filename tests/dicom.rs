@@ -53,6 +53,14 @@ fn dicom_case(dir: &Path, spacing: Option<([f64; 2], SpacingTag)>, sid: Option<f
     dir.join("case.json")
 }
 
+/// Give view 0 of the case file at `case` the nominal focal length (5500 px) in `k`.
+fn give_k(case: &Path) {
+    let mut file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(case).unwrap()).unwrap();
+    file["views"][0]["k"] = serde_json::json!({"fx": 5500.0, "fy": 5500.0});
+    std::fs::write(case, file.to_string()).unwrap();
+}
+
 /// `acetab reconstruct case` fails with exit 1, its error holds every needle, nothing written.
 fn refused(case: &Path, out: &Path, needles: &[&str]) {
     let o = bin()
@@ -119,10 +127,7 @@ fn a_wrong_pixel_spacing_moves_the_cup_and_a_disagreeing_k_is_reported() {
         "a 10 % spacing error left the cup at {moved:.4} mm (reference {reference:.4})"
     );
     // A k in the case wins over the tags, and the disagreement is reported.
-    let mut file: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&case).unwrap()).unwrap();
-    file["views"][0]["k"] = serde_json::json!({"fx": 5500.0, "fy": 5500.0});
-    std::fs::write(&case, file.to_string()).unwrap();
+    give_k(&case);
     let r = reconstruct(&case, &dir.path().join("k-out"));
     assert!((cup_mm(&r) - reference).abs() < 0.05, "{}", cup_mm(&r));
     let warnings = r["warnings"].to_string();
@@ -139,10 +144,7 @@ fn a_wrong_pixel_spacing_moves_the_cup_and_a_disagreeing_k_is_reported() {
         Some(([0.2016, 0.2016], SpacingTag::Pixel)),
         Some(1100.0),
     );
-    let mut file: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&case).unwrap()).unwrap();
-    file["views"][0]["k"] = serde_json::json!({"fx": 5500.0, "fy": 5500.0});
-    std::fs::write(&case, file.to_string()).unwrap();
+    give_k(&case);
     let r = reconstruct(&case, &dir.path().join("close-out"));
     assert_eq!(r["warnings"], serde_json::json!([]), "{}", r["warnings"]);
     assert_eq!(

@@ -179,22 +179,7 @@ fn dp_in_band_tables(
     let n = q1.len();
     debug_assert_eq!(n, q2.len());
     let prepared = prepare(steps);
-    // Row bounds (clamped; row 0 holds only the start cell).
-    let mut lo = vec![0usize; n];
-    let mut hi = vec![0usize; n];
-    let mut offset = vec![0usize; n + 1];
-    for i in 1..n {
-        lo[i] = band[i].0.max(1);
-        hi[i] = band[i].1.min(n - 1);
-        if hi[i] < lo[i] {
-            // An empty row: keep it one cell wide so every row can be reached.
-            hi[i] = lo[i].min(n - 1);
-            lo[i] = hi[i];
-        }
-    }
-    for i in 0..n {
-        offset[i + 1] = offset[i] + (hi[i] + 1 - lo[i]);
-    }
+    let (lo, hi, offset) = band_rows(band, n);
     let cells = offset[n];
     let (cost, back) = tables;
     cost.clear();
@@ -328,6 +313,27 @@ fn dp_in_band_tables(
         w.energy += an.energy(&samples);
     }
     w
+}
+
+/// A band's rows as stored: each row's first and last column (clamped; row 0 holds only the
+/// start cell; an empty row is kept one cell wide so every row can be reached) and where each
+/// row starts in the row-major storage (n + 1 offsets, the last the cell count).
+fn band_rows(band: &[(usize, usize)], n: usize) -> (Vec<usize>, Vec<usize>, Vec<usize>) {
+    let mut lo = vec![0usize; n];
+    let mut hi = vec![0usize; n];
+    let mut offset = vec![0usize; n + 1];
+    for i in 1..n {
+        lo[i] = band[i].0.max(1);
+        hi[i] = band[i].1.min(n - 1);
+        if hi[i] < lo[i] {
+            hi[i] = lo[i].min(n - 1);
+            lo[i] = hi[i];
+        }
+    }
+    for i in 0..n {
+        offset[i + 1] = offset[i] + (hi[i] + 1 - lo[i]);
+    }
+    (lo, hi, offset)
 }
 
 /// `tap_table` of a value with two parts, as two tables (x and y), in one pass.
@@ -728,20 +734,7 @@ mod tests {
     ) -> Tables {
         let n = q1.len();
         let prepared = prepare(steps);
-        let mut lo = vec![0usize; n];
-        let mut hi = vec![0usize; n];
-        let mut offset = vec![0usize; n + 1];
-        for i in 1..n {
-            lo[i] = band[i].0.max(1);
-            hi[i] = band[i].1.min(n - 1);
-            if hi[i] < lo[i] {
-                hi[i] = lo[i].min(n - 1);
-                lo[i] = hi[i];
-            }
-        }
-        for i in 0..n {
-            offset[i + 1] = offset[i] + (hi[i] + 1 - lo[i]);
-        }
+        let (lo, hi, offset) = band_rows(band, n);
         let mut cost = vec![f64::INFINITY; offset[n]];
         let mut back = vec![u32::MAX; offset[n]];
         cost[0] = 0.0;
