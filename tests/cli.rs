@@ -124,6 +124,16 @@ fn a_case_file_reconstructs_through_the_cli() {
         .map(|p| p["probability"].as_f64().unwrap())
         .sum();
     assert!((p - 1.0).abs() < 1e-9, "probabilities sum to {p}");
+    // The cup's centre and orientation: the phantom opens at 45 deg inclination, 20 deg
+    // anteversion (its design axis); the rim fit is within 4 deg of each.
+    let o = &v["cup"]["orientation"];
+    let (i, a) = (
+        o["inclination_deg"].as_f64().unwrap(),
+        o["anteversion_deg"].as_f64().unwrap(),
+    );
+    assert!((i - 45.0).abs() < 4.0 && (a - 20.0).abs() < 4.0, "{o}");
+    assert_eq!(v["cup"]["center_mm"], v["sphere"]["center"]);
+    assert!(o["rms_px"].as_f64().unwrap() >= 0.0, "{o}");
     for f in [
         "reconstruction.ply",
         "report.json",

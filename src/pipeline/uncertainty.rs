@@ -57,6 +57,14 @@ pub struct SizeProbability {
 pub struct CupReport {
     /// Diameter of the sphere fitted to the reconstruction.
     pub diameter_mm: f64,
+    /// The cup's centre (the fitted sphere's, the hip's centre of rotation), mm, in the case's
+    /// frame.
+    pub center_mm: [f64; 3],
+    /// The cup's orientation from the rim circle (`solve::rim_orientation`): radiographic
+    /// inclination and anteversion; None when the outlines trace no rim (`orientation_note`).
+    pub orientation: Option<crate::solve::RimFit>,
+    /// Why there is no orientation; None when there is one.
+    pub orientation_note: Option<String>,
     /// Nearest catalogue size.
     pub catalogue_mm: f64,
     /// The diameter's SD: the resamples' (`resample_sd_mm`) and the model error's
@@ -122,7 +130,13 @@ impl CupReport {
             self.probability_of(self.catalogue_mm),
             if others.is_empty() { "" } else { "; " },
             others.join(", ")
-        )
+        ) + &match &self.orientation {
+            Some(o) => format!(
+                "; inclination {:.1} deg, anteversion {:.1} deg",
+                o.inclination_deg, o.anteversion_deg
+            ),
+            None => String::new(),
+        }
     }
 }
 
@@ -228,8 +242,16 @@ pub fn cup_report(
     let diameter = rec.sphere.diameter();
     let chosen = prm.cup.catalogue.nearest(diameter).catalogue_mm;
     let probabilities = size_probabilities(&prm.cup.catalogue.sizes_mm, chosen, &diam, model);
+    let (orientation, orientation_note) =
+        match crate::solve::rim_orientation(&rec.cameras, observed, &rec.sphere) {
+            Ok(o) => (Some(o), None),
+            Err(e) => (None, Some(e.to_string())),
+        };
     Ok(CupReport {
         diameter_mm: diameter,
+        center_mm: rec.sphere.center,
+        orientation,
+        orientation_note,
         catalogue_mm: chosen,
         sd_mm: resample_sd.hypot(model),
         plus_minus_mm: half95.hypot(1.96 * model),
@@ -297,6 +319,9 @@ mod tests {
     fn report_with(probabilities: &[(f64, f64)]) -> CupReport {
         CupReport {
             diameter_mm: 51.0,
+            center_mm: [0.0; 3],
+            orientation: None,
+            orientation_note: None,
             catalogue_mm: 52.0,
             sd_mm: 0.3,
             plus_minus_mm: 0.6,

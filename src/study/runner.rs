@@ -11,6 +11,7 @@ use crate::report::{accuracy_from, accuracy_samples};
 use crate::report::{DistanceStats, InteriorQuery};
 use crate::sim::XrayGeometry;
 use crate::sim::{NoiseLevel, Protocol, SimCase, SimError, SimSetup};
+use crate::solve::rim_orientation;
 use crate::template::{Template, TemplateParams};
 
 /// What to run.
@@ -156,6 +157,9 @@ pub(super) struct Prepared {
     pub(super) template: Template,
     pub(super) samples: Vec<nalgebra::Point3<f64>>,
     interior: Option<InteriorQuery>,
+    /// The truth's own (inclination, anteversion): the rim fit on its noise-free outlines and
+    /// its sphere; None when they trace no rim.
+    truth_orientation: Option<(f64, f64)>,
 }
 
 impl Prepared {
@@ -166,12 +170,20 @@ impl Prepared {
         geometry: &XrayGeometry,
         template: &TemplateParams,
     ) -> Result<Prepared, SimError> {
+        let setup = SimSetup::new(truth, geometry)?;
+        let truth_orientation = NoiseLevel::level(0)
+            .and_then(|l| setup.case(0.0, &l, 0).ok())
+            .and_then(|exact| {
+                rim_orientation(&exact.cameras, &exact.observed, &exact.truth_sphere).ok()
+            })
+            .map(|o| (o.inclination_deg, o.anteversion_deg));
         Ok(Prepared {
             template: Template::cap(template).map_err(crate::pipeline::ReconError::from)?,
-            setup: SimSetup::new(truth, geometry)?,
+            setup,
             truth: truth.clone(),
             samples: accuracy_samples(truth),
             interior: InteriorQuery::new(truth),
+            truth_orientation,
         })
     }
 }
@@ -227,6 +239,14 @@ fn run_prepared(
     row.iterations = rec.log.gn_iterations;
     row.correspondence_updates = rec.log.correspondence_updates;
     row.fallback = rec.log.fallback.unwrap_or_default().to_string();
+    if let Ok(o) = rim_orientation(&rec.cameras, input.observed, &rec.sphere) {
+        row.inclination_deg = o.inclination_deg;
+        row.anteversion_deg = o.anteversion_deg;
+        if let Some((ti, ta)) = prep.truth_orientation {
+            row.inclination_err_deg = o.inclination_deg - ti;
+            row.anteversion_err_deg = o.anteversion_deg - ta;
+        }
+    }
     if let Some(up) = &cfg.uncertainty {
         let up = UncertaintyParams {
             seed: task.seed,

@@ -70,6 +70,27 @@ pub struct Row {
     /// and wrong); NaN as above.
     #[serde(serialize_with = "six")]
     pub brier: f64,
+    /// The cup's radiographic inclination from the rim (`solve::rim_orientation`), degrees; NaN
+    /// when the run failed or the outlines trace no rim.
+    #[serde(serialize_with = "six", default = "nan")]
+    pub inclination_deg: f64,
+    /// Its radiographic anteversion, degrees; NaN as above.
+    #[serde(serialize_with = "six", default = "nan")]
+    pub anteversion_deg: f64,
+    /// Inclination minus the truth's own (the same fit on the truth's noise-free outlines and
+    /// sphere), degrees; NaN as above.
+    #[serde(serialize_with = "six", default = "nan")]
+    pub inclination_err_deg: f64,
+    /// Anteversion minus the truth's own, degrees; NaN as above.
+    #[serde(serialize_with = "six", default = "nan")]
+    pub anteversion_err_deg: f64,
+}
+
+/// The columns runs.csv gained with the cup's orientation: a file without them still reads (NaN).
+const ORIENTATION_COLUMNS: usize = 4;
+
+fn nan() -> f64 {
+    f64::NAN
 }
 
 impl Row {
@@ -97,6 +118,10 @@ impl Row {
             cup_sd_mm: f64::NAN,
             size_probability: f64::NAN,
             brier: f64::NAN,
+            inclination_deg: f64::NAN,
+            anteversion_deg: f64::NAN,
+            inclination_err_deg: f64::NAN,
+            anteversion_err_deg: f64::NAN,
         }
     }
 
@@ -237,17 +262,24 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
         },
         other => perr(1, format!("{other:?}")),
     })?;
-    let want = header();
-    match rd.headers() {
-        Ok(h) if *h == want => {}
+    let full = header();
+    // Files written before the orientation columns have the header without them.
+    let before: csv::StringRecord = full
+        .iter()
+        .take(full.len().saturating_sub(ORIENTATION_COLUMNS))
+        .collect();
+    let want = match rd.headers() {
+        Ok(h) if *h == full => full.clone(),
+        Ok(h) if *h == before => before,
         _ => {
+            let want = full;
             let names: Vec<&str> = want.iter().collect();
             return Err(perr(
                 1,
                 format!("expected the header {:?}", names.join(",")),
             ));
         }
-    }
+    };
     let mut rows = Vec::new();
     for rec in rd.records() {
         let rec = rec.map_err(|e| {
@@ -706,6 +738,25 @@ mod tests {
             merge_dirs(std::slice::from_ref(&b)),
             Err(StudyError::Parse { line: 1, .. })
         ));
+        // A file from before the orientation columns reads, its angles NaN; one column short
+        // of that is still refused.
+        let old: String = good
+            .lines()
+            .map(|l| {
+                let f: Vec<&str> = l.split(',').collect();
+                f[..f.len() - ORIENTATION_COLUMNS].join(",") + "\n"
+            })
+            .collect();
+        std::fs::write(b.join("runs.csv"), &old).unwrap();
+        let back = read_csv(&b.join("runs.csv")).unwrap();
+        assert_eq!(back[0].mae_mm, 0.5);
+        assert!(back[0].inclination_deg.is_nan() && back[0].anteversion_err_deg.is_nan());
+        let short: String = old
+            .lines()
+            .map(|l| l.rsplit_once(',').unwrap().0.to_string() + "\n")
+            .collect();
+        std::fs::write(b.join("runs.csv"), short).unwrap();
+        assert!(read_csv(&b.join("runs.csv")).is_err());
     }
 
     #[test]

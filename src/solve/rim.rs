@@ -1,0 +1,256 @@
+//! The cup's orientation from the rim: the acetabular rim is a circle on the cup sphere, and
+//! where an outline runs inside the sphere's projected limb it is that circle's projection. The
+//! circle (its axis and its height along the axis) is fitted to those outline points in every
+//! view at once, robustly (the best 70 % of the points: bridged notches and drift fall out), by
+//! a grid over the axis then a shrinking pattern search. Inclination and anteversion follow
+//! Murray's radiographic definitions in the case's body frame (x lateral, y anterior, z
+//! superior; the lateral side is whichever way the cup opens).
+
+use crate::geom::{Curve, Sphere};
+use crate::views::Camera;
+use nalgebra::{Point2, Point3, Unit, Vector3};
+
+/// Outline points closer to the projected sphere centre than this share of its projected radius
+/// are taken for the rim (the rest run along the limb).
+const RIM_WITHIN: f64 = 0.93;
+/// Share of the rim points (the closest to the circle) the fit is scored on.
+const KEEP: f64 = 0.7;
+/// Samples of the projected circle.
+const CIRCLE_SAMPLES: usize = 90;
+/// Fewest rim points, over at least two views.
+const MIN_POINTS: usize = 20;
+
+/// The rim circle fitted to the outlines, and the cup's orientation from it.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct RimFit {
+    /// The opening axis (unit, from the sphere centre out through the rim).
+    pub axis: [f64; 3],
+    /// The rim circle's centre along the axis from the sphere centre, mm (negative: the rim is
+    /// short of a hemisphere).
+    pub offset_mm: f64,
+    /// Radiographic inclination, degrees (Murray): the axis against the longitudinal axis, in
+    /// the coronal plane.
+    pub inclination_deg: f64,
+    /// Radiographic anteversion, degrees (Murray): the axis against the coronal plane.
+    pub anteversion_deg: f64,
+    /// RMS distance of the kept rim points to the projected circle, pixels.
+    pub rms_px: f64,
+    /// Rim points used (all views).
+    pub points: usize,
+}
+
+/// Why no orientation came out.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum RimError {
+    /// Too few outline points inside the limb to trace a rim.
+    #[error("cup orientation: {points} outline points run inside the sphere's limb in {views} views; the rim needs {MIN_POINTS} in at least two")]
+    TooFewPoints {
+        /// Points found.
+        points: usize,
+        /// Views with any.
+        views: usize,
+    },
+    /// The sphere is unusable (not finite, not in front of the views).
+    #[error("cup orientation: the sphere (centre {center:?}, radius {radius}) does not project into every view")]
+    Sphere {
+        /// Its centre.
+        center: [f64; 3],
+        /// Its radius.
+        radius: f64,
+    },
+}
+
+/// Radiographic anteversion and inclination (degrees) of an opening axis.
+pub fn radiographic_angles(axis: &Vector3<f64>) -> (f64, f64) {
+    let n = axis.normalize();
+    (
+        n.y.clamp(-1.0, 1.0).asin().to_degrees(),
+        n.x.abs().atan2(-n.z).to_degrees(),
+    )
+}
+
+/// The axis of anteversion `a` and inclination `i` (degrees; a negative `i` opens towards -x).
+fn axis_of(a: f64, i: f64) -> Vector3<f64> {
+    let (a, i) = (a.to_radians(), i.to_radians());
+    Vector3::new(a.cos() * i.sin(), a.sin(), -a.cos() * i.cos())
+}
+
+/// Squared distance from `p` to the closed polyline `poly`.
+fn dist2_to_loop(p: &Point2<f64>, poly: &[Point2<f64>]) -> f64 {
+    let mut best = f64::INFINITY;
+    for k in 0..poly.len() {
+        let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
+        let ab = b - a;
+        let t = ((p - a).dot(&ab) / ab.norm_squared().max(1e-12)).clamp(0.0, 1.0);
+        best = best.min((a + ab * t - p).norm_squared());
+    }
+    best
+}
+
+/// Fit the rim circle on `sphere` to the outlines' rim points.
+pub fn rim_orientation(
+    cams: &[Camera],
+    observed: &[Vec<Curve>],
+    sphere: &Sphere,
+) -> Result<RimFit, RimError> {
+    let c = sphere.center_point();
+    let r = sphere.radius;
+    let bad_sphere = || RimError::Sphere {
+        center: sphere.center,
+        radius: r,
+    };
+    if !(r.is_finite() && r > 0.0) {
+        return Err(bad_sphere());
+    }
+    let mut rim: Vec<Vec<Point2<f64>>> = Vec::with_capacity(cams.len());
+    for (cam, curves) in cams.iter().zip(observed) {
+        let cp = cam.project(&c).map_err(|_| bad_sphere())?;
+        let rpx = r * cam.pixels_per_mm_at(&c);
+        rim.push(
+            curves
+                .iter()
+                .flat_map(|cv| cv.points.iter())
+                .filter(|p| (*p - cp).norm() < RIM_WITHIN * rpx)
+                .copied()
+                .collect(),
+        );
+    }
+    let points: usize = rim.iter().map(Vec::len).sum();
+    let views = rim.iter().filter(|v| !v.is_empty()).count();
+    if points < MIN_POINTS || views < 2 {
+        return Err(RimError::TooFewPoints { points, views });
+    }
+    let mut d2 = Vec::with_capacity(points);
+    let mut cost = |n: &Vector3<f64>, h: f64| -> f64 {
+        let u = n
+            .cross(&if n.x.abs() < 0.9 {
+                Vector3::x()
+            } else {
+                Vector3::y()
+            })
+            .normalize();
+        let v = n.cross(&u);
+        let rr = (r * r - h * h).max(0.0).sqrt();
+        let cc: Point3<f64> = c + n * h;
+        d2.clear();
+        for (cam, pts) in cams.iter().zip(&rim) {
+            if pts.is_empty() {
+                continue;
+            }
+            let circle: Vec<Point2<f64>> = (0..CIRCLE_SAMPLES)
+                .filter_map(|k| {
+                    let t = k as f64 * std::f64::consts::TAU / CIRCLE_SAMPLES as f64;
+                    cam.project(&(cc + (u * t.cos() + v * t.sin()) * rr)).ok()
+                })
+                .collect();
+            if circle.len() < 3 {
+                return f64::INFINITY;
+            }
+            d2.extend(pts.iter().map(|p| dist2_to_loop(p, &circle)));
+        }
+        d2.sort_by(f64::total_cmp);
+        let k = ((d2.len() as f64 * KEEP) as usize).max(1);
+        d2[..k].iter().sum::<f64>() / k as f64
+    };
+    // Grid over the opening axis (it always points inferiorly) and the rim's height, then a
+    // pattern search that halves its step when no move helps.
+    let mut best = (f64::INFINITY, 0.0, 0.0, 0.0);
+    for a in (-40..=70).step_by(6) {
+        for i in (-84..=84).step_by(6) {
+            for hk in [-0.3, -0.15, 0.0, 0.15] {
+                let e = cost(&axis_of(a as f64, i as f64), hk * r);
+                if e < best.0 {
+                    best = (e, a as f64, i as f64, hk * r);
+                }
+            }
+        }
+    }
+    let mut step = 3.0;
+    while step > 0.05 {
+        let (e0, a0, i0, h0) = best;
+        for (da, di, dh) in [
+            (step, 0.0, 0.0),
+            (-step, 0.0, 0.0),
+            (0.0, step, 0.0),
+            (0.0, -step, 0.0),
+            (0.0, 0.0, 0.1 * step),
+            (0.0, 0.0, -0.1 * step),
+        ] {
+            let e = cost(&axis_of(a0 + da, i0 + di), h0 + dh);
+            if e < best.0 {
+                best = (e, a0 + da, i0 + di, h0 + dh);
+            }
+        }
+        if best.0 >= e0 {
+            step *= 0.5;
+        }
+    }
+    let n = Unit::new_normalize(axis_of(best.1, best.2));
+    let (anteversion_deg, inclination_deg) = radiographic_angles(&n);
+    Ok(RimFit {
+        axis: [n.x, n.y, n.z],
+        offset_mm: best.3,
+        inclination_deg,
+        anteversion_deg,
+        rms_px: best.0.sqrt(),
+        points,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::{phantom, phantom_case, radiographic_axis, PhantomParams};
+
+    #[test]
+    fn angles_invert_the_radiographic_axis() {
+        for (a, i) in [(20.0, 45.0), (-5.0, 30.0), (35.0, 60.0)] {
+            let (a2, i2) = radiographic_angles(&radiographic_axis(a, i));
+            assert!((a2 - a).abs() < 1e-9 && (i2 - i).abs() < 1e-9, "{a2} {i2}");
+        }
+    }
+
+    #[test]
+    fn the_phantom_rim_gives_its_orientation_and_a_turned_one_does_not() {
+        let truth = phantom(&PhantomParams::default()).placement;
+        let (ta, ti) = radiographic_angles(&truth.axis);
+        let (_, sim) = phantom_case(3, 2).unwrap();
+        let fit = rim_orientation(&sim.cameras, &sim.observed, &sim.truth_sphere).unwrap();
+        let err = |f: &RimFit| {
+            (
+                (f.anteversion_deg - ta).abs(),
+                (f.inclination_deg - ti).abs(),
+            )
+        };
+        let (ea, ei) = err(&fit);
+        assert!(ea < 4.0 && ei < 4.0, "{fit:?}");
+        // The companion: the same outlines of a phantom turned 15 degrees in anteversion are
+        // told apart from the truth's angles by the same check.
+        let turned = phantom(&PhantomParams {
+            anteversion_deg: 35.0,
+            ..Default::default()
+        })
+        .mesh;
+        let sim2 = crate::sim::simulate_case(
+            &turned,
+            &crate::sim::XrayGeometry::default(),
+            2.0,
+            &crate::sim::NoiseLevel::level(3).unwrap(),
+            2,
+        )
+        .unwrap();
+        let fit2 = rim_orientation(&sim2.cameras, &sim2.observed, &sim2.truth_sphere).unwrap();
+        let (ea2, _) = err(&fit2);
+        assert!(ea2 >= 4.0, "{fit2:?}");
+    }
+
+    #[test]
+    fn a_sphere_off_every_outline_is_refused() {
+        let (_, sim) = phantom_case(1, 1).unwrap();
+        let mut far = sim.truth_sphere;
+        far.radius *= 0.2; // every outline point lies outside its limb
+        let e = rim_orientation(&sim.cameras, &sim.observed, &far).unwrap_err();
+        assert!(matches!(e, RimError::TooFewPoints { .. }), "{e}");
+    }
+}
