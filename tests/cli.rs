@@ -87,9 +87,9 @@ fn demo_json_has_the_documented_fields_and_writes_its_files() {
     }
     let ply = std::fs::read_to_string(out.join("reconstruction.ply")).unwrap();
     assert!(ply.contains("property uchar red") && ply.contains("property float error_mm"));
-    // The 3D picture: two viewpoints and a colour bar, 950 x 460.
+    // The 3D picture: two viewpoints and a colour bar, 990 x 460.
     let png = image::open(out.join("reconstruction.png")).unwrap();
-    assert_eq!((png.width(), png.height()), (950, 460));
+    assert_eq!((png.width(), png.height()), (990, 460));
 }
 
 #[test]

@@ -419,3 +419,77 @@ fn acetab_bench_prints_its_table_as_json() {
         .iter()
         .all(|s| s["runs"] == 2 && s["runs_per_second"].as_f64().unwrap() > 0.0));
 }
+
+/// (coverage IoU, mean absolute channel difference where both are covered) of two panels.
+fn panel_agreement(a: &[[u8; 4]], b: &[[u8; 4]]) -> (f64, f64) {
+    let covered = |p: &[u8; 4]| p[..3] != [255, 255, 255];
+    let (mut both, mut either, mut diff) = (0usize, 0usize, 0.0f64);
+    for (p, q) in a.iter().zip(b) {
+        match (covered(p), covered(q)) {
+            (true, true) => {
+                both += 1;
+                either += 1;
+                diff += (0..3)
+                    .map(|c| (p[c] as f64 - q[c] as f64).abs())
+                    .sum::<f64>()
+                    / 3.0;
+            }
+            (false, false) => {}
+            _ => either += 1,
+        }
+    }
+    (
+        both as f64 / either.max(1) as f64,
+        diff / both.max(1) as f64,
+    )
+}
+
+#[test]
+fn the_surface_picture_on_the_gpu_matches_its_cpu_twin() {
+    with_gpu(|gpu| {
+        use acetab::engine::cpu::surface::{render_surface, SurfaceView};
+        use acetab::sim::{phantom, PhantomParams};
+        let ph = phantom(&PhantomParams::default());
+        let mesh = &ph.mesh;
+        let points: Vec<[f32; 4]> = mesh
+            .vertices
+            .iter()
+            .map(|p| [p.x as f32, p.y as f32, p.z as f32, 0.0])
+            .collect();
+        // Colours that vary over the surface, so interpolation and shading both show.
+        let colors: Vec<[f32; 4]> = (0..points.len())
+            .map(|i| [(i % 7) as f32 / 7.0, 0.3, 1.0 - (i % 5) as f32 / 5.0, 1.0])
+            .collect();
+        let tris: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+        let c = ph.placement.center;
+        let look = -ph.placement.axis.into_inner();
+        let view = |look: &nalgebra::Vector3<f64>| {
+            SurfaceView::looking(&c, look, &nalgebra::Vector3::z(), 6.0, 40.0, 400)
+        };
+        let cpu = render_surface(&points, &colors, &tris, &view(&look));
+        let on_gpu = gpu
+            .render_surface(&points, &colors, &tris, &view(&look))
+            .unwrap();
+        let (iou, diff) = panel_agreement(&cpu, &on_gpu);
+        eprintln!("surface panel: coverage IoU {iou:.4}, mean channel difference {diff:.2}");
+        assert!(iou > 0.98 && diff < 4.0, "IoU {iou}, difference {diff}");
+        // Companion: the surface seen 10 degrees off is told apart by the same check.
+        let turned =
+            nalgebra::Rotation3::from_axis_angle(&nalgebra::Vector3::z_axis(), 0.17) * look;
+        let off = gpu
+            .render_surface(&points, &colors, &tris, &view(&turned))
+            .unwrap();
+        let (iou2, diff2) = panel_agreement(&cpu, &off);
+        assert!(
+            !(iou2 > 0.98 && diff2 < 4.0),
+            "IoU {iou2}, difference {diff2}"
+        );
+        // Bad input is an error, not a picture.
+        assert!(gpu
+            .render_surface(&points, &colors[1..], &tris, &view(&look))
+            .is_err());
+        assert!(gpu
+            .render_surface(&points, &colors, &[0, 1, 99_999], &view(&look))
+            .is_err());
+    });
+}

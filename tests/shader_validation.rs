@@ -2,7 +2,7 @@
 //! listed in `acetab::engine::gpu::SHADERS`, and every host struct shared with WGSL has the size and
 //! member offsets naga computes for the WGSL struct of the same role.
 
-use acetab::engine::gpu::{deform, project, silhouette, srvf_dp, SHADERS};
+use acetab::engine::gpu::{deform, project, silhouette, srvf_dp, surface, SHADERS};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 use std::mem::{offset_of, size_of};
 
@@ -114,6 +114,17 @@ fn host_structs_match_their_wgsl_layouts() {
                 offset_of!(silhouette::SilhouetteWindow, y0),
                 offset_of!(silhouette::SilhouetteWindow, scale),
                 offset_of!(silhouette::SilhouetteWindow, size),
+            ],
+        ),
+        (
+            "surface",
+            "View",
+            size_of::<surface::SurfaceView>(),
+            vec![
+                offset_of!(surface::SurfaceView, u),
+                offset_of!(surface::SurfaceView, v),
+                offset_of!(surface::SurfaceView, w),
+                offset_of!(surface::SurfaceView, c),
             ],
         ),
         (

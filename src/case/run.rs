@@ -175,6 +175,7 @@ pub fn run_case_with(
                     3.0,
                     "off the cup sphere (mm)",
                     &stage.join("reconstruction.png"),
+                    &|p| kernels.render_surface(p).0,
                 ) {
                     Ok(()) => files.push("reconstruction.png".into()),
                     Err(e) => warnings.push(format!("reconstruction.png not drawn: {e}")),

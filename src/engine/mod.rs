@@ -64,6 +64,36 @@ pub enum KernelError {
 pub const SILHOUETTE_TEXELS: u32 = 512;
 
 impl Kernels<'_> {
+    /// One panel of a surface picture (`report::plots::surface_views`): rendered on the GPU
+    /// (`shaders/surface.wgsl`), or by its CPU twin on the CPU and wherever the GPU cannot;
+    /// the pixels and which drew them ("gpu" or "cpu").
+    pub fn render_surface(
+        &self,
+        p: &crate::report::SurfacePanel,
+    ) -> (crate::report::PanelPixels, &'static str) {
+        let view = crate::engine::cpu::surface::SurfaceView::looking(
+            &p.center,
+            &p.look,
+            &p.up_hint,
+            p.px_per_mm,
+            p.extent_mm,
+            p.size,
+        );
+        let gpu = match self {
+            Kernels::Cpu => None,
+            Kernels::Gpu(g) => Some(*g),
+            Kernels::Batched(b) => Some(b.gpu()),
+        };
+        if let Some(Ok(px)) = gpu.map(|g| g.render_surface(p.points, p.colors, p.triangles, &view))
+        {
+            return (px, "gpu");
+        }
+        (
+            crate::engine::cpu::surface::render_surface(p.points, p.colors, p.triangles, &view),
+            "cpu",
+        )
+    }
+
     /// "cpu" or "gpu".
     pub fn name(&self) -> &'static str {
         match self {

@@ -4,6 +4,7 @@
 mod accuracy;
 mod cup;
 mod metrics;
+mod picture;
 #[cfg(feature = "plots")]
 pub mod plots;
 mod provenance;
@@ -17,4 +18,5 @@ pub use metrics::{
     error_colors, interior_distance, surface_distance, surface_samples, DistanceStats,
     InteriorQuery, SurfaceQuery, NO_ERROR_COLOR,
 };
+pub use picture::{PanelPixels, SurfacePanel};
 pub use provenance::Provenance;

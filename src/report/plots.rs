@@ -476,11 +476,10 @@ pub fn opening_axis(
     crate::geom::opening_axis(&mesh.vertices, &sphere.center_point())
 }
 
-/// A picture of a surface from two viewpoints side by side, coloured per triangle by `values`
-/// (per vertex, mm; blue 0 to red `max_mm`, grey where NaN), with a colour bar labelled `label`:
-/// left, looking into the cup along `axis` (from the opening); right, from the side (the axis
-/// turned 90 degrees about the long axis z). Orthographic, painter's order (far triangles
-/// first), drawn with plotters on the CPU.
+/// The result from two viewpoints, into the cup (against `axis`) and from the side, coloured
+/// by `values` (0 to `max_mm`, grey where NaN) with a colour bar labelled `label`; each panel
+/// drawn by `render` (`Kernels::render_surface`: the GPU, or its CPU twin).
+#[allow(clippy::too_many_arguments)]
 pub fn surface_views(
     mesh: &crate::geom::Mesh,
     values: &[f64],
@@ -488,6 +487,7 @@ pub fn surface_views(
     max_mm: f64,
     label: &str,
     path: &Path,
+    render: &dyn Fn(&crate::report::SurfacePanel) -> crate::report::PanelPixels,
 ) -> Result<(), PlotError> {
     use nalgebra::Vector3;
     ensure_font()?;
@@ -496,7 +496,7 @@ pub fn surface_views(
             "no triangles, or not one value per vertex".into(),
         ));
     }
-    let (panel, bar_w, h) = (420u32, 110u32, 460u32);
+    let (panel, bar_w, h) = (420u32, 150u32, 460u32);
     let w = 2 * panel + bar_w;
     let mut buf = vec![255u8; (w * h * 3) as usize];
     let c = crate::geom::centroid(&mesh.vertices);
@@ -513,67 +513,63 @@ pub fn surface_views(
         .try_normalize(1e-9)
         .unwrap_or(Vector3::x());
     let views = [(-a, "into the cup"), (side, "from the side")];
-    let colors = super::error_colors(values, max_mm);
+    let points: Vec<[f32; 4]> = mesh
+        .vertices
+        .iter()
+        .map(|p| [p.x as f32, p.y as f32, p.z as f32, 0.0])
+        .collect();
+    let colors: Vec<[f32; 4]> = super::error_colors(values, max_mm)
+        .iter()
+        .map(|c| {
+            [
+                c[0] as f32 / 255.0,
+                c[1] as f32 / 255.0,
+                c[2] as f32 / 255.0,
+                1.0,
+            ]
+        })
+        .collect();
+    let triangles: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+    let extent = mesh
+        .vertices
+        .iter()
+        .map(|p| (p - c).norm())
+        .fold(1e-9, f64::max);
+    // The panels sit 20 px down, under their titles.
+    let top = 20u32;
+    let side_px = panel.min(h - top);
+    for (k, (look, _)) in views.iter().enumerate() {
+        let px = render(&crate::report::SurfacePanel {
+            points: &points,
+            colors: &colors,
+            triangles: &triangles,
+            center: c,
+            look: *look,
+            up_hint,
+            px_per_mm: 0.9 * side_px as f64 / (2.0 * extent),
+            extent_mm: 1.01 * extent,
+            size: side_px,
+        });
+        if px.len() != (side_px * side_px) as usize {
+            return Err(PlotError::Draw(format!(
+                "the renderer gave {} pixels for a {side_px} x {side_px} panel",
+                px.len()
+            )));
+        }
+        for y in 0..side_px {
+            for x in 0..side_px {
+                let [r, g, b, _] = px[(y * side_px + x) as usize];
+                let at = (((y + top) * w + k as u32 * panel + x) * 3) as usize;
+                buf[at..at + 3].copy_from_slice(&[r, g, b]);
+            }
+        }
+    }
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(draw_err)?;
-        let extent = mesh
-            .vertices
-            .iter()
-            .map(|p| (p - c).norm())
-            .fold(1e-9, f64::max);
-        let scale = 0.45 * panel as f64 / extent;
-        for (k, (look, title)) in views.iter().enumerate() {
-            let wv = look.normalize();
-            let hint = if wv.dot(&up_hint).abs() > 0.95 {
-                Vector3::y()
-            } else {
-                up_hint
-            };
-            let u = hint.cross(&wv).normalize();
-            let v = wv.cross(&u);
-            let x_off = (k as u32 * panel) as f64 + 0.5 * panel as f64;
-            let y_off = 0.5 * h as f64 + 10.0;
-            let to_px = |p: &nalgebra::Point3<f64>| {
-                let d = p - c;
-                (
-                    (x_off + scale * d.dot(&u)) as i32,
-                    (y_off - scale * d.dot(&v)) as i32,
-                )
-            };
-            // Far triangles first: depth along the viewing direction, largest first.
-            let mut order: Vec<(f64, usize)> = mesh
-                .triangles
-                .iter()
-                .enumerate()
-                .map(|(t, tri)| {
-                    let m = tri
-                        .iter()
-                        .map(|&i| (mesh.vertices[i as usize] - c).dot(&wv))
-                        .sum::<f64>();
-                    (m, t)
-                })
-                .collect();
-            order.sort_by(|x, y| y.0.total_cmp(&x.0));
-            for (_, t) in order {
-                let tri = mesh.triangles[t];
-                let pts: Vec<(i32, i32)> = tri
-                    .iter()
-                    .map(|&i| to_px(&mesh.vertices[i as usize]))
-                    .collect();
-                let mut col = [0u32; 3];
-                for &i in &tri {
-                    for (ch, x) in col.iter_mut().zip(colors[i as usize]) {
-                        *ch += x as u32;
-                    }
-                }
-                let fill = RGBColor((col[0] / 3) as u8, (col[1] / 3) as u8, (col[2] / 3) as u8);
-                root.draw(&Polygon::new(pts, fill.filled()))
-                    .map_err(draw_err)?;
-            }
+        for (k, (_, title)) in views.iter().enumerate() {
             root.draw(&Text::new(
                 *title,
-                ((k as u32 * panel + 12) as i32, 10),
+                ((k as u32 * panel + 12) as i32, 4),
                 ("sans-serif", 16).into_font().color(&BLACK),
             ))
             .map_err(draw_err)?;
@@ -641,7 +637,8 @@ mod tests {
         let values: Vec<f64> = (0..cap.vertex_count())
             .map(|i| (i % 30) as f64 / 10.0)
             .collect();
-        surface_views(&cap, &values, &axis, 3.0, "error (mm)", &p).unwrap();
+        let cpu = |p: &crate::report::SurfacePanel| crate::engine::Kernels::Cpu.render_surface(p).0;
+        surface_views(&cap, &values, &axis, 3.0, "error (mm)", &p, &cpu).unwrap();
         let img = image::open(&p).unwrap().to_rgb8();
         // Something was drawn in each panel (not only the white canvas).
         for x0 in [0u32, 420] {
@@ -652,6 +649,6 @@ mod tests {
             assert!(coloured > 10_000, "panel at {x0}: {coloured}");
         }
         // Companion: one value short is refused, not drawn.
-        assert!(surface_views(&cap, &values[1..], &axis, 3.0, "x", &p).is_err());
+        assert!(surface_views(&cap, &values[1..], &axis, 3.0, "x", &p, &cpu).is_err());
     }
 }

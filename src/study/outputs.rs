@@ -116,6 +116,7 @@ pub fn write_examples(
                 3.0,
                 "error (mm)",
                 &p,
+                &|p| crate::engine::Kernels::Cpu.render_surface(p).0,
             ) {
                 let shown = p.strip_prefix(dir).unwrap_or(&p);
                 warnings.push(format!("{} not drawn: {e}", shown.display()));

@@ -72,6 +72,7 @@ pub fn run(args: DemoArgs) -> Result<(), String> {
                 3.0,
                 "error (mm)",
                 &d.join("reconstruction.png"),
+                &|p| kernels.render_surface(p).0,
             ) {
                 eprintln!("acetab: warning: reconstruction.png not drawn: {e}");
             }

@@ -7,3 +7,4 @@ pub mod deform;
 pub mod project;
 pub mod silhouette;
 pub mod srvf_dp;
+pub mod surface;

@@ -134,6 +134,7 @@ pub struct Gpu<'a> {
     pub(crate) project: ProjectKernel,
     pub(crate) silhouette: SilhouetteKernel,
     pub(crate) srvf_dp: SrvfDpKernel,
+    pub(crate) surface: super::surface::SurfaceKernel,
     pub(crate) pool: BufferPool,
     pub(crate) staging: Mutex<Option<wgpu::Buffer>>,
 }
@@ -146,6 +147,7 @@ impl<'a> Gpu<'a> {
         let project = ProjectKernel::new(device);
         let silhouette = SilhouetteKernel::new(device);
         let srvf_dp = SrvfDpKernel::new(device);
+        let surface = super::surface::SurfaceKernel::new(device);
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(GpuError::Wgpu {
                 kernel: "pipelines",
@@ -159,6 +161,7 @@ impl<'a> Gpu<'a> {
             project,
             silhouette,
             srvf_dp,
+            surface,
             pool: BufferPool::default(),
             staging: Mutex::new(None),
         })

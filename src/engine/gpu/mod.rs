@@ -10,12 +10,13 @@ pub mod deform;
 pub mod project;
 pub mod silhouette;
 pub mod srvf_dp;
+pub mod surface;
 
 pub use batcher::{BatcherStats, GpuBatcher, KernelStats};
 pub use context::{Gpu, GpuDevice, GpuError};
 
 /// The WGSL sources, by kernel name (validated by the naga test and compiled by `Gpu::new`).
-pub const SHADERS: [(&str, &str); 4] = [
+pub const SHADERS: [(&str, &str); 5] = [
     ("deform", include_str!("../../../shaders/deform.wgsl")),
     ("project", include_str!("../../../shaders/project.wgsl")),
     (
@@ -23,4 +24,5 @@ pub const SHADERS: [(&str, &str); 4] = [
         include_str!("../../../shaders/silhouette.wgsl"),
     ),
     ("srvf_dp", include_str!("../../../shaders/srvf_dp.wgsl")),
+    ("surface", include_str!("../../../shaders/surface.wgsl")),
 ];
