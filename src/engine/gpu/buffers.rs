@@ -94,11 +94,22 @@ pub(crate) fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEnt
     }
 }
 
-/// Bind-group layout entry: a uniform buffer.
+/// Bind-group layout entry: a uniform buffer (compute and vertex stages).
 pub(crate) fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    uniform_entry_in(
+        binding,
+        wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::VERTEX,
+    )
+}
+
+/// Bind-group layout entry: a uniform buffer read by `stages`.
+pub(crate) fn uniform_entry_in(
+    binding: u32,
+    stages: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
-        visibility: wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::VERTEX,
+        visibility: stages,
         ty: wgpu::BindingType::Buffer {
             ty: wgpu::BufferBindingType::Uniform,
             has_dynamic_offset: false,
@@ -184,4 +195,112 @@ pub(crate) fn fill(queue: &wgpu::Queue, buf: &wgpu::Buffer, words: usize, patter
     if words > 0 {
         queue.write_buffer(buf, 0, bytemuck::cast_slice(&vec![pattern; words]));
     }
+}
+
+/// A render pipeline drawing triangle lists from `vs_main` / `fs_main` of `module` (no vertex
+/// buffers: the shaders read storage), both faces, into one `format` target, depth-tested
+/// (less, written) when `depth` names a depth format.
+pub(crate) fn render_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    layout: &wgpu::BindGroupLayout,
+    format: wgpu::TextureFormat,
+    depth: Option<wgpu::TextureFormat>,
+) -> wgpu::RenderPipeline {
+    let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    });
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pl),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_main"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState {
+            topology: wgpu::PrimitiveTopology::TriangleList,
+            cull_mode: None,
+            ..Default::default()
+        },
+        depth_stencil: depth.map(|format| wgpu::DepthStencilState {
+            format,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: wgpu::MultisampleState::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("fs_main"),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::ColorTargetState {
+                format,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// A square `n` x `n` 2D texture.
+pub(crate) fn square_texture(
+    device: &wgpu::Device,
+    label: &str,
+    n: u32,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: n,
+            height: n,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}
+
+/// Copy the square `n` x `n` `texture` into `buffer`, rows `row_bytes` apart (256-aligned).
+pub(crate) fn copy_square_texture(
+    enc: &mut wgpu::CommandEncoder,
+    texture: &wgpu::Texture,
+    buffer: &wgpu::Buffer,
+    n: u32,
+    row_bytes: u32,
+) {
+    enc.copy_texture_to_buffer(
+        wgpu::TexelCopyTextureInfo {
+            texture,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        wgpu::TexelCopyBufferInfo {
+            buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row_bytes),
+                rows_per_image: Some(n),
+            },
+        },
+        wgpu::Extent3d {
+            width: n,
+            height: n,
+            depth_or_array_layers: 1,
+        },
+    );
 }

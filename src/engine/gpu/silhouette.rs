@@ -2,7 +2,10 @@
 //! draws the projected mesh into an R32Uint id texture, then the `edges` compute pass marks the
 //! silhouette texels with their vertex ids; the host traces them into an ordered loop.
 
-use super::buffers::{bind, bytes_of, fill, storage, uniform, uniform_entry, SENTINEL_U32};
+use super::buffers::{
+    bind, bytes_of, copy_square_texture, fill, render_pipeline, square_texture, storage, uniform,
+    uniform_entry, SENTINEL_U32,
+};
 use super::{Gpu, GpuError};
 use crate::engine::cpu::project::ViewRows;
 use crate::engine::cpu::silhouette::{trace, Window};
@@ -52,40 +55,14 @@ impl SilhouetteKernel {
             label: Some("silhouette raster"),
             entries: &[uniform_entry(0), storage(1, true), storage(2, true)],
         });
-        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("silhouette raster"),
-            bind_group_layouts: &[Some(&raster_layout)],
-            immediate_size: 0,
-        });
-        let raster = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("silhouette raster"),
-            layout: Some(&pl),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: None,
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: FORMAT,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let raster = render_pipeline(
+            device,
+            "silhouette raster",
+            &module,
+            &raster_layout,
+            FORMAT,
+            None,
+        );
         let edges_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("silhouette edges"),
             entries: &[
@@ -229,22 +206,15 @@ impl Gpu<'_> {
         let w = SilhouetteWindow::from(window);
         let u = uniform(d, K, bytemuck::bytes_of(&w));
         let tb = pool.upload(d, q, K, bytes_of(triangles), wgpu::BufferUsages::empty());
-        let texture = d.create_texture(&wgpu::TextureDescriptor {
-            label: Some("silhouette ids"),
-            size: wgpu::Extent3d {
-                width: n,
-                height: n,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+        let texture = square_texture(
+            d,
+            "silhouette ids",
+            n,
+            FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT
                 | wgpu::TextureUsages::TEXTURE_BINDING
                 | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+        );
         let view = texture.create_view(&Default::default());
         let mask = pool.take(
             d,
@@ -318,27 +288,7 @@ impl Gpu<'_> {
                     pass.set_bind_group(0, &edges_group, &[]);
                     pass.dispatch_workgroups(n.div_ceil(8), n.div_ceil(8), 1);
                 }
-                enc.copy_texture_to_buffer(
-                    wgpu::TexelCopyTextureInfo {
-                        texture: &texture,
-                        mip_level: 0,
-                        origin: wgpu::Origin3d::ZERO,
-                        aspect: wgpu::TextureAspect::All,
-                    },
-                    wgpu::TexelCopyBufferInfo {
-                        buffer: &ids_buf,
-                        layout: wgpu::TexelCopyBufferLayout {
-                            offset: 0,
-                            bytes_per_row: Some(row_bytes),
-                            rows_per_image: Some(n),
-                        },
-                    },
-                    wgpu::Extent3d {
-                        width: n,
-                        height: n,
-                        depth_or_array_layers: 1,
-                    },
-                );
+                copy_square_texture(enc, &texture, &ids_buf, n, row_bytes);
             },
             &[
                 (&mask, (texels * 4) as u64),

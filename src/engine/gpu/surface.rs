@@ -1,7 +1,10 @@
 //! GPU module of `shaders/surface.wgsl` (CPU twin: `crate::engine::cpu::surface`): one render
 //! pass draws the surface, depth-tested, into an RGBA8 panel that is read back.
 
-use super::buffers::{bind, bytes_of, storage, uniform};
+use super::buffers::{
+    bind, bytes_of, copy_square_texture, render_pipeline, square_texture, storage, uniform,
+    uniform_entry_in,
+};
 use super::{Gpu, GpuError};
 pub use crate::engine::cpu::surface::SurfaceView;
 
@@ -21,65 +24,17 @@ impl SurfaceKernel {
             source: wgpu::ShaderSource::Wgsl(source.into()),
         });
         // The view is read by both stages.
-        let view_entry = wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
+        let stages = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("surface"),
             entries: &[
-                view_entry,
+                uniform_entry_in(0, stages),
                 storage(1, true),
                 storage(2, true),
                 storage(3, true),
             ],
         });
-        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("surface"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("surface"),
-            layout: Some(&pl),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: FORMAT,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let pipeline = render_pipeline(device, "surface", &module, &layout, FORMAT, Some(DEPTH));
         SurfaceKernel { pipeline, layout }
     }
 }
@@ -131,30 +86,17 @@ impl Gpu<'_> {
         let pb = pool.upload(d, q, K, bytes_of(points), none);
         let cb = pool.upload(d, q, K, bytes_of(colors), none);
         let tb = pool.upload(d, q, K, bytes_of(triangles), none);
-        let extent = wgpu::Extent3d {
-            width: n,
-            height: n,
-            depth_or_array_layers: 1,
-        };
-        let texture = |label, format, usage| {
-            d.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: extent,
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
-        let color = texture(
+        let color = square_texture(
+            d,
             "surface colour",
+            n,
             FORMAT,
             wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
         );
-        let depth = texture(
+        let depth = square_texture(
+            d,
             "surface depth",
+            n,
             DEPTH,
             wgpu::TextureUsages::RENDER_ATTACHMENT,
         );
@@ -200,23 +142,7 @@ impl Gpu<'_> {
                     pass.set_bind_group(0, &group, &[]);
                     pass.draw(0..triangles.len() as u32, 0..1);
                 }
-                enc.copy_texture_to_buffer(
-                    wgpu::TexelCopyTextureInfo {
-                        texture: &color,
-                        mip_level: 0,
-                        origin: wgpu::Origin3d::ZERO,
-                        aspect: wgpu::TextureAspect::All,
-                    },
-                    wgpu::TexelCopyBufferInfo {
-                        buffer: &out,
-                        layout: wgpu::TexelCopyBufferLayout {
-                            offset: 0,
-                            bytes_per_row: Some(row_bytes),
-                            rows_per_image: Some(n),
-                        },
-                    },
-                    extent,
-                );
+                copy_square_texture(enc, &color, &out, n, row_bytes);
             },
             &[(&out, (row_bytes * n) as u64)],
         );
