@@ -414,7 +414,19 @@ fn acetab_bench_prints_its_table_as_json() {
         }
     }
     let study = v["study"].as_array().unwrap();
-    assert_eq!(study.len(), 3, "cpu, gpu and batched gpu throughput");
+    // cpu and gpu at --threads, then per batch size (--quick: 1 and 2) cpu and batched gpu.
+    assert_eq!(study.len(), 6, "{study:?}");
+    let batches: Vec<(String, u64)> = study
+        .iter()
+        .map(|s| {
+            (
+                s["backend"].as_str().unwrap().to_string(),
+                s["batch"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(batches[2], ("cpu".to_string(), 1));
+    assert_eq!(batches[5], ("gpu, runs batched".to_string(), 2));
     assert!(study
         .iter()
         .all(|s| s["runs"] == 2 && s["runs_per_second"].as_f64().unwrap() > 0.0));

@@ -16,7 +16,7 @@ const RIM_WITHIN: f64 = 0.93;
 /// Share of the rim points (the closest to the circle) the fit is scored on.
 const KEEP: f64 = 0.7;
 /// Samples of the projected circle.
-const CIRCLE_SAMPLES: usize = 90;
+const CIRCLE_SAMPLES: usize = 72;
 /// Fewest rim points, over at least two views.
 const MIN_POINTS: usize = 20;
 
@@ -122,7 +122,9 @@ pub fn rim_orientation(
         return Err(RimError::TooFewPoints { points, views });
     }
     let mut d2 = Vec::with_capacity(points);
-    let mut cost = |n: &Vector3<f64>, h: f64| -> f64 {
+    // `coarse`: every third rim point against a 36-point circle (the grid's quick look).
+    let mut cost = |n: &Vector3<f64>, h: f64, coarse: bool| -> f64 {
+        let (stride, samples) = if coarse { (1, 36) } else { (1, CIRCLE_SAMPLES) };
         let u = n
             .cross(&if n.x.abs() < 0.9 {
                 Vector3::x()
@@ -138,16 +140,20 @@ pub fn rim_orientation(
             if pts.is_empty() {
                 continue;
             }
-            let circle: Vec<Point2<f64>> = (0..CIRCLE_SAMPLES)
+            let circle: Vec<Point2<f64>> = (0..samples)
                 .filter_map(|k| {
-                    let t = k as f64 * std::f64::consts::TAU / CIRCLE_SAMPLES as f64;
+                    let t = k as f64 * std::f64::consts::TAU / samples as f64;
                     cam.project(&(cc + (u * t.cos() + v * t.sin()) * rr)).ok()
                 })
                 .collect();
             if circle.len() < 3 {
                 return f64::INFINITY;
             }
-            d2.extend(pts.iter().map(|p| dist2_to_loop(p, &circle)));
+            d2.extend(
+                pts.iter()
+                    .step_by(stride)
+                    .map(|p| dist2_to_loop(p, &circle)),
+            );
         }
         d2.sort_by(f64::total_cmp);
         let k = ((d2.len() as f64 * KEEP) as usize).max(1);
@@ -159,15 +165,17 @@ pub fn rim_orientation(
     for a in (-40..=70).step_by(6) {
         for i in (-84..=84).step_by(6) {
             for hk in [-0.3, -0.15, 0.0, 0.15] {
-                let e = cost(&axis_of(a as f64, i as f64), hk * r);
+                let e = cost(&axis_of(a as f64, i as f64), hk * r, true);
                 if e < best.0 {
                     best = (e, a as f64, i as f64, hk * r);
                 }
             }
         }
     }
+    // The grid's best, scored in full, starts the search.
+    best.0 = cost(&axis_of(best.1, best.2), best.3, false);
     let mut step = 3.0;
-    while step > 0.05 {
+    while step > 0.1 {
         let (e0, a0, i0, h0) = best;
         for (da, di, dh) in [
             (step, 0.0, 0.0),
@@ -177,7 +185,7 @@ pub fn rim_orientation(
             (0.0, 0.0, 0.1 * step),
             (0.0, 0.0, -0.1 * step),
         ] {
-            let e = cost(&axis_of(a0 + da, i0 + di), h0 + dh);
+            let e = cost(&axis_of(a0 + da, i0 + di), h0 + dh, false);
             if e < best.0 {
                 best = (e, a0 + da, i0 + di, h0 + dh);
             }

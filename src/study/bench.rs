@@ -75,8 +75,8 @@ pub struct BenchParams {
     pub study_runs: usize,
     /// Worker threads of the study.
     pub threads: usize,
-    /// Batch sizes of the batched GPU study (runs in flight and batcher lanes); empty: one, at
-    /// `threads`.
+    /// Batch sizes (runs in flight) of the study on both backends, the GPU's requests merged
+    /// (default 1, 8, 32, 128); empty: one, at `threads`.
     pub study_batches: Vec<usize>,
     /// Repetitions per timing (the median is reported).
     pub repeats: usize,
@@ -90,7 +90,7 @@ impl Default for BenchParams {
             dp_samples: 64,
             study_runs: 6,
             threads: 2,
-            study_batches: Vec::new(),
+            study_batches: vec![1, 8, 32, 128],
             repeats: 5,
         }
     }
@@ -260,12 +260,15 @@ pub fn run_bench(
             p.study_batches.clone()
         };
         for b in batches {
-            // b runs in flight, their requests merged b at a time.
+            // b runs in flight: on the CPU b threads; on the GPU also their requests merged b
+            // at a time.
             let cfg = StudyConfig {
                 threads: b.max(1),
                 runs: p.study_runs.max(b),
                 ..cfg.clone()
             };
+            study.push(through("cpu", cfg.threads, timed(&cfg, Kernels::Cpu)?));
+            progress(&format!("study on the cpu, batch {b}"));
             let batcher = crate::engine::gpu::GpuBatcher::new(
                 gpu,
                 cfg.threads,

@@ -28,8 +28,8 @@ pub struct BenchArgs {
     /// Worker threads of the study part (default 2).
     #[arg(long, default_value_t = 2, value_parser = count_in(1, MAX_THREADS))]
     pub threads: usize,
-    /// Batch sizes of the batched GPU study: runs in flight at once, their kernel requests
-    /// merged (default: --threads).
+    /// Batch sizes of the study on both backends: runs in flight at once (threads), on the GPU
+    /// their kernel requests merged (default 1,8,32,128; --quick: 1,2).
     #[arg(long, value_parser = sizes)]
     pub study_batches: Option<Sizes>,
 }
@@ -56,6 +56,7 @@ pub fn run(args: BenchArgs) -> Result<(), String> {
     if quick {
         prm.mesh_sizes = vec![500];
         prm.dp_batches = vec![1, 4];
+        prm.study_batches = vec![1, 2];
     }
     if let Some(m) = mesh_sizes {
         prm.mesh_sizes = m.0;
