@@ -87,13 +87,12 @@ fn method_of(name: &str) -> PyResult<Method> {
 
 /// A calibration argument: None for the shipped one, "none", or a file from `acetab calibrate`.
 fn model_sd(arg: &Option<String>, shipped: fn() -> CupCalibration) -> PyResult<f64> {
-    match arg.as_deref() {
-        None => Ok(shipped().model_sd_mm),
-        Some("none") => Ok(0.0),
-        Some(path) => CupCalibration::read(Path::new(path))
-            .map(|c| c.model_sd_mm)
-            .map_err(|e| engine_err(format!("calibration={path:?}: {e}"))),
-    }
+    CupCalibration::model_sd_for(arg.as_deref(), shipped).map_err(|e| {
+        engine_err(format!(
+            "calibration={:?}: {e}",
+            arg.as_deref().unwrap_or_default()
+        ))
+    })
 }
 
 impl ReconOptions {
@@ -146,11 +145,7 @@ fn reconstruct_case_json(
     let opts: ReconOptions = options(options_json)?;
     let (prm, up) = opts.params()?;
     if let Some(o) = &out {
-        let non_empty = o.is_dir()
-            && std::fs::read_dir(o)
-                .map(|mut d| d.next().is_some())
-                .unwrap_or(false);
-        if non_empty && !force {
+        if acetab::io::out_in_use(o) && !force {
             return Err(engine_err(format!(
                 "{}: exists and is not empty (force=True writes into it)",
                 o.display()

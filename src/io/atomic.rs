@@ -32,6 +32,16 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     Ok(())
 }
 
+/// Whether the output folder `out` holds anything already (a folder that cannot be read counts
+/// when it exists): an earlier result's files would mix with a new one's.
+pub fn out_in_use(out: &Path) -> bool {
+    match std::fs::read_dir(out) {
+        Ok(mut entries) => entries.next().is_some(),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
+        Err(_) => out.exists(),
+    }
+}
+
 /// Fill an output folder all at once: `fill` writes into a staging folder beside `out`
 /// (tempfile, removed whatever happens); only when it succeeds are its entries moved into `out`
 /// (created if needed, same-named entries replaced). On failure `out` is left as it was.

@@ -92,6 +92,19 @@ impl CupCalibration {
             .expect("the shipped calibration is valid (tested)")
     }
 
+    /// The model-error SD a run uses for a calibration choice: None, the `shipped` one;
+    /// "none", no model error (0); anything else, the file at that path (`read`).
+    pub fn model_sd_for(
+        choice: Option<&str>,
+        shipped: fn() -> CupCalibration,
+    ) -> Result<f64, CalibrationError> {
+        match choice {
+            None => Ok(shipped().model_sd_mm),
+            Some("none") => Ok(0.0),
+            Some(path) => Ok(Self::read(Path::new(path))?.model_sd_mm),
+        }
+    }
+
     /// Read and check a calibration file.
     pub fn read(path: &Path) -> Result<CupCalibration, CalibrationError> {
         let text = std::fs::read_to_string(path).map_err(|source| CalibrationError::Read {

@@ -239,14 +239,9 @@ fn run_prepared(
     row.iterations = rec.log.gn_iterations;
     row.correspondence_updates = rec.log.correspondence_updates;
     row.fallback = rec.log.fallback.unwrap_or_default().to_string();
-    if let Ok(o) = rim_orientation(&rec.cameras, input.observed, &rec.sphere) {
-        row.inclination_deg = o.inclination_deg;
-        row.anteversion_deg = o.anteversion_deg;
-        if let Some((ti, ta)) = prep.truth_orientation {
-            row.inclination_err_deg = o.inclination_deg - ti;
-            row.anteversion_err_deg = o.anteversion_deg - ta;
-        }
-    }
+    // The cup's orientation: the report's when the run resampled (it fits the same rim), else
+    // fitted here.
+    let mut orientation = None;
     if let Some(up) = &cfg.uncertainty {
         let up = UncertaintyParams {
             seed: task.seed,
@@ -254,6 +249,7 @@ fn run_prepared(
         };
         // A run whose resampling fails keeps its result; its uncertainty columns stay NaN.
         if let Ok(rep) = cup_report(&rec, input.observed, &prm, kernels, &up) {
+            orientation = Some(rep.orientation.clone());
             let truth = prm
                 .cup
                 .catalogue
@@ -262,6 +258,16 @@ fn run_prepared(
             row.cup_sd_mm = rep.sd_mm;
             row.size_probability = rep.probability_of(rep.catalogue_mm);
             row.brier = rep.brier(truth);
+        }
+    }
+    let orientation = orientation
+        .unwrap_or_else(|| rim_orientation(&rec.cameras, input.observed, &rec.sphere).ok());
+    if let Some(o) = orientation {
+        row.inclination_deg = o.inclination_deg;
+        row.anteversion_deg = o.anteversion_deg;
+        if let Some((ti, ta)) = prep.truth_orientation {
+            row.inclination_err_deg = o.inclination_deg - ti;
+            row.anteversion_err_deg = o.anteversion_deg - ta;
         }
     }
     (

@@ -30,12 +30,7 @@ pub fn check_out(out: &Path, force: bool) -> Result<(), String> {
     if force {
         return Ok(());
     }
-    let used = match std::fs::read_dir(out) {
-        Ok(mut entries) => entries.next().is_some(),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
-        Err(_) => out.exists(),
-    };
-    if used {
+    if acetab::io::out_in_use(out) {
         return Err(format!(
             "--out {}: exists and is not empty (an earlier result's files would mix with this \
              one's); choose a new folder, or pass --force to write into it",
@@ -216,13 +211,13 @@ pub fn calibration(
     shipped: fn() -> acetab::pipeline::CupCalibration,
     shipped_name: &str,
 ) -> Result<(f64, String), String> {
-    match arg.as_deref() {
-        None => Ok((shipped().model_sd_mm, format!("shipped {shipped_name}"))),
-        Some("none") => Ok((0.0, "none".into())),
-        Some(path) => acetab::pipeline::CupCalibration::read(std::path::Path::new(path))
-            .map(|c| (c.model_sd_mm, path.to_string()))
-            .map_err(|e| format!("--calibration {e}")),
-    }
+    let sd = acetab::pipeline::CupCalibration::model_sd_for(arg.as_deref(), shipped)
+        .map_err(|e| format!("--calibration {e}"))?;
+    let source = match arg.as_deref() {
+        None => format!("shipped {shipped_name}"),
+        Some(choice) => choice.to_string(),
+    };
+    Ok((sd, source))
 }
 
 /// `--shard I/N`, 0 <= I < N (clap value parser).

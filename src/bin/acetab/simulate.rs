@@ -479,16 +479,14 @@ impl Study<'_> {
             // they were merged into and the seconds the runs waited for the device.
             "engine": match batcher.zip(stats_before) {
                 Some((b, before)) => {
-                    let (r, d) = b.counts();
-                    let (r0, d0) = (before.deform.requests + before.project.requests,
-                        before.deform.dispatches + before.project.dispatches);
+                    let k = b.stats().since(&before);
                     serde_json::json!({
                         "backend": kernels.name(),
                         "adapter": adapter_json,
                         "batch": b.lanes(),
-                        "requests": r - r0,
-                        "dispatches": d - d0,
-                        "kernels": b.stats().since(&before),
+                        "requests": k.deform.requests + k.project.requests,
+                        "dispatches": k.deform.dispatches + k.project.dispatches,
+                        "kernels": k,
                     })
                 }
                 None => serde_json::json!({"backend": kernels.name(), "adapter": null, "batch": 1}),
