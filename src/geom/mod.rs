@@ -12,7 +12,8 @@ mod stats;
 pub use knn::Knn3;
 pub use mesh::{Mesh, MeshError};
 pub use polyline::{
-    polyline_length, resample_closed, resample_open, signed_area, ClosedPolyline, Curve,
+    distance_to_polyline, polyline_length, resample_closed, resample_open, signed_area,
+    ClosedPolyline, Curve,
 };
 pub use pool::pool_map;
 pub use sphere::{fit_sphere, fit_sphere_robust, Sphere, SphereFitError};

@@ -29,6 +29,24 @@ pub fn signed_area(p: &[Point2<f64>]) -> f64 {
         * 0.5
 }
 
+/// Distance from `q` to the polyline `p` (its closing segment included when `closed`); infinite
+/// for an empty polyline.
+pub fn distance_to_polyline(q: &Point2<f64>, p: &[Point2<f64>], closed: bool) -> f64 {
+    let n = p.len();
+    if n == 1 {
+        return (q - p[0]).norm();
+    }
+    let segments = if closed { n } else { n.saturating_sub(1) };
+    (0..segments)
+        .map(|i| {
+            let (a, b) = (p[i], p[(i + 1) % n]);
+            let ab = b - a;
+            let t = ((q - a).dot(&ab) / ab.norm_squared().max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+            (q - (a + t * ab)).norm()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
 /// Cumulative arc length at each vertex, plus the total (closing segment included when closed).
 fn cumulative(p: &[Point2<f64>], closed: bool) -> Vec<f64> {
     let mut s = vec![0.0; p.len() + usize::from(closed)];

@@ -11,12 +11,14 @@ mod deformation;
 mod guards;
 mod params;
 mod placement;
+mod restart;
 mod uncertainty;
 
 pub use calibration::{CalibrationError, CupCalibration, MIN_TRAINING_RUNS, NOMINAL_COVERAGE};
 pub use cup::{cup_spheres, observed_part_sphere, CupSpheres};
 pub use guards::{first_failure, folded_share, GuardFailure, GuardParams};
 pub use params::{CupParams, DeformationParams, PlacementParams, ReconParams};
+pub use restart::outline_distance_px;
 pub use uncertainty::{cup_report, CupReport, SizeProbability, UncertaintyParams};
 
 use crate::contours::ModelContour;
@@ -35,6 +37,7 @@ use placement::{
     mirrored_axis, similarity_lm, similarity_stage, similarity_step, Poses, StageA,
     MIRROR_PROBE_ROUNDS, MIRROR_SWITCH,
 };
+use restart::restarting;
 
 /// Why a reconstruction failed.
 #[derive(Debug, thiserror::Error)]
@@ -132,6 +135,13 @@ pub struct SolveLog {
     /// The orientations stage B compared (none when stage A's was the only one), with their
     /// reprojection RMS after `deformation.orientation_rounds`; the lowest went on.
     pub orientations: Vec<OrientationTrial>,
+    /// The restarts tried (see `PlacementParams::restart_above_px`): the given start's result
+    /// first, then each tilted start's, with their outline distance (`outline_distance_px`, in
+    /// `rms_px`); empty when the first result followed the outlines closely enough and passed
+    /// the guards. The nearest that the guards pass was kept.
+    pub restarts: Vec<OrientationTrial>,
+    /// Which of `restarts` gave this result ("given" or a tilt); None when there were none.
+    pub restart: Option<&'static str>,
     /// The fallback that gave this result ("srvf-shape", "icp-normvec" or "rigid"; see
     /// `Fallback`), when the method as asked for did not pass the guards; None when it did.
     pub fallback: Option<&'static str>,
@@ -139,10 +149,38 @@ pub struct SolveLog {
     pub guard: Option<GuardFailure>,
 }
 
+impl SolveLog {
+    /// A line for the user when the run restarted: how far the given start's result left the
+    /// outlines and which start gave the result; None when it did not restart.
+    pub fn restart_note(&self) -> Option<String> {
+        let kept = self.restart?;
+        let given = self.restarts.first()?.rms_px;
+        let from = self
+            .restarts
+            .iter()
+            .find(|t| t.source == kept)
+            .map_or(given, |t| t.rms_px);
+        Some(if kept == "given" {
+            format!(
+                "the result's outlines lay {given:.1} px from the observed ones; {} tilted \
+                 starts did no better, so this is the given start's",
+                self.restarts.len() - 1
+            )
+        } else {
+            format!(
+                "the given start's result left the outlines {given:.1} px away; restarted from \
+                 {} tilted starts, this result is from the {kept} tilt's ({from:.1} px)",
+                self.restarts.len() - 1
+            )
+        })
+    }
+}
+
 /// One orientation stage B tried.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct OrientationTrial {
-    /// "stage A" (its result) or "mirrored" (the mirrored start, settled by stage A).
+    /// "stage A" (its result) or "mirrored" (the mirrored start, settled by stage A); for a
+    /// restart, "given" or the tilt ("+u", "-u", "+v", "-v").
     pub source: &'static str,
     /// Its reprojection RMS, pixels.
     pub rms_px: f64,
@@ -218,22 +256,16 @@ pub fn reconstruct(
     prm.validate()?;
     check_views(input, prm)?;
     let Some(g) = &prm.guards else {
-        return attempt(input, prm, kernels);
+        return restarting(input, prm, kernels);
     };
     let guarded = |r: Result<Reconstruction, ReconError>| -> Result<Reconstruction, ReconError> {
         let rec = r?;
-        match first_failure(
-            g,
-            &rec.mesh,
-            &rec.sphere,
-            rec.log.limb_sphere,
-            rec.log.reprojection_rms_px,
-        ) {
+        match guard_failure(g, &rec) {
             None => Ok(rec),
             Some(failure) => Err(ReconError::Guard(failure)),
         }
     };
-    let failure = match guarded(attempt(input, prm, kernels)) {
+    let failure = match guarded(restarting(input, prm, kernels)) {
         Ok(rec) => return Ok(rec),
         Err(ReconError::Guard(f)) => f,
         Err(ReconError::NonFiniteVertex { vertex }) => GuardFailure::NonFiniteVertex { vertex },
@@ -242,13 +274,24 @@ pub fn reconstruct(
     };
     for fb in FALLBACKS {
         let Some(p) = fb.params(prm) else { continue };
-        if let Ok(mut rec) = guarded(attempt(input, &p, kernels)) {
+        if let Ok(mut rec) = guarded(restarting(input, &p, kernels)) {
             rec.log.fallback = Some(fb.name());
             rec.log.guard = Some(failure);
             return Ok(rec);
         }
     }
     Err(ReconError::Guard(failure))
+}
+
+/// The first guard `rec` fails under `g`, if any.
+pub(super) fn guard_failure(g: &GuardParams, rec: &Reconstruction) -> Option<GuardFailure> {
+    first_failure(
+        g,
+        &rec.mesh,
+        &rec.sphere,
+        rec.log.limb_sphere,
+        rec.log.reprojection_rms_px,
+    )
 }
 
 /// What `reconstruct` tries when the method's result fails a guard, in order.
@@ -319,7 +362,7 @@ pub fn params_used(rec: &Reconstruction, prm: &ReconParams) -> ReconParams {
 }
 
 /// One pass of the method, unguarded.
-fn attempt(
+pub(super) fn attempt(
     input: &Input,
     prm: &ReconParams,
     kernels: Kernels,

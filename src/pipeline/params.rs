@@ -66,6 +66,16 @@ pub struct PlacementParams {
     pub srvf_samples: usize,
     /// Closed-curve seeds refined by full DP (default 2; see `SrvfParams::seed_candidates`).
     pub seed_candidates: usize,
+    /// Restarts: when a result's model outlines lie farther than this from the observed ones
+    /// (`pipeline::outline_distance_px`, an RMS in pixels), the method is run again from
+    /// `restart_tilts` starts whose axis is the given one tilted by `restart_tilt_deg`, and the
+    /// result whose outlines lie nearest is kept (see `pipeline::reconstruct`). Infinite: never.
+    pub restart_above_px: f64,
+    /// How many tilted starts a restart tries (0 to 4: tilts about two perpendicular directions,
+    /// each way).
+    pub restart_tilts: usize,
+    /// How far a restart's start is tilted from the given axis, degrees.
+    pub restart_tilt_deg: f64,
 }
 
 impl Default for PlacementParams {
@@ -78,6 +88,9 @@ impl Default for PlacementParams {
             rim_weight: 0.1,
             rotation_only: true,
             mirrored_start: true,
+            restart_above_px: 4.0,
+            restart_tilts: 4,
+            restart_tilt_deg: 25.0,
             srvf_samples: 100,
             seed_candidates: 2,
         }
@@ -205,6 +218,29 @@ impl ReconParams {
         if let Some((field, v)) = self.pose.as_ref().and_then(PoseParams::invalid) {
             return Err(bad(field, v, "finite and > 0"));
         }
+        let restart = &self.placement;
+        if !(restart.restart_above_px > 0.0) {
+            return Err(bad(
+                "placement.restart_above_px",
+                restart.restart_above_px,
+                "> 0 pixels (infinite: no restarts)",
+            ));
+        }
+        if restart.restart_tilts > 4 {
+            return Err(bad(
+                "placement.restart_tilts",
+                restart.restart_tilts,
+                "0 to 4",
+            ));
+        }
+        let tilt = restart.restart_tilt_deg;
+        if !(tilt > 0.0 && tilt < 180.0) {
+            return Err(bad(
+                "placement.restart_tilt_deg",
+                tilt,
+                "in (0, 180) degrees",
+            ));
+        }
         let angle = self.correspond.normal_angle_deg;
         if !(angle > 0.0 && angle <= 180.0) {
             return Err(bad(
@@ -235,6 +271,22 @@ mod tests {
                 Box::new(|p| p.placement.limb_scale_mm = -1.0),
             ),
             ("weights.obs", Box::new(|p| p.weights.obs = f64::NAN)),
+            (
+                "placement.restart_above_px",
+                Box::new(|p| p.placement.restart_above_px = f64::NAN),
+            ),
+            (
+                "placement.restart_above_px",
+                Box::new(|p| p.placement.restart_above_px = 0.0),
+            ),
+            (
+                "placement.restart_tilts",
+                Box::new(|p| p.placement.restart_tilts = 5),
+            ),
+            (
+                "placement.restart_tilt_deg",
+                Box::new(|p| p.placement.restart_tilt_deg = f64::INFINITY),
+            ),
             (
                 "correspond.srvf.anchor",
                 Box::new(|p| p.correspond.srvf.anchor = -1.0),
@@ -276,6 +328,8 @@ mod tests {
         edge.placement.limb_scale_mm = 0.0;
         edge.deformation.sphere_prior = 0.0;
         edge.correspond.srvf.anchor = 0.0;
+        edge.placement.restart_above_px = f64::INFINITY;
+        edge.placement.restart_tilts = 4;
         assert!(edge.validate().is_ok());
     }
 }

@@ -84,10 +84,17 @@ pub struct Row {
     /// Anteversion minus the truth's own, degrees; NaN as above.
     #[serde(serialize_with = "six", default = "nan")]
     pub anteversion_err_deg: f64,
+    /// Where a restarted run's result started (`pipeline::PlacementParams::restart_above_px`):
+    /// "given" when the given start's result stayed the best, else the tilt ("+u", "-u", "+v",
+    /// "-v"); empty when the run did not restart.
+    #[serde(default)]
+    pub restart: String,
 }
 
 /// The columns runs.csv gained with the cup's orientation: a file without them still reads (NaN).
 const ORIENTATION_COLUMNS: usize = 4;
+/// The column runs.csv gained with the restarts (`restart`): a file without it still reads.
+const RESTART_COLUMNS: usize = 1;
 
 fn nan() -> f64 {
     f64::NAN
@@ -122,6 +129,7 @@ impl Row {
             anteversion_deg: f64::NAN,
             inclination_err_deg: f64::NAN,
             anteversion_err_deg: f64::NAN,
+            restart: String::new(),
         }
     }
 
@@ -263,14 +271,16 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
         other => perr(1, format!("{other:?}")),
     })?;
     let full = header();
-    // Files written before the orientation columns have the header without them.
-    let before: csv::StringRecord = full
-        .iter()
-        .take(full.len().saturating_sub(ORIENTATION_COLUMNS))
-        .collect();
+    // Files written before the restart column, or before the orientation columns too, have the
+    // header without them.
+    let prefix = |n: usize| -> csv::StringRecord { full.iter().take(n).collect() };
+    let older = [
+        full.len() - RESTART_COLUMNS,
+        full.len() - RESTART_COLUMNS - ORIENTATION_COLUMNS,
+    ];
     let want = match rd.headers() {
         Ok(h) if *h == full => full.clone(),
-        Ok(h) if *h == before => before,
+        Ok(h) if older.iter().any(|&n| *h == prefix(n)) => h.clone(),
         _ => {
             let want = full;
             let names: Vec<&str> = want.iter().collect();
@@ -334,6 +344,10 @@ pub struct Summary {
     pub failed: usize,
     /// Runs whose result came from a fallback.
     pub fallbacks: usize,
+    /// Runs that restarted from tilted starts (`Row::restart` not empty).
+    pub restarted: usize,
+    /// Restarted runs whose result came from a tilted start.
+    pub restart_tilted: usize,
     /// Mean MAE, mm.
     pub mae_mean: f64,
     /// SD of the MAE (dividing by n), mm.
@@ -405,6 +419,11 @@ pub fn summarize(rows: &[Row]) -> Vec<Summary> {
                 converged: g.iter().filter(|r| r.converged).count(),
                 failed: g.len() - ok.len(),
                 fallbacks: g.iter().filter(|r| !r.fallback.is_empty()).count(),
+                restarted: g.iter().filter(|r| !r.restart.is_empty()).count(),
+                restart_tilted: g
+                    .iter()
+                    .filter(|r| !r.restart.is_empty() && r.restart != "given")
+                    .count(),
                 mae_mean,
                 mae_sd,
                 cup_error_mean,
@@ -738,13 +757,21 @@ mod tests {
             merge_dirs(std::slice::from_ref(&b)),
             Err(StudyError::Parse { line: 1, .. })
         ));
+        // A file from before the restart column reads, its restarts empty.
+        let no_restart: String = good
+            .lines()
+            .map(|l| l.rsplit_once(',').unwrap().0.to_string() + "\n")
+            .collect();
+        std::fs::write(b.join("runs.csv"), &no_restart).unwrap();
+        let back = read_csv(&b.join("runs.csv")).unwrap();
+        assert!(back[0].restart.is_empty() && back[0].mae_mm == 0.5);
         // A file from before the orientation columns reads, its angles NaN; one column short
         // of that is still refused.
         let old: String = good
             .lines()
             .map(|l| {
                 let f: Vec<&str> = l.split(',').collect();
-                f[..f.len() - ORIENTATION_COLUMNS].join(",") + "\n"
+                f[..f.len() - ORIENTATION_COLUMNS - RESTART_COLUMNS].join(",") + "\n"
             })
             .collect();
         std::fs::write(b.join("runs.csv"), &old).unwrap();

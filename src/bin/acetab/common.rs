@@ -248,12 +248,13 @@ pub fn print_summary_as(rows: &[acetab::study::Row], json: bool) -> Result<(), S
 /// The study's summary as a table on stdout.
 pub fn print_summary(rows: &[acetab::study::Row]) {
     println!(
-        "{:<17} {:>5} {:>5} {:>6} {:>9} {:>9} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9} {:>9} {:>6}",
+        "{:<17} {:>5} {:>5} {:>6} {:>9} {:>8} {:>9} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9} {:>9} {:>6}",
         "method",
         "level",
         "runs",
         "failed",
         "fallbacks",
+        "restarts",
         "MAE mm",
         "SD",
         "cup err mm",
@@ -266,12 +267,13 @@ pub fn print_summary(rows: &[acetab::study::Row]) {
     );
     for s in summarize(rows) {
         println!(
-            "{:<17} {:>5} {:>5} {:>6} {:>9} {:>9.3} {:>9.3} {:>+11.2} {:>6}/{:<2} {:>6}/{:<2} {:>9} {:>9.2} {:>9} {:>6}",
+            "{:<17} {:>5} {:>5} {:>6} {:>9} {:>8} {:>9.3} {:>9.3} {:>+11.2} {:>6}/{:<2} {:>6}/{:<2} {:>9} {:>9.2} {:>9} {:>6}",
             s.method.name(),
             s.level,
             s.runs,
             s.failed,
             s.fallbacks,
+            s.restarted,
             s.mae_mean,
             s.mae_sd,
             s.cup_error_mean,

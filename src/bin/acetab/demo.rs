@@ -106,6 +106,9 @@ pub fn run(args: DemoArgs) -> Result<(), String> {
             report.log.gn_iterations,
             out.display()
         );
+        if let Some(note) = report.log.restart_note() {
+            println!("  note: {note}");
+        }
         if let (Some(f), Some(g)) = (report.log.fallback, &report.log.guard) {
             println!(
                 "  note: the method's own result was refused ({g}); this one is the {f} fallback's"

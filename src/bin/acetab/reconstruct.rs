@@ -204,6 +204,9 @@ fn print_report(
             report.cup.seed,
             out.display()
         );
+        if let Some(note) = report.log.restart_note() {
+            println!("note: {note}");
+        }
         if let (Some(f), Some(g)) = (report.log.fallback, &report.log.guard) {
             println!(
                 "note: the method's own result was refused ({g}); this one is the {f} fallback's"

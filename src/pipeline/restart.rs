@@ -1,0 +1,224 @@
+//! Restarts: the method again from tilted starts when its result does not follow the outlines,
+//! the result that follows them best kept.
+
+use super::{
+    attempt, guard_failure, Input, OrientationTrial, ReconError, ReconParams, Reconstruction,
+};
+use crate::contours::ModelContour;
+use crate::engine::Kernels;
+use crate::geom::{distance_to_polyline, Curve};
+use crate::template::Placement;
+use nalgebra::{Rotation3, Unit, Vector3};
+
+/// The method from the given start and, when its model outlines lie farther than
+/// `placement.restart_above_px` from the observed ones (`outline_distance_px`), from tilted
+/// starts too (`tilted_starts`); the result whose outlines lie nearest is kept, the trials in
+/// its log. A stage A that settled on a wrong turn of the cap leaves a result whose outlines
+/// cannot follow the observed ones (stretches of them left several noise SDs away); from a start
+/// tilted away from that turn stage A settles elsewhere. The score needs no truth and does not
+/// depend on which correspondences each result kept. A first result a guard refuses restarts
+/// too, and a result the guards pass outranks one they refuse. A restart that fails is skipped.
+pub(super) fn restarting(
+    input: &Input,
+    prm: &ReconParams,
+    kernels: Kernels,
+) -> Result<Reconstruction, ReconError> {
+    // A result's rank: refused by a guard or not, then its outline distance.
+    let rank = |rec: &Reconstruction| {
+        let refused = prm
+            .guards
+            .as_ref()
+            .is_some_and(|g| guard_failure(g, rec).is_some());
+        (
+            refused,
+            outline_distance_px(&rec.final_contours, input.observed),
+        )
+    };
+    let first = attempt(input, prm, kernels)?;
+    let mut score = rank(&first);
+    if !score.0 && !(score.1 > prm.placement.restart_above_px) {
+        return Ok(first);
+    }
+    let mut trials = vec![OrientationTrial {
+        source: "given",
+        rms_px: score.1,
+    }];
+    let mut best = first;
+    let mut kept = "given";
+    for (source, init) in tilted_starts(input.init, prm) {
+        let tilted = Input {
+            init: &init,
+            ..*input
+        };
+        let Ok(rec) = attempt(&tilted, prm, kernels) else {
+            continue;
+        };
+        let s = rank(&rec);
+        trials.push(OrientationTrial {
+            source,
+            rms_px: s.1,
+        });
+        if s < score {
+            (best, score, kept) = (rec, s, source);
+        }
+    }
+    best.log.restarts = trials;
+    best.log.restart = Some(kept);
+    Ok(best)
+}
+
+/// The restarts' starts: the given axis tilted by `placement.restart_tilt_deg` about two
+/// directions perpendicular to it (the first also perpendicular to the body's long axis, z),
+/// each way; the first `placement.restart_tilts` of them. Centre and size stay (stage 0 puts
+/// the cap on the limb sphere anyway).
+pub(super) fn tilted_starts(init: &Placement, prm: &ReconParams) -> Vec<(&'static str, Placement)> {
+    let a = init.axis.into_inner();
+    let u = a
+        .cross(&Vector3::z())
+        .try_normalize(1e-9)
+        .unwrap_or_else(|| a.cross(&Vector3::x()).normalize());
+    let v = a.cross(&u).normalize();
+    let angle = prm.placement.restart_tilt_deg.to_radians();
+    [("+u", u), ("-u", -u), ("+v", v), ("-v", -v)]
+        .into_iter()
+        .take(prm.placement.restart_tilts)
+        .map(|(name, w)| {
+            let turn = Rotation3::from_axis_angle(&Unit::new_normalize(w), angle);
+            let axis = Unit::new_normalize(turn * a);
+            (
+                name,
+                Placement {
+                    axis,
+                    ..init.clone()
+                },
+            )
+        })
+        .collect()
+}
+
+/// How far model outlines (one a view, as a result's `final_contours`) lie from the observed
+/// ones, pixels: the RMS over every
+/// observed point of its distance to the model outline of its view and, for a closed observed
+/// outline, over every model outline point of its distance to the nearest observed outline (an
+/// open one leaves part of the model outline unwatched). Infinite when a view has no model
+/// outline.
+pub fn outline_distance_px(model_contours: &[ModelContour], observed: &[Vec<Curve>]) -> f64 {
+    let (mut sum, mut n) = (0.0, 0usize);
+    for (view, curves) in observed.iter().enumerate() {
+        let Some(model) = model_contours.get(view).filter(|m| !m.points.is_empty()) else {
+            return f64::INFINITY;
+        };
+        for c in curves {
+            for q in &c.points {
+                sum += distance_to_polyline(q, &model.points, true).powi(2);
+                n += 1;
+            }
+        }
+        if curves.iter().all(|c| c.closed) {
+            for q in &model.points {
+                let d = curves
+                    .iter()
+                    .map(|c| distance_to_polyline(q, &c.points, true))
+                    .fold(f64::INFINITY, f64::min);
+                sum += d * d;
+                n += 1;
+            }
+        }
+    }
+    if n == 0 {
+        return f64::INFINITY;
+    }
+    (sum / n as f64).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Point2;
+
+    fn circle(r: f64, dx: f64, n: usize) -> Vec<Point2<f64>> {
+        (0..n)
+            .map(|i| {
+                let t = std::f64::consts::TAU * i as f64 / n as f64;
+                Point2::new(500.0 + dx + r * t.cos(), 400.0 + r * t.sin())
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_outline_distance_measures_how_far_the_outlines_lie() {
+        let observed = vec![vec![Curve {
+            points: circle(100.0, 0.0, 300),
+            closed: true,
+        }]];
+        let model = |r: f64| {
+            vec![ModelContour {
+                vertex_ids: (0..120).collect(),
+                points: circle(r, 0.0, 120),
+            }]
+        };
+        // The same circle: the chords of a 120-gon lie within 0.04 px of it.
+        let same = outline_distance_px(&model(100.0), &observed);
+        assert!(same < 0.05, "{same}");
+        // Companion: a model outline 3 px larger lies about 3 px away, and one that follows
+        // only part of the outline (a dent pushed 20 px in over a quarter) much farther.
+        let larger = outline_distance_px(&model(103.0), &observed);
+        assert!((larger - 3.0).abs() < 0.1, "{larger}");
+        let mut dented = model(100.0);
+        for p in dented[0].points.iter_mut().take(30) {
+            let d = *p - Point2::new(500.0, 400.0);
+            *p -= d * 0.2;
+        }
+        assert!(outline_distance_px(&dented, &observed) > 5.0);
+        // An open observed outline is judged only along itself: the model beyond its ends is
+        // not counted.
+        let open = vec![vec![Curve {
+            points: circle(100.0, 0.0, 300)[..150].to_vec(),
+            closed: false,
+        }]];
+        let mut half_off = model(100.0);
+        for p in half_off[0].points.iter_mut().skip(61) {
+            p.y -= 30.0;
+        }
+        let d_open = outline_distance_px(&half_off, &open);
+        let d_closed = outline_distance_px(&half_off, &observed);
+        assert!(d_open < d_closed, "{d_open} {d_closed}");
+        // No model outline in a view: infinitely far.
+        assert!(outline_distance_px(&[], &observed).is_infinite());
+    }
+
+    #[test]
+    fn the_tilted_starts_turn_the_axis_by_the_tilt_each_a_different_way() {
+        let init = Placement {
+            center: nalgebra::Point3::new(1.0, 2.0, 3.0),
+            radius: 25.0,
+            axis: Unit::new_normalize(Vector3::new(0.6, -0.5, 0.3)),
+        };
+        let prm = ReconParams::default();
+        let starts = tilted_starts(&init, &prm);
+        assert_eq!(starts.len(), prm.placement.restart_tilts);
+        for (i, (_, p)) in starts.iter().enumerate() {
+            let angle = p.axis.angle(&init.axis).to_degrees();
+            assert!(
+                (angle - prm.placement.restart_tilt_deg).abs() < 1e-9,
+                "{angle}"
+            );
+            assert_eq!((p.center, p.radius), (init.center, init.radius));
+            for (_, q) in &starts[..i] {
+                assert!(p.axis.angle(&q.axis).to_degrees() > 30.0);
+            }
+        }
+        // The first pair turns about a direction across the long axis (z): +u and -u move the
+        // axis's z component opposite ways; the second pair keeps it about the same.
+        let dz = |k: usize| starts[k].1.axis.z - init.axis.z;
+        assert!(dz(0) * dz(1) < 0.0, "{} {}", dz(0), dz(1));
+        let none = ReconParams {
+            placement: crate::pipeline::PlacementParams {
+                restart_tilts: 0,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        assert!(tilted_starts(&init, &none).is_empty());
+    }
+}
