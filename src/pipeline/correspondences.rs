@@ -3,7 +3,7 @@
 
 use super::{ReconError, ReconParams};
 use crate::contours::ModelContour;
-use crate::correspond::{correspond, Observation};
+use crate::correspond::{correspond, Method, Observation};
 use crate::engine::Kernels;
 use crate::geom::{Curve, Mesh};
 use crate::views::Camera;
@@ -60,7 +60,11 @@ impl Ctx<'_> {
         stage: &'static str,
     ) -> Result<Vec<Observation>, ReconError> {
         let mut obs = self.all_correspondences(mesh, cams)?;
-        if self.prm.robust {
+        let robust = match self.prm.method {
+            Method::Srvf => self.prm.robust_srvf,
+            Method::Icp | Method::IcpNormvec => self.prm.robust,
+        };
+        if robust {
             robust_weights(mesh, cams, &mut obs);
         }
         if obs.len() < MIN_CORRESPONDENCES {
@@ -74,8 +78,9 @@ impl Ctx<'_> {
 }
 
 /// Cauchy weights w = 1 / (1 + (r / c)^2) on the current reprojection residuals, c = 2 robust SDs
-/// (1.4826 * median), so that contour parts the template cannot follow (a notch, a shallow rim)
-/// pull less than the parts it can.
+/// (1.4826 * median), so that nearest-point pairs far off (the ICP baselines' guesses where the
+/// model outline is far from the observed one) pull less than the near ones. Not for SRVF's
+/// pairs by default (`ReconParams::robust_srvf`).
 pub(super) fn robust_weights(mesh: &Mesh, cams: &[Camera], obs: &mut [Observation]) {
     let r = residuals_px(mesh, cams, obs);
     let mut s = r.clone();

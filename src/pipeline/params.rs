@@ -15,8 +15,13 @@ pub struct ReconParams {
     pub contour_source: ContourSource,
     /// Stage 4: the correspondence settings of every method.
     pub correspond: CorrespondParams,
-    /// Cauchy robust weights on the reprojection residuals (default on).
+    /// Cauchy robust weights on the reprojection residuals of the ICP baselines' pairs (default
+    /// on).
     pub robust: bool,
+    /// The same for SRVF's pairs (default off, and on in the paper's protocol): they would
+    /// down-weight exactly the stretches where the outline departs most from the model's shape
+    /// (see `CorrespondParams::srvf_outlier_k`).
+    pub robust_srvf: bool,
     /// The energy's weights (the similarity stage uses `tangential`).
     pub weights: EdWeights,
     /// The Levenberg-Marquardt settings of every solve.
@@ -158,6 +163,7 @@ impl Default for ReconParams {
             contour_source: ContourSource::AlphaShape,
             correspond: CorrespondParams::default(),
             robust: true,
+            robust_srvf: false,
             weights: EdWeights::default(),
             lm: LmParams::default(),
             placement: PlacementParams::default(),
@@ -208,12 +214,13 @@ impl ReconParams {
                 return Err(bad(field, v, "finite and > 0"));
             }
         }
-        if !self.correspond.outlier_k.is_finite() {
-            return Err(bad(
-                "correspond.outlier_k",
-                self.correspond.outlier_k,
-                "finite",
-            ));
+        for (field, k) in [
+            ("correspond.outlier_k", Some(self.correspond.outlier_k)),
+            ("correspond.srvf_outlier_k", self.correspond.srvf_outlier_k),
+        ] {
+            if let Some(k) = k.filter(|k| !k.is_finite()) {
+                return Err(bad(field, k, "finite"));
+            }
         }
         if let Some((field, v)) = self.pose.as_ref().and_then(PoseParams::invalid) {
             return Err(bad(field, v, "finite and > 0"));
@@ -304,6 +311,10 @@ mod tests {
             (
                 "correspond.outlier_k",
                 Box::new(|p| p.correspond.outlier_k = f64::NAN),
+            ),
+            (
+                "correspond.srvf_outlier_k",
+                Box::new(|p| p.correspond.srvf_outlier_k = Some(f64::INFINITY)),
             ),
             (
                 "pose.sigma_mm",

@@ -73,7 +73,7 @@ impl StudyMethod {
 
     /// The reconstruction settings of a run: `base` with this method's correspondences, and for
     /// the paper's protocol every stage before the deformation switched off, as well as the
-    /// sphere prior.
+    /// sphere prior, and SRVF's pairs treated as the baselines' (outlier rule, robust weights).
     pub fn params(self, base: &ReconParams) -> ReconParams {
         let mut p = ReconParams {
             method: self.correspondence(),
@@ -85,6 +85,9 @@ impl StudyMethod {
             p.placement.mirrored_start = false;
             p.deformation.orientation_rounds = 0;
             p.deformation.sphere_prior = 0.0;
+            // The paper rejects outliers among SRVF's pairs as among the baselines'.
+            p.correspond.srvf_outlier_k = Some(p.correspond.outlier_k);
+            p.robust_srvf = p.robust;
         }
         p
     }
