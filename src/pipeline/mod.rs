@@ -255,15 +255,13 @@ pub fn reconstruct(
 ) -> Result<Reconstruction, ReconError> {
     prm.validate()?;
     check_views(input, prm)?;
-    let Some(g) = &prm.guards else {
-        return restarting(input, prm, kernels);
-    };
-    let guarded = |r: Result<Reconstruction, ReconError>| -> Result<Reconstruction, ReconError> {
-        let rec = r?;
-        match guard_failure(g, &rec) {
-            None => Ok(rec),
-            Some(failure) => Err(ReconError::Guard(failure)),
-        }
+    if prm.guards.is_none() {
+        return restarting(input, prm, kernels).map(|(rec, _)| rec);
+    }
+    // `restarting` judged its result by the guards already.
+    let guarded = |r: Result<(Reconstruction, Option<GuardFailure>), ReconError>| match r? {
+        (rec, None) => Ok(rec),
+        (_, Some(failure)) => Err(ReconError::Guard(failure)),
     };
     let failure = match guarded(restarting(input, prm, kernels)) {
         Ok(rec) => return Ok(rec),

@@ -2,7 +2,8 @@
 //! the result that follows them best kept.
 
 use super::{
-    attempt, guard_failure, Input, OrientationTrial, ReconError, ReconParams, Reconstruction,
+    attempt, guard_failure, GuardFailure, Input, OrientationTrial, ReconError, ReconParams,
+    Reconstruction,
 };
 use crate::contours::ModelContour;
 use crate::engine::Kernels;
@@ -18,30 +19,29 @@ use nalgebra::{Rotation3, Unit, Vector3};
 /// tilted away from that turn stage A settles elsewhere. The score needs no truth and does not
 /// depend on which correspondences each result kept. A first result a guard refuses restarts
 /// too, and a result the guards pass outranks one they refuse. A restart that fails is skipped.
+/// Returned with the guard the kept result fails (None when it passes, or without guards).
 pub(super) fn restarting(
     input: &Input,
     prm: &ReconParams,
     kernels: Kernels,
-) -> Result<Reconstruction, ReconError> {
-    // A result's rank: refused by a guard or not, then its outline distance.
-    let rank = |rec: &Reconstruction| {
-        let refused = prm
-            .guards
-            .as_ref()
-            .is_some_and(|g| guard_failure(g, rec).is_some());
+) -> Result<(Reconstruction, Option<GuardFailure>), ReconError> {
+    // A result's score: the guard it fails (None without guards), then its outline distance;
+    // it ranks by (refused or not, distance).
+    let score = |rec: &Reconstruction| {
         (
-            refused,
+            prm.guards.as_ref().and_then(|g| guard_failure(g, rec)),
             outline_distance_px(&rec.final_contours, input.observed),
         )
     };
+    let rank = |s: &(Option<GuardFailure>, f64)| (s.0.is_some(), s.1);
     let first = attempt(input, prm, kernels)?;
-    let mut score = rank(&first);
-    if !score.0 && !(score.1 > prm.placement.restart_above_px) {
-        return Ok(first);
+    let mut best_score = score(&first);
+    if best_score.0.is_none() && !(best_score.1 > prm.placement.restart_above_px) {
+        return Ok((first, None));
     }
     let mut trials = vec![OrientationTrial {
         source: "given",
-        rms_px: score.1,
+        rms_px: best_score.1,
     }];
     let mut best = first;
     let mut kept = "given";
@@ -53,18 +53,18 @@ pub(super) fn restarting(
         let Ok(rec) = attempt(&tilted, prm, kernels) else {
             continue;
         };
-        let s = rank(&rec);
+        let s = score(&rec);
         trials.push(OrientationTrial {
             source,
             rms_px: s.1,
         });
-        if s < score {
-            (best, score, kept) = (rec, s, source);
+        if rank(&s) < rank(&best_score) {
+            (best, best_score, kept) = (rec, s, source);
         }
     }
     best.log.restarts = trials;
     best.log.restart = Some(kept);
-    Ok(best)
+    Ok((best, best_score.0))
 }
 
 /// The restarts' starts: the given axis tilted by `placement.restart_tilt_deg` about two

@@ -6,7 +6,7 @@
 //! Murray's radiographic definitions in the case's body frame (x lateral, y anterior, z
 //! superior; the lateral side is whichever way the cup opens).
 
-use crate::geom::{Curve, Sphere};
+use crate::geom::{distance_to_polyline, Curve, Sphere};
 use crate::views::Camera;
 use nalgebra::{Point2, Point3, Unit, Vector3};
 
@@ -76,18 +76,6 @@ fn axis_of(a: f64, i: f64) -> Vector3<f64> {
     Vector3::new(a.cos() * i.sin(), a.sin(), -a.cos() * i.cos())
 }
 
-/// Squared distance from `p` to the closed polyline `poly`.
-fn dist2_to_loop(p: &Point2<f64>, poly: &[Point2<f64>]) -> f64 {
-    let mut best = f64::INFINITY;
-    for k in 0..poly.len() {
-        let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
-        let ab = b - a;
-        let t = ((p - a).dot(&ab) / ab.norm_squared().max(1e-12)).clamp(0.0, 1.0);
-        best = best.min((a + ab * t - p).norm_squared());
-    }
-    best
-}
-
 /// Fit the rim circle on `sphere` to the outlines' rim points.
 pub fn rim_orientation(
     cams: &[Camera],
@@ -152,7 +140,7 @@ pub fn rim_orientation(
             d2.extend(
                 pts.iter()
                     .step_by(stride)
-                    .map(|p| dist2_to_loop(p, &circle)),
+                    .map(|p| distance_to_polyline(p, &circle, true).powi(2)),
             );
         }
         d2.sort_by(f64::total_cmp);
