@@ -6,6 +6,7 @@ mod knn;
 mod mesh;
 mod polyline;
 mod pool;
+mod segments;
 mod sphere;
 mod stats;
 
@@ -16,5 +17,6 @@ pub use polyline::{
     ClosedPolyline, Curve,
 };
 pub use pool::pool_map;
+pub use segments::Segments;
 pub use sphere::{fit_sphere, fit_sphere_robust, Sphere, SphereFitError};
 pub use stats::{centroid, mean, mean_sd, opening_axis, quantile_sorted};

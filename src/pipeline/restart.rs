@@ -7,7 +7,7 @@ use super::{
 };
 use crate::contours::ModelContour;
 use crate::engine::Kernels;
-use crate::geom::{distance_to_polyline, Curve};
+use crate::geom::{Curve, Segments};
 use crate::template::Placement;
 use nalgebra::{Rotation3, Unit, Vector3};
 
@@ -108,17 +108,25 @@ pub fn outline_distance_px(model_contours: &[ModelContour], observed: &[Vec<Curv
         let Some(model) = model_contours.get(view).filter(|m| !m.points.is_empty()) else {
             return f64::INFINITY;
         };
+        let to_model = Segments::new(&model.points, true);
+        let mut hint = 0;
         for c in curves {
             for q in &c.points {
-                sum += distance_to_polyline(q, &model.points, true).powi(2);
+                sum += to_model.distance(q, &mut hint).powi(2);
                 n += 1;
             }
         }
         if curves.iter().all(|c| c.closed) {
+            let to_observed: Vec<Segments> = curves
+                .iter()
+                .map(|c| Segments::new(&c.points, true))
+                .collect();
+            let mut hints = vec![0; curves.len()];
             for q in &model.points {
-                let d = curves
+                let d = to_observed
                     .iter()
-                    .map(|c| distance_to_polyline(q, &c.points, true))
+                    .zip(hints.iter_mut())
+                    .map(|(c, h)| c.distance(q, h))
                     .fold(f64::INFINITY, f64::min);
                 sum += d * d;
                 n += 1;

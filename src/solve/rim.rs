@@ -6,7 +6,7 @@
 //! Murray's radiographic definitions in the case's body frame (x lateral, y anterior, z
 //! superior; the lateral side is whichever way the cup opens).
 
-use crate::geom::{distance_to_polyline, Curve, Sphere};
+use crate::geom::{Curve, Segments, Sphere};
 use crate::views::Camera;
 use nalgebra::{Point2, Point3, Unit, Vector3};
 
@@ -110,9 +110,9 @@ pub fn rim_orientation(
         return Err(RimError::TooFewPoints { points, views });
     }
     let mut d2 = Vec::with_capacity(points);
-    // `coarse`: every third rim point against a 36-point circle (the grid's quick look).
+    // `coarse`: the rim points against a 36-point circle (the grid's quick look).
     let mut cost = |n: &Vector3<f64>, h: f64, coarse: bool| -> f64 {
-        let (stride, samples) = if coarse { (1, 36) } else { (1, CIRCLE_SAMPLES) };
+        let samples = if coarse { 36 } else { CIRCLE_SAMPLES };
         let u = n
             .cross(&if n.x.abs() < 0.9 {
                 Vector3::x()
@@ -137,11 +137,9 @@ pub fn rim_orientation(
             if circle.len() < 3 {
                 return f64::INFINITY;
             }
-            d2.extend(
-                pts.iter()
-                    .step_by(stride)
-                    .map(|p| distance_to_polyline(p, &circle, true).powi(2)),
-            );
+            let segs = Segments::new(&circle, true);
+            let mut hint = 0;
+            d2.extend(pts.iter().map(|p| segs.distance(p, &mut hint).powi(2)));
         }
         d2.sort_by(f64::total_cmp);
         let k = ((d2.len() as f64 * KEEP) as usize).max(1);
