@@ -394,45 +394,45 @@ fn band_path(
             let l0 = j0 - st.b;
             let cols = n - st.b;
             let base = starts[si];
-            let c = &mut cand[..m];
-            c.fill(0.0);
-            for r in 0..st.a {
-                let (qx, qy) = (x1[k + r], y1[k + r]);
-                let tx = &wx[base + r * cols + l0..][..m];
-                let ty = &wy[base + r * cols + l0..][..m];
-                for ((c, &tx), &ty) in c.iter_mut().zip(tx).zip(ty) {
-                    let dx = qx - tx;
-                    let dy = qy - ty;
-                    *c += dx * dx + dy * dy;
-                }
-            }
-            if anchored.is_some() {
-                let e = &mut near[..m];
-                e.fill(0.0);
-                for r in 0..st.a {
-                    let (qx, qy) = (ax[k + r], ay[k + r]);
-                    let tx = &px[base + r * cols + l0..][..m];
-                    let ty = &py[base + r * cols + l0..][..m];
-                    for ((e, &tx), &ty) in e.iter_mut().zip(tx).zip(ty) {
-                        let dx = qx - tx;
-                        let dy = qy - ty;
-                        *e += dx * dx + dy * dy;
-                    }
-                }
-                for (c, &e) in c.iter_mut().zip(e.iter()) {
-                    *c += weight * e;
-                }
-            }
             let prev = &done[offset[k] + l0 - lo[k]..][..m];
             let at = j0 - lo[i];
             let best = &mut best_row[at..][..m];
             let arg = &mut arg_row[at..][..m];
-            for (((b, a), &p), &c) in best.iter_mut().zip(arg.iter_mut()).zip(prev).zip(c.iter()) {
-                let v = p + c;
-                if v < *b {
-                    *b = v;
-                    *a = si as u32;
-                }
+            let shape = Taps {
+                qx: x1,
+                qy: y1,
+                tx: wx,
+                ty: wy,
+            };
+            let position = anchored.map(|_| Taps {
+                qx: ax,
+                qy: ay,
+                tx: px,
+                ty: py,
+            });
+            let run = Run {
+                k,
+                first: base + l0,
+                stride: cols,
+            };
+            let out = Out {
+                prev,
+                best,
+                arg,
+                step: si as u32,
+            };
+            match (st.a, position) {
+                (1, None) => relax::<1, false>(&shape, &shape, 0.0, &run, out, cand),
+                (2, None) => relax::<2, false>(&shape, &shape, 0.0, &run, out, cand),
+                (3, None) => relax::<3, false>(&shape, &shape, 0.0, &run, out, cand),
+                (4, None) => relax::<4, false>(&shape, &shape, 0.0, &run, out, cand),
+                (5, None) => relax::<5, false>(&shape, &shape, 0.0, &run, out, cand),
+                (1, Some(p)) => relax::<1, true>(&shape, &p, weight, &run, out, cand),
+                (2, Some(p)) => relax::<2, true>(&shape, &p, weight, &run, out, cand),
+                (3, Some(p)) => relax::<3, true>(&shape, &p, weight, &run, out, cand),
+                (4, Some(p)) => relax::<4, true>(&shape, &p, weight, &run, out, cand),
+                (5, Some(p)) => relax::<5, true>(&shape, &p, weight, &run, out, cand),
+                (a, p) => relax_any(a, &shape, p.as_ref(), weight, &run, out, cand, near),
             }
         }
     }
@@ -457,6 +457,138 @@ fn band_path(
     }
     path.reverse();
     Some(path)
+}
+
+/// One part of a step's cost: the row curve's samples (q1, or A's positions) and the tap tables
+/// of the column curve (q2 scaled by the step's sqrt slope, or B's positions), x and y apart.
+struct Taps<'a> {
+    qx: &'a [f64],
+    qy: &'a [f64],
+    tx: &'a [f64],
+    ty: &'a [f64],
+}
+
+/// Where one step's candidates of a row read: the predecessor row k (the samples k..k+a of the
+/// row curve) and, in the tap tables, the first candidate's entry of tap 0 and the distance
+/// from one tap's entries to the next's.
+struct Run {
+    k: usize,
+    first: usize,
+    stride: usize,
+}
+
+/// A run of cells of row i, and the predecessors' costs they are relaxed from by one step.
+struct Out<'a> {
+    prev: &'a [f64],
+    best: &'a mut [f64],
+    arg: &'a mut [u32],
+    step: u32,
+}
+
+/// Relax a run of cells by one step of A samples, fused: per cell the step's SRVF cost (and,
+/// with POSITION, the position term times `weight`), then the predecessor's cost plus it against
+/// the best so far (a strict "<"). The sums run over the taps in order from 0.0, as `relax_any`
+/// does, so the costs and back-pointers are the same to the bit; with A fixed the tap loop
+/// unrolls and the cells vectorise, with no candidate row stored between passes.
+#[inline(always)]
+fn relax<const A: usize, const POSITION: bool>(
+    shape: &Taps,
+    position: &Taps,
+    weight: f64,
+    run: &Run,
+    out: Out,
+    cand: &mut [f64],
+) {
+    let m = out.prev.len();
+    let q: [(f64, f64); A] = std::array::from_fn(|r| (shape.qx[run.k + r], shape.qy[run.k + r]));
+    let w: [(&[f64], &[f64]); A] = std::array::from_fn(|r| {
+        let at = run.first + r * run.stride;
+        (&shape.tx[at..][..m], &shape.ty[at..][..m])
+    });
+    let (pq, pw): ([(f64, f64); A], [(&[f64], &[f64]); A]) = if POSITION {
+        (
+            std::array::from_fn(|r| (position.qx[run.k + r], position.qy[run.k + r])),
+            std::array::from_fn(|r| {
+                let at = run.first + r * run.stride;
+                (&position.tx[at..][..m], &position.ty[at..][..m])
+            }),
+        )
+    } else {
+        ([(0.0, 0.0); A], [(&[][..], &[][..]); A])
+    };
+    // The candidates first (no branch: the cells vectorise), then the comparison as selects.
+    let cand = &mut cand[..m];
+    for (t, cand) in cand.iter_mut().enumerate() {
+        let mut c = 0.0;
+        for r in 0..A {
+            let dx = q[r].0 - w[r].0[t];
+            let dy = q[r].1 - w[r].1[t];
+            c += dx * dx + dy * dy;
+        }
+        if POSITION {
+            let mut e = 0.0;
+            for r in 0..A {
+                let dx = pq[r].0 - pw[r].0[t];
+                let dy = pq[r].1 - pw[r].1[t];
+                e += dx * dx + dy * dy;
+            }
+            c += weight * e;
+        }
+        *cand = c;
+    }
+    keep_better(out, cand);
+}
+
+/// best = prev + cand where that is strictly lower, its back-pointer the step's.
+#[inline(always)]
+fn keep_better(out: Out, cand: &[f64]) {
+    let m = cand.len();
+    let (prev, best, arg) = (&out.prev[..m], &mut out.best[..m], &mut out.arg[..m]);
+    for t in 0..m {
+        let v = prev[t] + cand[t];
+        let take = v < best[t];
+        best[t] = if take { v } else { best[t] };
+        arg[t] = if take { out.step } else { arg[t] };
+    }
+}
+
+/// `relax` for a step of any length: the candidates of the run first (into `cand`, the
+/// position term into `near`), tap by tap, then the comparison.
+#[allow(clippy::too_many_arguments)]
+fn relax_any(
+    a: usize,
+    shape: &Taps,
+    position: Option<&Taps>,
+    weight: f64,
+    run: &Run,
+    out: Out,
+    cand: &mut [f64],
+    near: &mut [f64],
+) {
+    let m = out.prev.len();
+    let part = |taps: &Taps, into: &mut [f64]| {
+        into.fill(0.0);
+        for r in 0..a {
+            let (qx, qy) = (taps.qx[run.k + r], taps.qy[run.k + r]);
+            let at = run.first + r * run.stride;
+            let (tx, ty) = (&taps.tx[at..][..m], &taps.ty[at..][..m]);
+            for ((c, &tx), &ty) in into.iter_mut().zip(tx).zip(ty) {
+                let dx = qx - tx;
+                let dy = qy - ty;
+                *c += dx * dx + dy * dy;
+            }
+        }
+    };
+    let c = &mut cand[..m];
+    part(shape, c);
+    if let Some(p) = position {
+        let e = &mut near[..m];
+        part(p, e);
+        for (c, &e) in c.iter_mut().zip(e.iter()) {
+            *c += weight * e;
+        }
+    }
+    keep_better(out, c);
 }
 
 /// A band's rows as stored: each row's first and last column (clamped; row 0 holds only the
@@ -1027,7 +1159,9 @@ mod tests {
                     } else {
                         vec![(1usize, n - 1); n]
                     };
-                    let steps = coprime_steps(5);
+                    // n = 30 with steps up to 7 samples long: the general relaxation
+                    // (`relax_any`) as well as the fused one.
+                    let steps = coprime_steps(if n == 30 { 7 } else { 5 });
                     let mut tables = (Vec::new(), Vec::new());
                     let w = dp_in_band_tables(&q1, &q2, &steps, &band, anchor, &mut tables);
                     let oracle = cellwise(&q1, &q2, &steps, &band, anchor);
