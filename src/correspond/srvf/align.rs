@@ -409,40 +409,48 @@ pub fn align_closed(
         }
     } else {
         // Coarse to fine: rank the candidate seeds by a DP at <= 48 samples, then refine the two
-        // best (and their neighbouring full-resolution seeds) at the full sample count.
-        let tc = t.min(48);
-        let coarse_prm = SrvfParams {
-            max_alternations: 2,
-            ..prm.clone()
+        // best (and their neighbouring full-resolution seeds) at the full sample count. With
+        // two candidates or fewer every one is refined, and the ranking is not needed: the
+        // refinements do not depend on their order (only a tie of two seeds' energies to the
+        // bit would keep the other one).
+        let ranked: Vec<usize> = if order.len() <= REFINED_SEEDS {
+            order
+        } else {
+            let tc = t.min(48);
+            let coarse_prm = SrvfParams {
+                max_alternations: 2,
+                ..prm.clone()
+            };
+            let (ca, _) = resample_closed(&ra, tc);
+            let cq1 = closed_grid(&srvf(&ca, true), 0);
+            let cpa = closed_grid(&frame.map(&ca), 0);
+            let mut ranked: Vec<(f64, usize)> = order
+                .iter()
+                .map(|&s| {
+                    let (cb, _) = resample_closed(&rotate_list(&rb, s), tc);
+                    let cq2 = closed_grid(&srvf(&cb, true), 0);
+                    let cpb = closed_grid(&frame.map(&cb), 0);
+                    let anchor = Anchor {
+                        a: &cpa,
+                        b: &cpb,
+                        weight: prm.anchor,
+                    };
+                    let (_, w) = rotate_and_warp(
+                        &cq1,
+                        &cq2,
+                        energies[s].1,
+                        &coarse_prm,
+                        &steps,
+                        None,
+                        Some(anchor),
+                    );
+                    (w.energy, s)
+                })
+                .collect();
+            ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+            ranked.into_iter().map(|(_, s)| s).collect()
         };
-        let (ca, _) = resample_closed(&ra, tc);
-        let cq1 = closed_grid(&srvf(&ca, true), 0);
-        let cpa = closed_grid(&frame.map(&ca), 0);
-        let mut ranked: Vec<(f64, usize)> = order
-            .iter()
-            .map(|&s| {
-                let (cb, _) = resample_closed(&rotate_list(&rb, s), tc);
-                let cq2 = closed_grid(&srvf(&cb, true), 0);
-                let cpb = closed_grid(&frame.map(&cb), 0);
-                let anchor = Anchor {
-                    a: &cpa,
-                    b: &cpb,
-                    weight: prm.anchor,
-                };
-                let (_, w) = rotate_and_warp(
-                    &cq1,
-                    &cq2,
-                    energies[s].1,
-                    &coarse_prm,
-                    &steps,
-                    None,
-                    Some(anchor),
-                );
-                (w.energy, s)
-            })
-            .collect();
-        ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
-        for &(_, s) in ranked.iter().take(2) {
+        for &s in ranked.iter().take(REFINED_SEEDS) {
             refine(s, &mut best, false, prm);
         }
         // The candidates are kept apart, so walk the seed one sample at a time while it helps.
@@ -482,6 +490,9 @@ pub fn align_closed(
         reversed: false,
     })
 }
+
+/// Closed curves: seeds refined at the full sample count from the coarse ranking.
+const REFINED_SEEDS: usize = 2;
 
 /// The points rotated so that index `s` comes first.
 fn rotate_list(p: &[Point2<f64>], s: usize) -> Vec<Point2<f64>> {
