@@ -160,6 +160,30 @@ impl SolveLog {
             .iter()
             .find(|t| t.source == kept)
             .map_or(given, |t| t.rms_px);
+        let tilts = self
+            .restarts
+            .iter()
+            .filter(|t| t.source != "given" && t.source != restart::LIMB_SPHERE)
+            .count();
+        if !given.is_finite() {
+            // The given start failed outright; the limb sphere's started the method again.
+            return Some(if kept == restart::LIMB_SPHERE {
+                let tried = if tilts > 0 {
+                    format!("; {tilts} tilted starts did no better")
+                } else {
+                    String::new()
+                };
+                format!(
+                    "the given start failed; restarted from the outlines' limb sphere \
+                     ({from:.1} px from the outlines){tried}"
+                )
+            } else {
+                format!(
+                    "the given start failed; restarted from the outlines' limb sphere and \
+                     {tilts} tilted starts, this result is from the {kept} tilt's ({from:.1} px)"
+                )
+            });
+        }
         Some(if kept == "given" {
             format!(
                 "the result's outlines lay {given:.1} px from the observed ones; {} tilted \

@@ -81,6 +81,10 @@ pub struct PlacementParams {
     pub restart_tilts: usize,
     /// How far a restart's start is tilted from the given axis, degrees.
     pub restart_tilt_deg: f64,
+    /// Where the method fails outright from the given start and stage 0 did not start it on the
+    /// limb sphere (with `pose`, or without `limb_start`), run it again from the given axis on
+    /// the limb sphere (default on; `pipeline::Reconstruction`'s log says so).
+    pub limb_restart: bool,
 }
 
 impl Default for PlacementParams {
@@ -96,6 +100,7 @@ impl Default for PlacementParams {
             restart_above_px: 4.0,
             restart_tilts: 4,
             restart_tilt_deg: 25.0,
+            limb_restart: true,
             srvf_samples: 100,
             seed_candidates: 2,
         }

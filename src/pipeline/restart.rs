@@ -19,6 +19,9 @@ use nalgebra::{Rotation3, Unit, Vector3};
 /// tilted away from that turn stage A settles elsewhere. The score needs no truth and does not
 /// depend on which correspondences each result kept. A first result a guard refuses restarts
 /// too, and a result the guards pass outranks one they refuse. A restart that fails is skipped.
+/// Where the given start fails outright, the method starts again on the limb sphere
+/// (`limb_started`), and that start stands in for the given one (its tilts are tried when its
+/// result leaves the outlines); when it fails too, the given start's error is returned.
 /// Returned with the guard the kept result fails (None when it passes, or without guards).
 pub(super) fn restarting(
     input: &Input,
@@ -34,18 +37,52 @@ pub(super) fn restarting(
         )
     };
     let rank = |s: &(Option<GuardFailure>, f64)| (s.0.is_some(), s.1);
-    let first = attempt(input, prm, kernels)?;
+    // The given start, or where it failed, the limb sphere's (see `limb_started`).
+    let (first, start, mut trials) = match attempt(input, prm, kernels) {
+        Ok(rec) => (rec, input.init.clone(), Vec::new()),
+        Err(e) => {
+            let Some(init) = limb_started(input, prm) else {
+                return Err(e);
+            };
+            let from_limb = Input {
+                init: &init,
+                ..*input
+            };
+            let Ok(rec) = attempt(&from_limb, prm, kernels) else {
+                return Err(e);
+            };
+            let given = OrientationTrial {
+                source: "given",
+                rms_px: f64::INFINITY,
+            };
+            (rec, init, vec![given])
+        }
+    };
+    let kept_first = if trials.is_empty() {
+        "given"
+    } else {
+        LIMB_SPHERE
+    };
     let mut best_score = score(&first);
     if best_score.0.is_none() && !(best_score.1 > prm.placement.restart_above_px) {
-        return Ok((first, None));
+        let mut first = first;
+        if !trials.is_empty() {
+            trials.push(OrientationTrial {
+                source: LIMB_SPHERE,
+                rms_px: best_score.1,
+            });
+            first.log.restarts = trials;
+            first.log.restart = Some(LIMB_SPHERE);
+        }
+        return Ok((first, best_score.0));
     }
-    let mut trials = vec![OrientationTrial {
-        source: "given",
+    trials.push(OrientationTrial {
+        source: kept_first,
         rms_px: best_score.1,
-    }];
+    });
     let mut best = first;
-    let mut kept = "given";
-    for (source, init) in tilted_starts(input.init, prm) {
+    let mut kept = kept_first;
+    for (source, init) in tilted_starts(&start, prm) {
         let tilted = Input {
             init: &init,
             ..*input
@@ -65,6 +102,28 @@ pub(super) fn restarting(
     best.log.restarts = trials;
     best.log.restart = Some(kept);
     Ok((best, best_score.0))
+}
+
+/// Where a run restarts when the given start fails outright (`restarting`).
+pub const LIMB_SPHERE: &str = "limb sphere";
+
+/// The given start moved onto the sphere the outlines' limbs define (its axis kept), when
+/// `placement.limb_restart` is on and stage 0 does not already start there: with pose refinement the method starts from the given
+/// placement, which may lie so far off (a study's level 5 shifts it by 100 mm SD per axis) that
+/// the first correspondences cannot form; the limbs, even of views whose poses are a little
+/// off, put it within millimetres. None when stage 0 uses the limb sphere anyway, or no limb
+/// sphere fits.
+fn limb_started(input: &Input, prm: &ReconParams) -> Option<Placement> {
+    if !prm.placement.limb_restart || (prm.pose.is_none() && prm.placement.limb_start) {
+        return None;
+    }
+    let ls = crate::solve::limb_sphere(input.cameras, input.observed, prm.placement.limb_scale_mm)
+        .ok()?;
+    Some(Placement {
+        center: ls.center,
+        radius: ls.radius,
+        ..input.init.clone()
+    })
 }
 
 /// The restarts' starts: the given axis tilted by `placement.restart_tilt_deg` about two
