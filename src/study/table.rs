@@ -344,9 +344,10 @@ pub struct Summary {
     pub failed: usize,
     /// Runs whose result came from a fallback.
     pub fallbacks: usize,
-    /// Runs that restarted from tilted starts (`Row::restart` not empty).
+    /// Runs that restarted, from tilted starts or the limb sphere (`Row::restart` not empty).
     pub restarted: usize,
-    /// Restarted runs whose result came from a tilted start.
+    /// Restarted runs whose result came from another start than the given one (a tilted start
+    /// or the limb sphere).
     pub restart_tilted: usize,
     /// Mean MAE, mm.
     pub mae_mean: f64,
