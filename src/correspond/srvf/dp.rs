@@ -199,11 +199,19 @@ fn dp_in_band(
         static SCRATCH: std::cell::RefCell<((Vec<f64>, Vec<u32>), Scratch)> =
             std::cell::RefCell::default();
     }
-    let path = SCRATCH.with(|cell| {
-        let (tables, scratch) = &mut *cell.borrow_mut();
-        band_path(q1, q2, steps, band, anchor, tables, scratch)
-    });
-    finish_warp(q1, q2, steps, path, anchor)
+    let path = |band: &[(usize, usize)]| {
+        SCRATCH.with(|cell| {
+            let (tables, scratch) = &mut *cell.borrow_mut();
+            band_path(q1, q2, steps, band, anchor, tables, scratch)
+        })
+    };
+    // A band that cuts every path (bands built from a path cannot) falls back to every cell a
+    // path can use; a step set with no path at all (never a coprime set: it holds (1, 1)) to
+    // the diagonal.
+    let path = path(band)
+        .or_else(|| path(&feasible_band(q1.len(), steps)))
+        .unwrap_or_else(|| (0..q1.len()).map(|i| (i, i)).collect());
+    finish_warp(q1, q2, path, anchor)
 }
 
 /// `dp_in_band` filling `tables` with the banded costs and back-pointers (row-major, row i
@@ -218,21 +226,16 @@ fn dp_in_band_tables(
     tables: &mut (Vec<f64>, Vec<u32>),
 ) -> Warp {
     let path = band_path(q1, q2, steps, band, anchor, tables, &mut Scratch::default());
-    finish_warp(q1, q2, steps, path, anchor)
+    finish_warp(q1, q2, path.expect("the test bands hold a path"), anchor)
 }
 
-/// The warp along a banded DP's path, its energy with the position term; without a path (the
-/// band cut every one, which bands built from a path cannot do) the full grid's.
+/// The warp along a DP's path, its energy with the position term.
 fn finish_warp(
     q1: &[Vector2<f64>],
     q2: &[Vector2<f64>],
-    steps: &[(usize, usize)],
-    path: Option<Vec<(usize, usize)>>,
+    path: Vec<(usize, usize)>,
     anchor: Option<Anchor>,
 ) -> Warp {
-    let Some(path) = path else {
-        return dp_warp_anchored(q1, q2, steps, anchor);
-    };
     let n = q1.len();
     let mut w = warp_from_path(q1, q2, &path);
     if let Some(an) = anchor.filter(|a| a.weight > 0.0) {
@@ -961,6 +964,16 @@ mod tests {
         let band = feasible_band(49, &coprime_steps(5));
         let (_, _, offset) = band_rows(&band, 49);
         assert!(offset[49] < 48 * 48 * 7 / 10, "{} cells", offset[49]);
+    }
+
+    #[test]
+    fn a_step_set_with_no_path_gives_the_diagonal_not_an_endless_fallback() {
+        // Steps (2, 1) and (1, 2) cannot reach (2, 2) from (0, 0): no band holds a path.
+        let mut seed = 8u64;
+        let (q1, q2, _, _) = problem(3, &mut seed);
+        let w = dp_warp(&q1, &q2, &[(2, 1), (1, 2)]);
+        assert_eq!(w.path, vec![(0, 0), (1, 1), (2, 2)]);
+        assert!(w.energy.is_finite());
     }
 
     #[test]
