@@ -108,11 +108,11 @@ pub(super) fn restarting(
 pub const LIMB_SPHERE: &str = "limb sphere";
 
 /// The given start moved onto the sphere the outlines' limbs define (its axis kept), when
-/// `placement.limb_restart` is on and stage 0 does not already start there: with pose refinement the method starts from the given
-/// placement, which may lie so far off (a study's level 5 shifts it by 100 mm SD per axis) that
-/// the first correspondences cannot form; the limbs, even of views whose poses are a little
-/// off, put it within millimetres. None when stage 0 uses the limb sphere anyway, or no limb
-/// sphere fits.
+/// `placement.limb_restart` is on and stage 0 does not already start there: with pose
+/// refinement the method starts from the given placement, which may lie so far off (a study's
+/// level 5 shifts it by 100 mm SD per axis) that the first correspondences cannot form; the
+/// limbs, even of views whose poses are a little off, put it within millimetres. None when
+/// stage 0 uses the limb sphere anyway, or no limb sphere fits.
 fn limb_started(input: &Input, prm: &ReconParams) -> Option<Placement> {
     if !prm.placement.limb_restart || (prm.pose.is_none() && prm.placement.limb_start) {
         return None;
