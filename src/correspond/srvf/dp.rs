@@ -261,35 +261,81 @@ struct Scratch {
     py: Vec<f64>,
     x1: Vec<f64>,
     y1: Vec<f64>,
+    x2: Vec<f64>,
+    y2: Vec<f64>,
     ax: Vec<f64>,
     ay: Vec<f64>,
+    bx: Vec<f64>,
+    by: Vec<f64>,
     cand: Vec<f64>,
     near: Vec<f64>,
 }
 
-/// Fill `starts`, and `x`, `y` with `value(step, p, u)` at every tap (p, u) of every step, for
-/// each start column l < n - b (the tap's sample is l + its offset), tap by tap: the DP's
-/// per-step tables, all steps in one buffer.
+/// What the tap tables hold: q2 interpolated at the tap and times the step's sqrt slope (the
+/// SRVF part), or B's positions interpolated at the tap (the position term), x and y apart.
+enum TapSource<'a> {
+    Scaled(&'a [f64], &'a [f64]),
+    Positions(&'a [f64], &'a [f64]),
+}
+
+/// Fill `starts`, and `x`, `y` with the source's value at every tap (p, u) of every step, for
+/// each start column l < n - b (the tap's sample is p = l + its offset), tap by tap: the DP's
+/// per-step tables, all steps in one buffer. One tight loop per tap (it vectorises), each value
+/// computed as the per-value expressions below always were.
 fn fill_taps(
     prepared: &[PreparedStep],
     n: usize,
     starts: &mut Vec<usize>,
     x: &mut Vec<f64>,
     y: &mut Vec<f64>,
-    value: impl Fn(&PreparedStep, usize, f64) -> (f64, f64),
+    source: TapSource,
 ) {
     starts.clear();
+    let total: usize = prepared
+        .iter()
+        .map(|st| st.taps.len() * n.saturating_sub(st.b))
+        .sum();
     x.clear();
+    x.resize(total, 0.0);
     y.clear();
+    y.resize(total, 0.0);
+    let mut at = 0;
     for st in prepared {
-        starts.push(x.len());
+        starts.push(at);
         let cols = n.saturating_sub(st.b);
+        if cols == 0 {
+            continue;
+        }
         for &(off, u) in &st.taps {
-            for l in 0..cols {
-                let (a, b) = value(st, l + off, u);
-                x.push(a);
-                y.push(b);
+            let (tx, ty) = (&mut x[at..at + cols], &mut y[at..at + cols]);
+            match source {
+                TapSource::Scaled(qx, qy) => {
+                    let s = st.sqrt_slope;
+                    if u == 0.0 {
+                        let (qx, qy) = (&qx[off..off + cols], &qy[off..off + cols]);
+                        for l in 0..cols {
+                            tx[l] = qx[l] * s;
+                            ty[l] = qy[l] * s;
+                        }
+                    } else {
+                        // p + 1 <= n - 1: off <= b - 1 and l < n - b.
+                        let (qx, qy) = (&qx[off..off + cols + 1], &qy[off..off + cols + 1]);
+                        for l in 0..cols {
+                            tx[l] = (qx[l] + (qx[l + 1] - qx[l]) * u) * s;
+                            ty[l] = (qy[l] + (qy[l + 1] - qy[l]) * u) * s;
+                        }
+                    }
+                }
+                TapSource::Positions(bx, by) => {
+                    for l in 0..cols {
+                        let p = l + off;
+                        let p1 = (p + 1).min(n - 1);
+                        tx[l] = bx[p] + (bx[p1] - bx[p]) * u;
+                        ty[l] = by[p] + (by[p1] - by[p]) * u;
+                    }
+                }
             }
+            at += cols;
         }
     }
 }
@@ -318,8 +364,12 @@ fn band_path(
         py,
         x1,
         y1,
+        x2,
+        y2,
         ax,
         ay,
+        bx,
+        by,
         cand,
         near,
     } = scratch;
@@ -342,17 +392,11 @@ fn band_path(
     // q2 at every tap of every step, times the step's sqrt slope, for each start column l
     // (0 <= l < n - b): it does not depend on the row, so it is computed once, not per cell.
     // x and y apart, so the row loops below run over contiguous columns (SIMD).
-    let scaled_tap = |st: &PreparedStep, p: usize, u: f64| {
-        if u == 0.0 {
-            (q2[p].x * st.sqrt_slope, q2[p].y * st.sqrt_slope)
-        } else {
-            (
-                (q2[p].x + (q2[p + 1].x - q2[p].x) * u) * st.sqrt_slope,
-                (q2[p].y + (q2[p + 1].y - q2[p].y) * u) * st.sqrt_slope,
-            )
-        }
-    };
-    fill_taps(prepared, n, starts, wx, wy, scaled_tap);
+    x2.clear();
+    y2.clear();
+    x2.extend(q2.iter().map(|v| v.x));
+    y2.extend(q2.iter().map(|v| v.y));
+    fill_taps(prepared, n, starts, wx, wy, TapSource::Scaled(x2, y2));
     // B's positions at the same taps (not scaled: the position term ignores the slope).
     let weight = anchor.map_or(0.0, |a| a.weight);
     let anchored = anchor.filter(|_| weight > 0.0);
@@ -361,10 +405,11 @@ fn band_path(
         ay.clear();
         ax.extend(an.a.iter().map(|v| v.x));
         ay.extend(an.a.iter().map(|v| v.y));
-        fill_taps(prepared, n, pstarts, px, py, |_, p, u| {
-            let v = an.b[p] + (an.b[(p + 1).min(n - 1)] - an.b[p]) * u;
-            (v.x, v.y)
-        });
+        bx.clear();
+        by.clear();
+        bx.extend(an.b.iter().map(|v| v.x));
+        by.extend(an.b.iter().map(|v| v.y));
+        fill_taps(prepared, n, pstarts, px, py, TapSource::Positions(bx, by));
     }
     // Row by row: for each step, every cell of the row it can reach at once (the candidates of
     // one step over a run of columns), then the best step per cell. Per cell this is the same
