@@ -196,7 +196,7 @@ fn dp_in_band(
     anchor: Option<Anchor>,
 ) -> Warp {
     thread_local! {
-        static SCRATCH: std::cell::RefCell<((Vec<f64>, Vec<u32>), Scratch)> =
+        static SCRATCH: std::cell::RefCell<(CostTables, Scratch)> =
             std::cell::RefCell::default();
     }
     let path = |band: &[(usize, usize)]| {
@@ -507,6 +507,12 @@ fn band_path(
     Some(path)
 }
 
+/// A banded DP's costs and back-pointers, row-major (`band_rows`' layout).
+type CostTables = (Vec<f64>, Vec<u32>);
+
+/// One tap's table entries over a run of cells, x and y.
+type TapRun<'a> = (&'a [f64], &'a [f64]);
+
 /// One part of a step's cost: the row curve's samples (q1, or A's positions) and the tap tables
 /// of the column curve (q2 scaled by the step's sqrt slope, or B's positions), x and y apart.
 struct Taps<'a> {
@@ -549,11 +555,11 @@ fn relax<const A: usize, const POSITION: bool>(
 ) {
     let m = out.prev.len();
     let q: [(f64, f64); A] = std::array::from_fn(|r| (shape.qx[run.k + r], shape.qy[run.k + r]));
-    let w: [(&[f64], &[f64]); A] = std::array::from_fn(|r| {
+    let w: [TapRun; A] = std::array::from_fn(|r| {
         let at = run.first + r * run.stride;
         (&shape.tx[at..][..m], &shape.ty[at..][..m])
     });
-    let (pq, pw): ([(f64, f64); A], [(&[f64], &[f64]); A]) = if POSITION {
+    let (pq, pw): ([(f64, f64); A], [TapRun; A]) = if POSITION {
         (
             std::array::from_fn(|r| (position.qx[run.k + r], position.qy[run.k + r])),
             std::array::from_fn(|r| {
