@@ -16,7 +16,7 @@ pub use polyline::{
     distance_to_polyline, polyline_length, resample_closed, resample_open, signed_area,
     ClosedPolyline, Curve,
 };
-pub use pool::pool_map;
+pub use pool::{par_map, pool_map};
 pub use segments::Segments;
 pub use sphere::{fit_sphere, fit_sphere_robust, Sphere, SphereFitError};
 pub use stats::{centroid, mean, mean_sd, opening_axis, quantile_sorted};

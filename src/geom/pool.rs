@@ -20,6 +20,13 @@ pub fn pool_map<T: Sync, R: Send>(
     }
 }
 
+/// `f(k, &items[k])` for every item, spread over the pool the caller runs on (a study's
+/// `pool_map` workers, or rayon's global pool of one thread a core), in input order. For work
+/// inside one run (views, resamples): nested in a study it adds no threads, only tasks.
+pub fn par_map<T: Sync, R: Send>(items: &[T], f: impl Fn(usize, &T) -> R + Sync + Send) -> Vec<R> {
+    items.par_iter().enumerate().map(|(k, t)| f(k, t)).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -37,5 +44,9 @@ mod tests {
         let mut wrong = want.clone();
         wrong.swap(3, 4);
         assert_ne!(pool_map(2, &items, |_, x| x * x + 1), wrong);
+        // The same inside a pool, nested as a run's views are in a study.
+        let nested = pool_map(2, &[0u64, 1], |_, o| par_map(&items, |_, x| x * x + 1 + o));
+        assert_eq!(nested[0], want);
+        assert_ne!(nested[1], want);
     }
 }

@@ -5,7 +5,7 @@ use super::{ReconError, ReconParams};
 use crate::contours::ModelContour;
 use crate::correspond::{correspond, Method, Observation};
 use crate::engine::Kernels;
-use crate::geom::{Curve, Mesh};
+use crate::geom::{par_map, Curve, Mesh};
 use crate::views::Camera;
 
 /// What every stage of one reconstruction reads: the views as given, the observed outlines, the
@@ -36,8 +36,8 @@ impl Ctx<'_> {
     ) -> Result<Vec<Observation>, ReconError> {
         let prm = self.prm;
         let model = self.contours(mesh, cams)?;
-        let mut out = Vec::new();
-        for (view, curves) in self.observed.iter().enumerate() {
+        let view_pairs = |view: usize, curves: &Vec<Curve>| {
+            let mut out = Vec::new();
             for (ci, curve) in curves.iter().enumerate() {
                 let o = correspond(prm.method, view, &model[view], curve, &prm.correspond)
                     .map_err(|source| ReconError::Correspond {
@@ -47,6 +47,23 @@ impl Ctx<'_> {
                     })?;
                 out.extend(o);
             }
+            Ok::<_, ReconError>(out)
+        };
+        // The views are independent: on the CPU they run side by side (the same pairs, in view
+        // order, the first error in view order). The GPU paths keep one run to one thread, as
+        // the study's batcher expects.
+        let per_view: Vec<Result<Vec<Observation>, ReconError>> = match self.kernels {
+            Kernels::Cpu => par_map(self.observed, view_pairs),
+            _ => self
+                .observed
+                .iter()
+                .enumerate()
+                .map(|(view, curves)| view_pairs(view, curves))
+                .collect(),
+        };
+        let mut out = Vec::new();
+        for pairs in per_view {
+            out.extend(pairs?);
         }
         Ok(out)
     }

@@ -145,7 +145,8 @@ const LINE_PROBABILITY: f64 = 0.01;
 
 /// The cup estimator the resamples go through: a diameter from a resolved mesh and its round's
 /// correspondences.
-type CupEstimator<'a> = &'a dyn Fn(&crate::geom::Mesh, &[Observation]) -> Result<f64, ReconError>;
+type CupEstimator<'a> =
+    &'a (dyn Fn(&crate::geom::Mesh, &[Observation]) -> Result<f64, ReconError> + Sync);
 
 /// The diameters of `up.samples` resamples of `rec` (see the module comment; `ctx.cams` are the
 /// views the result was fitted with), each measured by `cup`, and the contour noise SD used.
@@ -171,39 +172,54 @@ fn resampled_diameters(
         value: noise_px.to_string(),
         expected: "a finite SD (the fit's reprojection RMS was not finite)",
     })?;
-    let mut diam = Vec::with_capacity(up.samples);
-    for _ in 0..up.samples.max(1) {
-        let jittered: Vec<Vec<Curve>> = ctx
-            .observed
-            .iter()
-            .map(|cs| {
-                cs.iter()
-                    .map(|c| Curve {
-                        points: c
-                            .points
-                            .iter()
-                            .map(|p| {
-                                nalgebra::Point2::new(
-                                    p.x + normal.sample(&mut rng),
-                                    p.y + normal.sample(&mut rng),
-                                )
-                            })
-                            .collect(),
-                        closed: c.closed,
-                    })
-                    .collect()
-            })
-            .collect();
-        let mut sub = rand_chacha::ChaCha8Rng::seed_from_u64(rng.next_u64());
+    // Every resample's draws first, in the order they were always drawn (its contour jitter,
+    // then the seed of its re-weighting), so that the resamples can be solved side by side.
+    let draws: Vec<(Vec<Vec<Curve>>, u64)> = (0..up.samples.max(1))
+        .map(|_| {
+            let jittered: Vec<Vec<Curve>> = ctx
+                .observed
+                .iter()
+                .map(|cs| {
+                    cs.iter()
+                        .map(|c| Curve {
+                            points: c
+                                .points
+                                .iter()
+                                .map(|p| {
+                                    nalgebra::Point2::new(
+                                        p.x + normal.sample(&mut rng),
+                                        p.y + normal.sample(&mut rng),
+                                    )
+                                })
+                                .collect(),
+                            closed: c.closed,
+                        })
+                        .collect()
+                })
+                .collect();
+            (jittered, rng.next_u64())
+        })
+        .collect();
+    let solve = |_: usize, (jittered, seed): &(Vec<Vec<Curve>>, u64)| {
+        let mut sub = rand_chacha::ChaCha8Rng::seed_from_u64(*seed);
         let mut reweight = |_k: usize| -> f64 { Exp1.sample(&mut sub) };
         let resample = Ctx {
-            observed: &jittered,
+            observed: jittered,
             prm: &one_round,
             ..*ctx
         };
         let (mesh, obs) = resolve_from(&resample, &rec.mesh, &mut reweight)?;
-        diam.push(cup(&mesh, &obs)?);
-    }
+        cup(&mesh, &obs)
+    };
+    // On the CPU the resamples are solved side by side; the GPU paths keep one run to one
+    // thread, as the study's batcher expects. The first error in resample order is returned.
+    let solved: Vec<Result<f64, ReconError>> = match ctx.kernels {
+        Kernels::Cpu => crate::geom::par_map(&draws, solve),
+        _ => draws.iter().enumerate().map(|(k, d)| solve(k, d)).collect(),
+    };
+    let diam = solved
+        .into_iter()
+        .collect::<Result<Vec<f64>, ReconError>>()?;
     Ok((diam, noise_px))
 }
 
