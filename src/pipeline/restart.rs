@@ -7,7 +7,7 @@ use super::{
 };
 use crate::contours::ModelContour;
 use crate::engine::Kernels;
-use crate::geom::{Curve, Segments};
+use crate::geom::{par_map, Curve, Segments};
 use crate::template::Placement;
 use nalgebra::{Rotation3, Unit, Vector3};
 
@@ -82,14 +82,22 @@ pub(super) fn restarting(
     });
     let mut best = first;
     let mut kept = kept_first;
-    for (source, init) in tilted_starts(&start, prm) {
-        let tilted = Input {
-            init: &init,
-            ..*input
-        };
-        let Ok(rec) = attempt(&tilted, prm, kernels) else {
+    // The tilted starts are independent: on the CPU they run side by side (the GPU paths keep
+    // one run to one thread, as the study's batcher expects); they are judged in order.
+    let starts = tilted_starts(&start, prm);
+    let run = |_: usize, (_, init): &(&'static str, Placement)| {
+        let tilted = Input { init, ..*input };
+        attempt(&tilted, prm, kernels).ok()
+    };
+    let results: Vec<Option<Reconstruction>> = match kernels {
+        Kernels::Cpu => par_map(&starts, run),
+        _ => starts.iter().enumerate().map(|(k, s)| run(k, s)).collect(),
+    };
+    for ((source, _), rec) in starts.iter().zip(results) {
+        let Some(rec) = rec else {
             continue;
         };
+        let source = *source;
         let s = score(&rec);
         trials.push(OrientationTrial {
             source,
