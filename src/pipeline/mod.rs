@@ -483,36 +483,60 @@ fn place(
         ..*ctx
     };
     let unit = template.mesh();
-    // Stage A from `placement`, its work added to the log.
-    let stage = |mesh: Mesh, placement: Placement, max_rounds: usize, log: &mut SolveLog| {
-        let r = similarity_stage(
+    // Stage A from `placement`.
+    let solve = |mesh: Mesh, placement: Placement, max_rounds: usize| {
+        similarity_stage(
             &coarse_ctx,
             template.on_rim(),
             mesh,
             placement,
             start.about,
             max_rounds,
-        )?;
+        )
+    };
+    // Its work added to the log.
+    let logged = |r: Result<StageA, ReconError>, log: &mut SolveLog| {
+        let r = r?;
         log.similarity_rounds += r.rounds;
         log.gn_iterations += r.iterations;
         Ok::<_, ReconError>(r)
     };
     let s = &start.placement;
-    let mut best = stage(s.place(unit), s.clone(), prm.placement.rounds, log)?;
-    let mut rivals = Vec::new();
     let mirrored = mirrored_axis(s, ctx.cams)
-        .filter(|_| start.about.is_some() && prm.placement.mirrored_start);
-    if let Some(axis) = mirrored {
-        let mirrored = Placement { axis, ..s.clone() };
-        // A few rounds tell a clearly wrong orientation from a right one; the mirrored start
-        // goes on to convergence unless it is clearly worse.
-        let probe = stage(mirrored.place(unit), mirrored, MIRROR_PROBE_ROUNDS, log)?;
+        .filter(|_| start.about.is_some() && prm.placement.mirrored_start)
+        .map(|axis| Placement { axis, ..s.clone() });
+    // The given start and the mirrored probe are independent: on the CPU they run side by side
+    // (the GPU paths keep one run to one thread, as the study's batcher expects). A failed given
+    // start is reported before the probe is looked at, as when they ran in turn.
+    let given = || solve(s.place(unit), s.clone(), prm.placement.rounds);
+    // A few rounds tell a clearly wrong orientation from a right one; the mirrored start goes
+    // on to convergence unless it is clearly worse.
+    let probe = || {
+        mirrored
+            .clone()
+            .map(|m| solve(m.place(unit), m, MIRROR_PROBE_ROUNDS))
+    };
+    let (first, probe) = match ctx.kernels {
+        Kernels::Cpu => rayon::join(given, probe),
+        _ => {
+            let first = given();
+            let probe = if first.is_ok() { probe() } else { None };
+            (first, probe)
+        }
+    };
+    let mut best = logged(first, log)?;
+    let mut rivals = Vec::new();
+    if let Some(probe) = probe {
+        let probe = logged(probe, log)?;
         let clear = probe.score < best.score * MIRROR_SWITCH;
         let open = !clear
             && prm.deformation.orientation_rounds > 0
             && probe.score < best.score / MIRROR_SWITCH;
         if clear || open {
-            let settled = stage(probe.mesh, probe.placement, prm.placement.rounds, log)?;
+            let settled = logged(
+                solve(probe.mesh, probe.placement, prm.placement.rounds),
+                log,
+            )?;
             if clear {
                 best = settled;
             } else {
