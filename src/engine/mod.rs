@@ -64,6 +64,20 @@ pub enum KernelError {
 pub const SILHOUETTE_TEXELS: u32 = 512;
 
 impl Kernels<'_> {
+    /// `f(k, &items[k])` for the independent parts of one run (views, resamples, starts), in
+    /// input order: side by side on the CPU (`geom::par_map`), one after the other on the GPU
+    /// paths, which keep one run to one thread as the study's batcher expects.
+    pub fn map_parts<T: Sync, R: Send>(
+        &self,
+        items: &[T],
+        f: impl Fn(usize, &T) -> R + Sync + Send,
+    ) -> Vec<R> {
+        match self {
+            Kernels::Cpu => crate::geom::par_map(items, f),
+            _ => items.iter().enumerate().map(|(k, t)| f(k, t)).collect(),
+        }
+    }
+
     /// One panel of a surface picture (`report::plots::surface_views`): rendered on the GPU
     /// (`shaders/surface.wgsl`), or by its CPU twin on the CPU and wherever the GPU cannot;
     /// the pixels and which drew them ("gpu" or "cpu").

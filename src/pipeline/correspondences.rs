@@ -5,7 +5,7 @@ use super::{ReconError, ReconParams};
 use crate::contours::ModelContour;
 use crate::correspond::{correspond, Method, Observation};
 use crate::engine::Kernels;
-use crate::geom::{par_map, Curve, Mesh};
+use crate::geom::{Curve, Mesh};
 use crate::views::Camera;
 
 /// What every stage of one reconstruction reads: the views as given, the observed outlines, the
@@ -49,18 +49,9 @@ impl Ctx<'_> {
             }
             Ok::<_, ReconError>(out)
         };
-        // The views are independent: on the CPU they run side by side (the same pairs, in view
-        // order, the first error in view order). The GPU paths keep one run to one thread, as
-        // the study's batcher expects.
-        let per_view: Vec<Result<Vec<Observation>, ReconError>> = match self.kernels {
-            Kernels::Cpu => par_map(self.observed, view_pairs),
-            _ => self
-                .observed
-                .iter()
-                .enumerate()
-                .map(|(view, curves)| view_pairs(view, curves))
-                .collect(),
-        };
+        // The views are independent (the same pairs, in view order, the first error in view
+        // order).
+        let per_view = self.kernels.map_parts(self.observed, view_pairs);
         let mut out = Vec::new();
         for pairs in per_view {
             out.extend(pairs?);

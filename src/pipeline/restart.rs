@@ -7,7 +7,7 @@ use super::{
 };
 use crate::contours::ModelContour;
 use crate::engine::Kernels;
-use crate::geom::{par_map, Curve, Segments};
+use crate::geom::{Curve, Segments};
 use crate::template::Placement;
 use nalgebra::{Rotation3, Unit, Vector3};
 
@@ -38,8 +38,8 @@ pub(super) fn restarting(
     };
     let rank = |s: &(Option<GuardFailure>, f64)| (s.0.is_some(), s.1);
     // The given start, or where it failed, the limb sphere's (see `limb_started`).
-    let (first, start, mut trials) = match attempt(input, prm, kernels) {
-        Ok(rec) => (rec, input.init.clone(), Vec::new()),
+    let (first, start, kept_first) = match attempt(input, prm, kernels) {
+        Ok(rec) => (rec, input.init.clone(), "given"),
         Err(e) => {
             let Some(init) = limb_started(input, prm) else {
                 return Err(e);
@@ -51,48 +51,38 @@ pub(super) fn restarting(
             let Ok(rec) = attempt(&from_limb, prm, kernels) else {
                 return Err(e);
             };
-            let given = OrientationTrial {
-                source: "given",
-                rms_px: f64::INFINITY,
-            };
-            (rec, init, vec![given])
+            (rec, init, LIMB_SPHERE)
         }
     };
-    let kept_first = if trials.is_empty() {
-        "given"
-    } else {
-        LIMB_SPHERE
-    };
+    // A given start that failed is a trial with no outline distance.
+    let mut trials: Vec<OrientationTrial> = (kept_first == LIMB_SPHERE)
+        .then_some(OrientationTrial {
+            source: "given",
+            rms_px: f64::INFINITY,
+        })
+        .into_iter()
+        .collect();
     let mut best_score = score(&first);
+    trials.push(OrientationTrial {
+        source: kept_first,
+        rms_px: best_score.1,
+    });
     if best_score.0.is_none() && !(best_score.1 > prm.placement.restart_above_px) {
         let mut first = first;
-        if !trials.is_empty() {
-            trials.push(OrientationTrial {
-                source: LIMB_SPHERE,
-                rms_px: best_score.1,
-            });
+        if kept_first == LIMB_SPHERE {
             first.log.restarts = trials;
             first.log.restart = Some(LIMB_SPHERE);
         }
         return Ok((first, best_score.0));
     }
-    trials.push(OrientationTrial {
-        source: kept_first,
-        rms_px: best_score.1,
-    });
     let mut best = first;
     let mut kept = kept_first;
-    // The tilted starts are independent: on the CPU they run side by side (the GPU paths keep
-    // one run to one thread, as the study's batcher expects); they are judged in order.
+    // The tilted starts are independent; they are judged in order.
     let starts = tilted_starts(&start, prm);
-    let run = |_: usize, (_, init): &(&'static str, Placement)| {
+    let results = kernels.map_parts(&starts, |_, (_, init)| {
         let tilted = Input { init, ..*input };
         attempt(&tilted, prm, kernels).ok()
-    };
-    let results: Vec<Option<Reconstruction>> = match kernels {
-        Kernels::Cpu => par_map(&starts, run),
-        _ => starts.iter().enumerate().map(|(k, s)| run(k, s)).collect(),
-    };
+    });
     for ((source, _), rec) in starts.iter().zip(results) {
         let Some(rec) = rec else {
             continue;

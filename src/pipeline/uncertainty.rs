@@ -211,13 +211,10 @@ fn resampled_diameters(
         let (mesh, obs) = resolve_from(&resample, &rec.mesh, &mut reweight)?;
         cup(&mesh, &obs)
     };
-    // On the CPU the resamples are solved side by side; the GPU paths keep one run to one
-    // thread, as the study's batcher expects. The first error in resample order is returned.
-    let solved: Vec<Result<f64, ReconError>> = match ctx.kernels {
-        Kernels::Cpu => crate::geom::par_map(&draws, solve),
-        _ => draws.iter().enumerate().map(|(k, d)| solve(k, d)).collect(),
-    };
-    let diam = solved
+    // The resamples are independent; the first error in resample order is returned.
+    let diam = ctx
+        .kernels
+        .map_parts(&draws, solve)
         .into_iter()
         .collect::<Result<Vec<f64>, ReconError>>()?;
     Ok((diam, noise_px))
