@@ -35,6 +35,8 @@ pub mod solve;
 pub mod template;
 pub mod views;
 
+pub mod prior;
+
 pub mod engine;
 pub mod pipeline;
 

@@ -967,3 +967,113 @@ fn several_cases_reconstruct_into_one_folder_each_and_a_table() {
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("two cases are named"));
 }
+
+/// `acetab prior build` learns a prior from mesh files (both hips of three subjects, phantoms of
+/// different shapes, left hips mirrored), a study uses it left-one-subject-out and says so in
+/// summary.json; a mesh in centimetres, a broken prior file and --prior-leave-out without a
+/// prior are refused, naming the file, field or flag, and write nothing.
+#[test]
+fn prior_build_makes_a_prior_a_study_leaves_its_subject_out_of_and_bad_input_is_named() {
+    let dir = tmp("prior");
+    let meshes = dir.join("meshes");
+    std::fs::create_dir(&meshes).unwrap();
+    for (i, s) in ["s1", "s2", "s3"].iter().enumerate() {
+        for (side, x) in [("lhip", 1.0), ("rhip", -1.0)] {
+            let mut p = PhantomParams {
+                radius: 24.0 + 2.0 * i as f64,
+                ellipticity: [1.0 + 0.02 * i as f64, 0.97 - 0.01 * i as f64],
+                vertices: 1500,
+                ..Default::default()
+            };
+            p.center = nalgebra::Point3::new(0.0, 0.0, 0.0);
+            let mut m = phantom(&p).mesh;
+            if x > 0.0 {
+                // The other hip: mirrored in x (and its triangles turned to stay outward).
+                for v in &mut m.vertices {
+                    v.x = -v.x;
+                }
+                for t in &mut m.triangles {
+                    t.swap(1, 2);
+                }
+                m.recompute_normals();
+            }
+            acetab::io::write_obj(&m, &meshes.join(format!("{s}_{side}.obj"))).unwrap();
+        }
+    }
+    let prior = dir.join("prior.json");
+    let o = bin()
+        .args(["prior", "build", "--modes", "1", "--out"])
+        .arg(&prior)
+        .arg(&meshes)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("6 meshes (3 subjects), 1 mode(s)"), "{text}");
+    let f = acetab::prior::PriorFile::read(&prior).unwrap();
+    assert_eq!(f.meshes.iter().filter(|m| m.mirrored).count(), 3);
+
+    let out = dir.join("study");
+    let o = bin()
+        .args(["simulate", "--gt"])
+        .arg(meshes.join("s2_lhip.obj"))
+        .args(ONE_RUN.split(' '))
+        .args(["--uncertainty-samples", "0", "--prior-leave-out", "--prior"])
+        .arg(&prior)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let from = s["study"]["prior"].as_str().unwrap();
+    assert!(
+        from.contains("without subject s2 (4 meshes, 1 modes)"),
+        "{from}"
+    );
+
+    // A mesh in centimetres is refused by name.
+    let mut cm = phantom(&PhantomParams::default()).mesh;
+    for v in &mut cm.vertices {
+        *v = nalgebra::Point3::from(v.coords * 0.1);
+    }
+    acetab::io::write_obj(&cm, &dir.join("cm.obj")).unwrap();
+    let mut cmd = bin();
+    cmd.args(["prior", "build"]).arg(dir.join("cm.obj"));
+    fails_cleanly(cmd, &dir.join("cm-prior.json"), &["cm.obj", "millimetres?"]);
+    // A prior file with a bad field is refused by name, before any run.
+    let mut bad = f.clone();
+    bad.meshes[2].radius_mm = -3.0;
+    let bad_path = dir.join("bad-prior.json");
+    std::fs::write(&bad_path, bad.to_json()).unwrap();
+    let mut cmd = bin();
+    cmd.args(["simulate", "--gt", "phantom"])
+        .args(ONE_RUN.split(' '))
+        .arg("--prior")
+        .arg(&bad_path);
+    fails_cleanly(
+        cmd,
+        &dir.join("bad-out"),
+        &["bad-prior.json", "meshes[2].radius_mm", "-3"],
+    );
+    let mut cmd = bin();
+    cmd.args(["simulate", "--gt", "phantom", "--prior-leave-out"])
+        .args(ONE_RUN.split(' '));
+    fails_cleanly(
+        cmd,
+        &dir.join("none-out"),
+        &["--prior-leave-out needs a prior"],
+    );
+    // A prior with more modes than its meshes can carry is refused too.
+    let mut five = f.clone();
+    five.modes = 5;
+    let five_path = dir.join("five.json");
+    std::fs::write(&five_path, five.to_json()).unwrap();
+    let mut cmd = bin();
+    cmd.args(["simulate", "--gt", "phantom"])
+        .args(ONE_RUN.split(' '))
+        .arg("--prior")
+        .arg(&five_path);
+    fails_cleanly(cmd, &dir.join("five-out"), &["five.json", "at least 7"]);
+}

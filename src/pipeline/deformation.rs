@@ -8,11 +8,12 @@ use crate::correspond::Method;
 use crate::correspond::Observation;
 use crate::geom::fit_sphere_robust;
 use crate::geom::Mesh;
-use crate::solve::SpherePrior;
+use crate::prior::{opens_to_plus_x, to_prior_frame, ShapePrior, MAX_MODES};
 use crate::solve::{
     levenberg_marquardt_cached, DeformationGraph, EdProblem, GraphParams, LmInfo, LmParams,
     SymbolicCache,
 };
+use crate::solve::{ShapeTerms, SpherePrior};
 use crate::template::Placement;
 use crate::views::Camera;
 use nalgebra::Point3;
@@ -83,9 +84,15 @@ impl EdState {
             // Every k-th vertex, weighted k-fold: the same energy at a fraction of the rows.
             let n = mesh.vertex_count();
             let k = n.div_ceil(prior.sphere_prior_vertices.max(1)).max(1);
+            let vertices: Vec<u32> = (0..n as u32).step_by(k).collect();
+            let shape = match (&prior.shape_prior, self.prior_sphere) {
+                (Some(sp), Some((c, _))) => Some(shape_terms(sp, mesh, &vertices, &c)),
+                _ => None,
+            };
             problem.sphere = Some(SpherePrior {
                 weight: prior.sphere_prior * k as f64,
-                vertices: (0..n as u32).step_by(k).collect(),
+                vertices,
+                shape,
             });
         }
         let at = self.prior_sphere.unwrap_or((Point3::origin(), 0.0));
@@ -103,6 +110,30 @@ impl EdState {
         let out = mesh.with_vertices(ctx.kernels.deform(&graph, &x[..nodes])?);
         check_finite(&out)?;
         Ok((out, info))
+    }
+}
+
+/// The learned shape `prior` at the listed vertices of `mesh`, looked up at each one's direction
+/// from the sphere prior's centre `c` in the prior's frame (mirrored when the surface opens
+/// towards +x).
+fn shape_terms(prior: &ShapePrior, mesh: &Mesh, vertices: &[u32], c: &Point3<f64>) -> ShapeTerms {
+    let mirrored = opens_to_plus_x(&mesh.vertices, c);
+    let k = prior.mode_count();
+    let mut mean = Vec::with_capacity(vertices.len());
+    let mut modes = vec![Vec::with_capacity(vertices.len()); k];
+    let mut m = [0.0; MAX_MODES];
+    for &i in vertices {
+        let d = mesh.vertices[i as usize] - c;
+        let u = to_prior_frame(d.try_normalize(1e-12).unwrap_or(d), mirrored);
+        mean.push(prior.at(&u, &mut m));
+        for (mode, v) in modes.iter_mut().zip(m) {
+            mode.push(v);
+        }
+    }
+    ShapeTerms {
+        mean,
+        modes,
+        sd: prior.mode_sd.clone(),
     }
 }
 

@@ -129,6 +129,9 @@ pub struct DeformationParams {
     /// About this many vertices (every k-th) carry the sphere prior, weighted k-fold
     /// (default 600).
     pub sphere_prior_vertices: usize,
+    /// A learned population shape around the sphere prior's sphere (`prior::ShapePrior`; None:
+    /// the bare sphere, the default). Only with `sphere_prior` above 0.
+    pub shape_prior: Option<std::sync::Arc<crate::prior::ShapePrior>>,
     /// Coarse-to-fine: the graph has this many nodes in every correspondence round but the
     /// last scheduled one, which uses `graph.nodes` (default None: `graph.nodes` throughout).
     /// For the ICP baselines, whose rounds are single iterations that stop once the surface
@@ -149,6 +152,7 @@ impl Default for DeformationParams {
             orientation_rounds: 1,
             sphere_prior: 0.3,
             sphere_prior_vertices: 600,
+            shape_prior: None,
             coarse_graph_nodes: None,
         }
     }

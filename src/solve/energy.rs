@@ -74,6 +74,35 @@ pub struct SpherePrior {
     pub weight: f64,
     /// The vertices that carry the prior.
     pub vertices: Vec<u32>,
+    /// The population's shape around the sphere (None: the bare sphere).
+    pub shape: Option<ShapeTerms>,
+}
+
+/// A learned shape around the sphere prior's sphere (`prior::ShapePrior` looked up at each
+/// listed vertex's direction): vertex `vertices[n]`'s target distance from the centre is
+/// R (1 + mean[n] + sum_k b_k modes[k][n]), the mode coefficients b_k solved with the sphere (the
+/// sphere block's entries 4, 5, ...) under a Gaussian prior (rows b_k / sd[k]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShapeTerms {
+    /// Mean relative deviation at each listed vertex.
+    pub mean: Vec<f64>,
+    /// Each mode's value at each listed vertex (at most 8 modes).
+    pub modes: Vec<Vec<f64>>,
+    /// Each mode coefficient's SD.
+    pub sd: Vec<f64>,
+}
+
+impl ShapeTerms {
+    /// The relative target radius 1 + mean + sum_k b_k modes[k] of listed vertex `n`.
+    fn scale(&self, n: usize, b: &[f64]) -> f64 {
+        1.0 + self.mean[n]
+            + self
+                .modes
+                .iter()
+                .zip(b)
+                .map(|(m, bk)| m[n] * bk)
+                .sum::<f64>()
+    }
 }
 
 /// Weight of the rows that hold the sphere block's unused entries at zero.
@@ -103,16 +132,20 @@ impl EdProblem<'_> {
         let c = Point3::new(x[o], x[o + 1], x[o + 2]);
         let rad = x[o + 3];
         let ws = sp.weight.sqrt();
+        let shape = sp.shape.as_ref();
+        let n_modes = shape.map_or(0, |s| s.modes.len().min(NODE_PARAMS - 4));
+        let coef = &x[o + 4..o + 4 + n_modes];
         let mut blocks: Vec<(u32, [f64; NODE_PARAMS])> = Vec::new();
-        for &i in &sp.vertices {
+        for (at, &i) in sp.vertices.iter().enumerate() {
             let i = i as usize;
             if i >= g.rest.len() {
                 continue;
             }
+            let scale = shape.map_or(1.0, |s| s.scale(at, coef));
             let v = g.deform_vertex(x, i);
             let d = v - c;
             let len = d.norm();
-            let r = ws * (len - rad);
+            let r = ws * (len - rad * scale);
             if !jac {
                 l.push_residual(r);
                 continue;
@@ -140,16 +173,26 @@ impl EdProblem<'_> {
             b[0] = -ws * n.x;
             b[1] = -ws * n.y;
             b[2] = -ws * n.z;
-            b[3] = -ws;
+            b[3] = -ws * scale;
+            if let Some(s) = shape {
+                for k in 0..n_modes {
+                    b[4 + k] = -ws * rad * s.modes[k][at];
+                }
+            }
             blocks.push((sb as u32, b));
             let refs: Vec<(u32, &[f64])> = blocks.iter().map(|(j, b)| (*j, &b[..])).collect();
             l.push_row(r, &refs);
         }
         for k in 4..NODE_PARAMS {
-            let r = UNUSED_HOLD * x[o + k];
+            // A mode's coefficient under its Gaussian prior; the entries no mode uses held at 0.
+            let hold = match shape {
+                Some(s) if k - 4 < n_modes => 1.0 / s.sd[k - 4],
+                _ => UNUSED_HOLD,
+            };
+            let r = hold * x[o + k];
             if jac {
                 let mut b = [0.0; NODE_PARAMS];
-                b[k] = UNUSED_HOLD;
+                b[k] = hold;
                 l.push_row(r, &[(sb as u32, &b)]);
             } else {
                 l.push_residual(r);
@@ -363,6 +406,7 @@ mod tests {
         p.sphere = Some(SpherePrior {
             weight: 0.3,
             vertices: (0..g.rest.len() as u32).collect(),
+            shape: None,
         });
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
         let x: Vec<f64> = p
@@ -405,6 +449,62 @@ mod tests {
         assert!(j[(row, k)].abs() > 0.1);
         j[(row, k)] *= 1.01;
         assert!(worst_fd_error(&p, &x, &j) > 1e-5);
+    }
+
+    /// Two modes and a mean that vary over the vertices, as a learned prior's do.
+    fn shape_terms(g: &DeformationGraph) -> ShapeTerms {
+        let n = g.rest.len();
+        let wave = |f: f64| {
+            (0..n)
+                .map(|i| 0.03 * (f * i as f64).sin())
+                .collect::<Vec<f64>>()
+        };
+        ShapeTerms {
+            mean: wave(0.37),
+            modes: vec![wave(0.11), wave(0.73)],
+            sd: vec![0.8, 0.3],
+        }
+    }
+
+    #[test]
+    fn shape_prior_jacobian_matches_finite_differences() {
+        let (g, cams, obs) = setup();
+        let (mut p, mut x) = with_prior(&g, &cams, &obs);
+        p.sphere.as_mut().unwrap().shape = Some(shape_terms(&g));
+        let o = g.node_count() * NODE_PARAMS;
+        x[o + 4] = 0.4;
+        x[o + 5] = -0.2;
+        let mut j = p.linearize(&x, true).dense_jacobian();
+        assert!(worst_fd_error(&p, &x, &j) < 1e-5);
+        // Companion: a 1 % error in one mode column of one prior row is caught.
+        let row = j.nrows() - 9;
+        assert!(j[(row, o + 5)].abs() > 1e-3, "{}", j[(row, o + 5)]);
+        j[(row, o + 5)] *= 1.01;
+        assert!(worst_fd_error(&p, &x, &j) > 1e-5);
+    }
+
+    #[test]
+    fn shape_prior_is_zero_on_its_shape_and_not_on_the_bare_sphere() {
+        let (g, cams, _) = setup();
+        let (mut p, _) = with_prior(&g, &cams, &[]);
+        let terms = shape_terms(&g);
+        let cost = |p: &EdProblem, x: &[f64]| p.linearize(x, false).cost();
+        let bare = p.start((Point3::origin(), 26.0));
+        assert!(cost(&p, &bare) < 1e-12);
+        p.sphere.as_mut().unwrap().shape = Some(terms.clone());
+        assert!(cost(&p, &bare) > 1e-3, "{}", cost(&p, &bare));
+        let mut on = ShapeTerms {
+            mean: vec![0.0; terms.mean.len()],
+            ..terms
+        };
+        on.modes[0] = vec![0.02; on.mean.len()];
+        p.sphere.as_mut().unwrap().shape = Some(on);
+        // Mode 0 constant 0.02 with b_0 = -1 gives scale 0.98: radius 26 / 0.98 fits exactly but
+        // for the coefficient's own prior row (b / sd)^2.
+        let mut x = p.start((Point3::origin(), 26.0 / 0.98));
+        x[g.node_count() * NODE_PARAMS + 4] = -1.0;
+        let c = cost(&p, &x);
+        assert!((c - (1.0f64 / 0.8).powi(2)).abs() < 1e-9, "{c}");
     }
 
     #[test]

@@ -12,7 +12,7 @@ mod reprojection;
 mod rim;
 mod similarity;
 
-pub use energy::{EdProblem, EdWeights, SpherePrior};
+pub use energy::{EdProblem, EdWeights, ShapeTerms, SpherePrior};
 pub use graph::{farthest_point_sample, DeformationGraph, GraphParams, NODE_PARAMS};
 pub use limb::{limb_sphere, LimbError, LimbSphere};
 pub use lm::{

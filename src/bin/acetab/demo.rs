@@ -34,6 +34,10 @@ pub struct DemoArgs {
     /// Output folder.
     #[arg(long, default_value = "acetab-out")]
     pub out: PathBuf,
+    /// Population shape prior: "none" (the bare sphere prior), "default" (the shipped one) or
+    /// a file from `acetab prior build`.
+    #[arg(long, default_value = "none")]
+    pub prior: String,
 }
 
 pub fn run(args: DemoArgs) -> Result<(), String> {
@@ -45,12 +49,15 @@ pub fn run(args: DemoArgs) -> Result<(), String> {
         backend,
         contours,
         out,
+        prior,
     } = args;
-    let prm = ReconParams {
+    let (shape_prior, _) = crate::prior::choose(&prior, None)?;
+    let mut prm = ReconParams {
         method,
         contour_source: contours,
         ..Default::default()
     };
+    prm.deformation.shape_prior = shape_prior;
     let dev = open_device(backend)?;
     let engine = engine_on(&dev)?;
     let kernels = engine.as_ref().map_or(Kernels::Cpu, Kernels::Gpu);

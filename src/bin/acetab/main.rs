@@ -7,6 +7,7 @@ mod common;
 mod demo;
 mod merge;
 mod pose_study;
+mod prior;
 mod reconstruct;
 mod simulate;
 
@@ -44,6 +45,8 @@ enum Command {
     Reconstruct(reconstruct::ReconstructArgs),
     /// Learn the cup uncertainty's model-error SD from studies whose truths are known.
     Calibrate(calibrate::CalibrateArgs),
+    /// The population shape prior: `acetab prior build MESH... --out prior.json`.
+    Prior(prior::PriorArgs),
 }
 
 fn run(cli: Cli) -> Result<(), String> {
@@ -56,6 +59,7 @@ fn run(cli: Cli) -> Result<(), String> {
         Command::PoseStudy(a) => pose_study::run(a),
         Command::Reconstruct(a) => reconstruct::run(a),
         Command::Calibrate(a) => calibrate::run(a),
+        Command::Prior(a) => prior::run(a),
     }
 }
 

@@ -42,6 +42,11 @@ pub struct ReconstructArgs {
     /// learned under the realistic protocol (calibration/realistic.json).
     #[arg(long)]
     pub calibration: Option<String>,
+    /// Population shape prior for the walls no outline watches: "none" (the bare sphere
+    /// prior), "default" (the shipped one, priors/default.json) or a file from `acetab prior
+    /// build`. The case's frame must be body axes (z the long axis, y antero-posterior).
+    #[arg(long, default_value = "none")]
+    pub prior: String,
     /// Seed of the resampling draws.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -68,9 +73,11 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         refine_poses,
         uncertainty_samples,
         calibration,
+        prior,
         seed,
         json,
     } = args;
+    let (shape_prior, _) = crate::prior::choose(&prior, None)?;
     let (model_sd_mm, _) = crate::common::calibration(
         &calibration,
         acetab::pipeline::CupCalibration::shipped_realistic,
@@ -78,13 +85,14 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
     )?;
     crate::common::check_out(&out, force)?;
     let catalogue = CupCatalogue::parse(&catalogue).map_err(|e| format!("--catalogue: {e}"))?;
-    let prm = ReconParams {
+    let mut prm = ReconParams {
         method,
         cup: CupParams { catalogue },
         contour_source: contours,
         pose: refine_poses.then(acetab::solve::PoseParams::default),
         ..Default::default()
     };
+    prm.deformation.shape_prior = shape_prior;
     let dev = open_device(backend)?;
     let engine = engine_on(&dev)?;
     let kernels = engine.as_ref().map_or(Kernels::Cpu, Kernels::Gpu);

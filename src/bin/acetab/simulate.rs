@@ -101,6 +101,15 @@ pub struct SimulateArgs {
     /// subject.
     #[arg(long, conflicts_with = "calibration")]
     pub calibrate_loso: Option<PathBuf>,
+    /// Population shape prior for the walls no outline watches: "none" (the bare sphere
+    /// prior), "default" (the shipped prior, priors/default.json) or a file from `acetab prior
+    /// build`.
+    #[arg(long, default_value = "none")]
+    pub prior: String,
+    /// Leave-one-subject-out prior: each mesh's study uses the --prior learned without the
+    /// meshes of its subject (its file name up to the first '_').
+    #[arg(long)]
+    pub prior_leave_out: bool,
     /// Where the study is written (a sweep: one folder per mesh under it).
     #[arg(long)]
     pub out: PathBuf,
@@ -134,10 +143,18 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         uncertainty_samples,
         calibration,
         calibrate_loso,
+        prior,
+        prior_leave_out,
         out,
         force,
         json,
     } = args;
+    // The prior is checked before any run (with --prior-leave-out, each mesh's own is made
+    // when its study starts).
+    let (shape_prior, prior_from) = crate::prior::choose(&prior, None)?;
+    if prior_leave_out && shape_prior.is_none() {
+        return Err("--prior-leave-out needs a prior (--prior default or a file)".into());
+    }
     let (model_sd_mm, calibration) = match protocol {
         ProtocolArg::Ideal => crate::common::calibration(
             &calibration,
@@ -176,6 +193,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
             },
             deformation: DeformationParams {
                 coarse_graph_nodes: coarse_nodes,
+                shape_prior,
                 ..Default::default()
             },
             pose: refine_poses.then(acetab::solve::PoseParams::default),
@@ -205,6 +223,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         adapter: dev.as_ref().map(|d| d.describe()),
         adapter_json: dev.as_ref().map(|d| d.adapter_json()),
         loso: calibrate_loso,
+        prior: (prior, prior_leave_out, prior_from),
         runs,
         seed,
         shard,
@@ -233,6 +252,8 @@ struct Study<'a> {
     adapter_json: Option<serde_json::Value>,
     /// `--calibrate-loso`: the studies each mesh's calibration is learned from.
     loso: Option<PathBuf>,
+    /// `--prior`, `--prior-leave-out` and where the prior came from (summary.json).
+    prior: (String, bool, String),
     runs: usize,
     seed: u64,
     shard: (usize, usize),
@@ -391,6 +412,7 @@ impl Study<'_> {
             ref adapter,
             ref adapter_json,
             ref loso,
+            ref prior,
             runs,
             seed,
             shard,
@@ -416,6 +438,13 @@ impl Study<'_> {
                 train.display(),
                 cal.learned_from
             );
+        }
+        let mut prior_from = prior.2.clone();
+        if prior.1 {
+            let subject = crate::calibrate::subject_of(Path::new(gt));
+            let (p, from) = crate::prior::choose(&prior.0, Some(&subject))?;
+            own.params.deformation.shape_prior = p;
+            prior_from = from;
         }
         let cfg = &own;
         let total = tasks(cfg).len();
@@ -474,6 +503,7 @@ impl Study<'_> {
             "w_obs": cfg.params.weights.obs, "refine_poses": cfg.params.pose.is_some(),
             "cup_model_sd_mm": cfg.uncertainty.as_ref().map(|u| u.model_sd_mm),
             "calibration": calibration,
+            "prior": prior_from,
             "provenance": Provenance::here(kernels.name(), adapter.clone(), cfg.threads, seed),
             // Where the kernels ran and, on the GPU, this study's kernel requests, the dispatches
             // they were merged into and the seconds the runs waited for the device.

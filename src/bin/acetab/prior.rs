@@ -1,0 +1,151 @@
+//! `acetab prior build`: learn the population shape prior from acetabula whose surfaces are
+//! known (see `acetab::prior`); `--prior` on demo, simulate and reconstruct uses it.
+
+use crate::common::{io_msg, load_truth};
+use acetab::io::write_atomic;
+use acetab::prior::{PriorFile, PriorMesh, DEFAULT_MODES, MAX_MODES};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+#[derive(clap::Args)]
+pub struct PriorArgs {
+    #[command(subcommand)]
+    pub command: PriorCommand,
+}
+
+#[derive(clap::Subcommand)]
+pub enum PriorCommand {
+    /// Learn a prior from acetabulum meshes (STL/PLY/OBJ in body axes, mm; a closed shell is
+    /// reduced to its outer side) or folders of them. A subject is a file's name up to the first
+    /// '_' (both hips of one person leave a leave-one-subject-out study together).
+    Build(BuildArgs),
+}
+
+#[derive(clap::Args)]
+pub struct BuildArgs {
+    /// The training meshes, or folders of them.
+    #[arg(required = true)]
+    pub meshes: Vec<PathBuf>,
+    /// Principal modes the prior carries (0 to 8).
+    #[arg(long, default_value_t = DEFAULT_MODES, value_parser = crate::common::count_in(0, MAX_MODES))]
+    pub modes: usize,
+    /// What the meshes are, for people reading the file (their source and licence).
+    #[arg(long)]
+    pub note: Option<String>,
+    /// Where the prior is written (JSON).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+pub fn run(args: PriorArgs) -> Result<(), String> {
+    match args.command {
+        PriorCommand::Build(b) => build(b),
+    }
+}
+
+/// The mesh files of `paths` (a folder gives its .stl, .ply and .obj files, sorted).
+fn mesh_files(paths: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
+    let mut out = Vec::new();
+    for p in paths {
+        if p.is_dir() {
+            let mut v: Vec<PathBuf> = std::fs::read_dir(p)
+                .map_err(|e| io_msg(p, e))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| {
+                    f.extension().and_then(|x| x.to_str()).is_some_and(|x| {
+                        ["stl", "ply", "obj"].contains(&x.to_ascii_lowercase().as_str())
+                    })
+                })
+                .collect();
+            v.sort();
+            if v.is_empty() {
+                return Err(format!(
+                    "{}: no .stl, .ply or .obj file in the folder",
+                    p.display()
+                ));
+            }
+            out.extend(v);
+        } else {
+            out.push(p.clone());
+        }
+    }
+    Ok(out)
+}
+
+fn build(args: BuildArgs) -> Result<(), String> {
+    let files = mesh_files(&args.meshes)?;
+    let mut meshes = Vec::new();
+    for f in &files {
+        let truth = load_truth(&f.to_string_lossy())?;
+        let name = f
+            .file_stem()
+            .map(|s| {
+                s.to_string_lossy()
+                    .trim_end_matches("_ac_wo_gap")
+                    .to_string()
+            })
+            .unwrap_or_default();
+        if meshes.iter().any(|m: &PriorMesh| m.name == name) {
+            return Err(format!("{}: two meshes are named {name:?}", f.display()));
+        }
+        let subject = crate::calibrate::subject_of(f);
+        meshes.push(
+            PriorMesh::of(&name, &subject, &truth).map_err(|e| format!("{}: {e}", f.display()))?,
+        );
+    }
+    let note = args
+        .note
+        .unwrap_or_else(|| format!("{} meshes given to `acetab prior build`", meshes.len()));
+    let file = PriorFile::new(meshes, args.modes, note);
+    let prior = file
+        .prior()
+        .map_err(|e| format!("--out {}: {e}", args.out.display()))?;
+    write_atomic(&args.out, file.to_json().as_bytes()).map_err(|e| io_msg(&args.out, e))?;
+    println!(
+        "prior of {} meshes ({} subjects), {} mode(s) (SD {}) -> {}",
+        file.meshes.len(),
+        file.subjects().len(),
+        prior.mode_count(),
+        prior
+            .mode_sd
+            .iter()
+            .map(|s| format!("{s:.3}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// `--prior`: "none" (the bare sphere prior), "default" (the shipped prior), or a prior file;
+/// with `leave_out`, the prior learned without that subject's meshes. The prior and where it
+/// came from (for summary.json and report.json).
+pub fn choose(
+    arg: &str,
+    leave_out: Option<&str>,
+) -> Result<(Option<Arc<acetab::prior::ShapePrior>>, String), String> {
+    let file = match arg {
+        "none" => {
+            if leave_out.is_some() {
+                return Err("--prior-leave-out needs a prior (--prior default or a file)".into());
+            }
+            return Ok((None, "none".into()));
+        }
+        "default" => PriorFile::shipped(),
+        path => PriorFile::read(Path::new(path)).map_err(|e| format!("--prior {e}"))?,
+    };
+    let (file, what) = match leave_out {
+        Some(s) => (
+            file.without_subject(s),
+            format!("{arg} without subject {s}"),
+        ),
+        None => (file, arg.to_string()),
+    };
+    let prior = file.prior().map_err(|e| format!("--prior {what}: {e}"))?;
+    let what = format!(
+        "{what} ({} meshes, {} modes)",
+        file.meshes.len(),
+        prior.mode_count()
+    );
+    Ok((Some(Arc::new(prior)), what))
+}

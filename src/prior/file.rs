@@ -1,0 +1,346 @@
+//! The prior file (`acetab prior build`): every training acetabulum's deviation field, so that a
+//! study can leave a subject out (both hips together) and learn the prior from the rest.
+
+use super::field::{deviation_field, GRID_POINTS, KERNEL_DEG};
+use super::model::{PriorError, ShapePrior, MAX_MODES};
+use crate::geom::{fit_sphere, Mesh};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The format tag the file carries.
+pub const FORMAT: &str = "acetab-shape-prior-1";
+
+/// Modes a prior carries unless told otherwise.
+pub const DEFAULT_MODES: usize = 4;
+
+/// One training acetabulum.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PriorMesh {
+    /// Its name (the file's, without the extension).
+    pub name: String,
+    /// Its subject: both hips of one person share it, and leave together.
+    pub subject: String,
+    /// Its sphere's radius, mm.
+    pub radius_mm: f64,
+    /// Whether it opened towards +x and was mirrored.
+    pub mirrored: bool,
+    /// Relative radial deviation per grid direction; null where the mesh does not reach.
+    pub deviation: Vec<Option<f64>>,
+}
+
+/// A prior file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PriorFile {
+    /// `FORMAT`.
+    pub format: String,
+    /// Directions of the grid (a Fibonacci sphere).
+    pub grid_points: usize,
+    /// The kernel's SD, degrees.
+    pub kernel_deg: f64,
+    /// Principal modes the prior uses.
+    pub modes: usize,
+    /// What it was learned from, for people (data, attribution).
+    pub learned_from: String,
+    /// The training acetabula.
+    pub meshes: Vec<PriorMesh>,
+}
+
+/// Why a prior file cannot be used.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PriorFileError {
+    /// The file cannot be read.
+    #[error("{path}: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The file is not a prior.
+    #[error("{path}: not a shape prior: {reason}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// A field holds a value that cannot be used.
+    #[error("{path}: {field} = {value}: must be {expected}")]
+    Field {
+        /// The file.
+        path: PathBuf,
+        /// The field.
+        field: String,
+        /// Its value.
+        value: String,
+        /// What it must be.
+        expected: String,
+    },
+    /// No prior can be learned from what is left.
+    #[error("{path}: {source}")]
+    Learn {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: PriorError,
+    },
+}
+
+/// The prior built from the shared populations (8 LibHip cartilage shells, MIT; 39 bone-side
+/// acetabula of the JHU I-STAR pelvis atlas, CC BY 4.0; see README.md), shipped with the program.
+pub const SHIPPED_JSON: &str = include_str!("../../priors/default.json");
+
+/// Round a deviation for the file (1e-5 of the radius: a fraction of a micrometre).
+fn rounded(v: f64) -> f64 {
+    (v * 1e5).round() / 1e5
+}
+
+impl PriorMesh {
+    /// The training entry of surface `mesh` (an acetabulum in body axes, mm).
+    pub fn of(name: &str, subject: &str, mesh: &Mesh) -> Result<PriorMesh, String> {
+        let s = fit_sphere(&mesh.vertices).map_err(|e| format!("{name}: sphere fit: {e}"))?;
+        let (field, mirrored) = deviation_field(&mesh.vertices, &s);
+        if field.iter().all(Option::is_none) {
+            return Err(format!("{name}: no direction is covered"));
+        }
+        Ok(PriorMesh {
+            name: name.to_string(),
+            subject: subject.to_string(),
+            radius_mm: (s.radius * 1e6).round() / 1e6,
+            mirrored,
+            deviation: field.into_iter().map(|v| v.map(rounded)).collect(),
+        })
+    }
+}
+
+impl PriorFile {
+    /// A prior file of `meshes` with `modes` modes.
+    pub fn new(meshes: Vec<PriorMesh>, modes: usize, learned_from: String) -> PriorFile {
+        PriorFile {
+            format: FORMAT.to_string(),
+            grid_points: GRID_POINTS,
+            kernel_deg: KERNEL_DEG,
+            modes,
+            learned_from,
+            meshes,
+        }
+    }
+
+    /// The shipped prior.
+    pub fn shipped() -> PriorFile {
+        Self::parse(SHIPPED_JSON, Path::new("priors/default.json"))
+            .expect("the shipped prior is valid (tested)")
+    }
+
+    /// Read and check a prior file.
+    pub fn read(path: &Path) -> Result<PriorFile, PriorFileError> {
+        let text = std::fs::read_to_string(path).map_err(|source| PriorFileError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parse and check prior JSON (`path` names it in errors): the format, the grid, the modes,
+    /// and every mesh's field, and that a prior can be learned from it.
+    pub fn parse(text: &str, path: &Path) -> Result<PriorFile, PriorFileError> {
+        let f: PriorFile = serde_json::from_str(text).map_err(|e| PriorFileError::Parse {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        let field = |field: String, value: String, expected: String| PriorFileError::Field {
+            path: path.to_path_buf(),
+            field,
+            value,
+            expected,
+        };
+        if f.format != FORMAT {
+            return Err(field(
+                "format".into(),
+                f.format.clone(),
+                format!("\"{FORMAT}\""),
+            ));
+        }
+        if f.grid_points != GRID_POINTS {
+            return Err(field(
+                "grid_points".into(),
+                f.grid_points.to_string(),
+                GRID_POINTS.to_string(),
+            ));
+        }
+        if f.kernel_deg != KERNEL_DEG {
+            return Err(field(
+                "kernel_deg".into(),
+                f.kernel_deg.to_string(),
+                KERNEL_DEG.to_string(),
+            ));
+        }
+        if f.modes > MAX_MODES {
+            return Err(field(
+                "modes".into(),
+                f.modes.to_string(),
+                format!("0 to {MAX_MODES}"),
+            ));
+        }
+        for (i, m) in f.meshes.iter().enumerate() {
+            if !(m.radius_mm.is_finite() && (10.0..=80.0).contains(&m.radius_mm)) {
+                return Err(field(
+                    format!("meshes[{i}].radius_mm ({})", m.name),
+                    m.radius_mm.to_string(),
+                    "an acetabulum's radius, 10 to 80 mm".into(),
+                ));
+            }
+            if m.deviation.len() != GRID_POINTS {
+                return Err(field(
+                    format!("meshes[{i}].deviation ({})", m.name),
+                    format!("{} values", m.deviation.len()),
+                    format!("{GRID_POINTS} values"),
+                ));
+            }
+            if let Some(v) = m
+                .deviation
+                .iter()
+                .flatten()
+                .find(|v| !(v.is_finite() && v.abs() <= 1.0))
+            {
+                return Err(field(
+                    format!("meshes[{i}].deviation ({})", m.name),
+                    v.to_string(),
+                    "within +-1 (a share of the radius)".into(),
+                ));
+            }
+        }
+        f.prior().map_err(|source| match source {
+            PriorFileError::Learn { source, .. } => PriorFileError::Learn {
+                path: path.to_path_buf(),
+                source,
+            },
+            other => other,
+        })?;
+        Ok(f)
+    }
+
+    /// The same file without the meshes of `subject` (leave-one-subject-out).
+    pub fn without_subject(&self, subject: &str) -> PriorFile {
+        let mut f = self.clone();
+        f.meshes.retain(|m| m.subject != subject);
+        f
+    }
+
+    /// The subjects it was learned from, in order, once each.
+    pub fn subjects(&self) -> Vec<String> {
+        let mut s: Vec<String> = Vec::new();
+        for m in &self.meshes {
+            if !s.contains(&m.subject) {
+                s.push(m.subject.clone());
+            }
+        }
+        s
+    }
+
+    /// The prior the reconstruction uses.
+    pub fn prior(&self) -> Result<ShapePrior, PriorFileError> {
+        let fields: Vec<(String, Vec<Option<f64>>)> = self
+            .meshes
+            .iter()
+            .map(|m| (m.name.clone(), m.deviation.clone()))
+            .collect();
+        ShapePrior::learn(&fields, self.modes).map_err(|source| PriorFileError::Learn {
+            path: PathBuf::from("the prior"),
+            source,
+        })
+    }
+
+    /// The file as JSON.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).expect("a prior file serialises")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::template::hemisphere;
+    use nalgebra::Point3;
+
+    fn cap(flat: f64, x_sign: f64) -> Mesh {
+        let mut m = hemisphere(25.0, 1200);
+        for p in &mut m.vertices {
+            *p = Point3::new(x_sign * p.z, p.y * (1.0 - flat), -x_sign * p.x);
+        }
+        m
+    }
+
+    fn file() -> PriorFile {
+        let meshes = [
+            (0.02, -1.0),
+            (0.05, 1.0),
+            (0.08, -1.0),
+            (0.03, 1.0),
+            (0.06, -1.0),
+            (0.04, 1.0),
+        ]
+        .iter()
+        .enumerate()
+        .map(|(i, &(f, s))| {
+            PriorMesh::of(
+                &format!("s{}_{}hip", i / 2, ["l", "r"][i % 2]),
+                &format!("s{}", i / 2),
+                &cap(f, s),
+            )
+            .unwrap()
+        })
+        .collect();
+        PriorFile::new(meshes, 1, "test caps".into())
+    }
+
+    #[test]
+    fn a_prior_file_reads_back_as_written_and_leaves_a_subject_out() {
+        let f = file();
+        let back = PriorFile::parse(&f.to_json(), Path::new("p.json")).unwrap();
+        // (Compared without printing: a failure would dump thousands of values.)
+        assert!(back == f, "the file read back differs from the one written");
+        assert_eq!(f.subjects(), ["s0", "s1", "s2"]);
+        let left = f.without_subject("s0");
+        assert_eq!(left.meshes.len(), 4);
+        assert!(left.meshes.iter().all(|m| m.subject != "s0"));
+        assert!(left.prior().unwrap() != f.prior().unwrap());
+        assert!(PriorFile::shipped().prior().is_ok());
+    }
+
+    #[test]
+    fn a_bad_prior_file_names_the_field_and_value() {
+        let f = file();
+        let p = Path::new("bad.json");
+        let mut g = f.clone();
+        g.meshes[1].radius_mm = 250.0;
+        let e = PriorFile::parse(&g.to_json(), p).unwrap_err().to_string();
+        assert!(
+            e.contains("bad.json") && e.contains("meshes[1].radius_mm") && e.contains("250"),
+            "{e}"
+        );
+        let mut g = f.clone();
+        g.meshes[0].deviation[5] = Some(3.0);
+        let e = PriorFile::parse(&g.to_json(), p).unwrap_err().to_string();
+        assert!(e.contains("meshes[0].deviation") && e.contains('3'), "{e}");
+        let mut g = f.clone();
+        g.modes = 12;
+        let e = PriorFile::parse(&g.to_json(), p).unwrap_err().to_string();
+        assert!(e.contains("modes = 12"), "{e}");
+        let mut g = f.clone();
+        g.meshes.truncate(2);
+        let e = PriorFile::parse(&g.to_json(), p).unwrap_err().to_string();
+        assert!(e.contains("bad.json") && e.contains("at least 3"), "{e}");
+        let e = PriorFile::parse("{\"format\": 1}", p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not a shape prior"), "{e}");
+        let e = PriorFile::read(Path::new("/nonexistent/prior.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("/nonexistent/prior.json"), "{e}");
+    }
+}
