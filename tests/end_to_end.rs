@@ -421,3 +421,40 @@ fn the_population_prior_left_out_of_its_subject_puts_the_unseen_walls_closer() {
         prior.mae_mm
     );
 }
+
+#[test]
+fn the_shipped_prior_is_what_prior_build_makes_of_the_shared_populations() {
+    // priors/default.json is `acetab prior build ../shared/data/acetabula
+    // ../shared/data/pelvis-atlas/acetabula`; rebuilt here entry by entry. The companion: the
+    // entry of one mesh compared with another mesh's is told apart.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    let dirs = [root.join("acetabula"), root.join("pelvis-atlas/acetabula")];
+    if !dirs.iter().all(|d| d.is_dir()) {
+        eprintln!("skipped: {} is absent", root.display());
+        return;
+    }
+    let mut files: Vec<std::path::PathBuf> = Vec::new();
+    for d in &dirs {
+        let mut v: Vec<_> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|x| x == "stl"))
+            .collect();
+        v.sort();
+        files.extend(v);
+    }
+    let shipped = acetab::prior::PriorFile::shipped();
+    assert_eq!(shipped.meshes.len(), files.len());
+    assert_eq!(shipped.modes, acetab::prior::DEFAULT_MODES);
+    let entry = |f: &Path| {
+        let stem = f.file_stem().unwrap().to_string_lossy();
+        let name = stem.trim_end_matches("_ac_wo_gap").to_string();
+        let subject = name.split('_').next().unwrap().to_string();
+        let truth = acetab::sim::load_truth(f.to_str().unwrap()).unwrap();
+        acetab::prior::PriorMesh::of(&name, &subject, &truth).unwrap()
+    };
+    for (f, m) in files.iter().zip(&shipped.meshes) {
+        assert!(entry(f) == *m, "{}: the shipped entry differs", f.display());
+    }
+    assert!(entry(&files[0]) != shipped.meshes[1]);
+}
