@@ -47,6 +47,7 @@ _RECON_OPTIONS = (
     "calibration",
     "seed",
     "contours",
+    "prior",
 )
 
 
@@ -59,7 +60,7 @@ def _options(options: Mapping[str, Any], allowed: Sequence[str], where: str) -> 
         )
     out = {}
     for k, v in options.items():
-        if k == "calibration" and v is not None:
+        if k in ("calibration", "prior") and v is not None:
             v = os.fspath(v)
         if isinstance(v, np.generic):
             v = v.item()  # numpy scalars as plain numbers
@@ -86,7 +87,8 @@ def reconstruct_case(
     "icp-normvec"), ``catalogue`` ("40:70:2" or "44,46,48"), ``refine_poses`` (bool),
     ``uncertainty_samples`` (2-1000, default 16), ``calibration`` (None: the shipped realistic
     one; "none"; or a file from ``acetab calibrate``), ``seed`` (default 1), ``contours``
-    ("alpha-shape" or "silhouette").
+    ("alpha-shape" or "silhouette"), ``prior`` (the population shape prior: "none", the
+    default; "default", the shipped one; or a file from ``acetab prior build``).
 
     Raises AcetabError when the case is refused or the reconstruction fails.
     """
@@ -219,6 +221,7 @@ def simulate(
     threads: Optional[int] = None,
     uncertainty_samples: int = 0,
     calibration: Optional[PathLike] = None,
+    prior: PathLike = "none",
 ) -> List[Dict[str, Any]]:
     """Run a simulation study on the ground truth ``gt`` ("phantom" or a mesh file, mm).
 
@@ -226,7 +229,8 @@ def simulate(
     paper's variants) simulates the X-rays, reconstructs and measures. ``protocol``: "ideal" or
     "realistic" (pose and magnification errors, partial outlines, annotation drift).
     ``uncertainty_samples`` > 1 adds each run's cup uncertainty (``calibration`` as in
-    ``reconstruct_case``; None: the protocol's shipped one). Seeded: the same arguments give the
+    ``reconstruct_case``; None: the protocol's shipped one); ``prior`` as in
+    ``reconstruct_case``. Seeded: the same arguments give the
     same runs, whatever ``threads``.
 
     Returns the runs (runs.csv's rows) as dicts: ``level``, ``run``, ``method``, ``seed``,
@@ -244,5 +248,6 @@ def simulate(
         "threads": None if threads is None else int(threads),
         "uncertainty_samples": int(uncertainty_samples),
         "calibration": None if calibration is None else os.fspath(calibration),
+        "prior": os.fspath(prior),
     }
     return json.loads(_acetab.simulate_json(json.dumps(opts)))

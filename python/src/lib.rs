@@ -52,6 +52,8 @@ struct ReconOptions {
     seed: u64,
     #[serde(default = "alpha_shape")]
     contours: String,
+    #[serde(default = "none")]
+    prior: String,
 }
 
 fn srvf() -> String {
@@ -65,6 +67,15 @@ fn sixteen() -> u64 {
 }
 fn one() -> u64 {
     1
+}
+fn none() -> String {
+    "none".into()
+}
+/// A prior argument: "none", "default" (the shipped one) or a file from `acetab prior build`.
+fn shape_prior(arg: &str) -> PyResult<Option<std::sync::Arc<acetab::prior::ShapePrior>>> {
+    acetab::prior::choose_prior(arg, None)
+        .map(|(p, _)| p.map(std::sync::Arc::new))
+        .map_err(|e| engine_err(format!("prior={arg:?}: {e}")))
 }
 fn alpha_shape() -> String {
     "alpha-shape".into()
@@ -114,13 +125,14 @@ impl ReconOptions {
                 self.uncertainty_samples
             )));
         }
-        let prm = ReconParams {
+        let mut prm = ReconParams {
             method: method_of(&self.method)?,
             cup: CupParams { catalogue },
             contour_source,
             pose: self.refine_poses.then(acetab::solve::PoseParams::default),
             ..Default::default()
         };
+        prm.deformation.shape_prior = shape_prior(&self.prior)?;
         let up = UncertaintyParams {
             samples: self.uncertainty_samples as usize,
             seed: self.seed,
@@ -320,6 +332,8 @@ struct StudyOptions {
     uncertainty_samples: u64,
     #[serde(default)]
     calibration: Option<String>,
+    #[serde(default = "none")]
+    prior: String,
 }
 
 fn ideal() -> String {
@@ -382,6 +396,10 @@ fn simulate_json(py: Python<'_>, options_json: &str) -> PyResult<String> {
         threads,
         params: ReconParams {
             pose: o.refine_poses.then(acetab::solve::PoseParams::default),
+            deformation: acetab::pipeline::DeformationParams {
+                shape_prior: shape_prior(&o.prior)?,
+                ..Default::default()
+            },
             ..Default::default()
         },
         uncertainty: (o.uncertainty_samples > 0).then(|| UncertaintyParams {

@@ -121,6 +121,17 @@ def test_bad_arrays_are_refused_by_name():
         acetab.reconstruct(*case_arrays(CASE), method="cpd")
 
 
+def test_the_shipped_prior_reaches_the_engine_as_on_the_command_line(tmp_path):
+    cli = cli_reconstruct(CASE, tmp_path / "cli", "--prior", "default", "--uncertainty-samples", "2")
+    py = acetab.reconstruct_case(CASE, prior="default", uncertainty_samples=2)
+    assert abs(py["cup"]["diameter_mm"] - cli["cup"]["diameter_mm"]) < 1e-6
+    # The companion: without the prior the cup is another one.
+    bare = acetab.reconstruct_case(CASE, uncertainty_samples=2)
+    assert abs(bare["cup"]["diameter_mm"] - cli["cup"]["diameter_mm"]) > 1e-6
+    with pytest.raises(acetab.AcetabError, match=r"prior=.*no_such_prior\.json"):
+        acetab.reconstruct_case(CASE, prior=tmp_path / "no_such_prior.json")
+
+
 def test_reconstruct_case_errors_carry_the_engine_message(tmp_path):
     bad = json.loads(CASE.read_text())
     for v in bad["views"]:

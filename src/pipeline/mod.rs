@@ -147,6 +147,10 @@ pub struct SolveLog {
     pub fallback: Option<&'static str>,
     /// What the method as asked for failed, when a fallback was taken.
     pub guard: Option<GuardFailure>,
+    /// The sphere prior's sphere after the last solve (centre x, y, z and radius, mm): with a
+    /// population prior (`DeformationParams::shape_prior`), the sphere the learned shape is
+    /// laid around; None without the sphere prior.
+    pub prior_sphere: Option<[f64; 4]>,
 }
 
 impl SolveLog {
@@ -659,8 +663,13 @@ fn finish(
         obs,
         converged,
         poses,
+        state,
         ..
     } = run;
+    log.prior_sphere = state
+        .prior_sphere
+        .filter(|_| ctx.prm.deformation.sphere_prior > 0.0)
+        .map(|(c, r)| [c.x, c.y, c.z, r]);
     if ctx.prm.pose.is_some() {
         log.pose_corrections = poses.sizes();
     }

@@ -79,6 +79,11 @@ pub enum PriorFileError {
         /// What it must be.
         expected: String,
     },
+    /// A leave-one-subject-out prior was asked for without a prior to leave the subject out of.
+    #[error(
+        "a prior left without subject {0} needs a prior (\"default\" or a file), not \"none\""
+    )]
+    NothingToLeaveOut(String),
     /// No prior can be learned from what is left.
     #[error("{path}: {source}")]
     Learn {
@@ -96,6 +101,41 @@ pub const SHIPPED_JSON: &str = include_str!("../../priors/default.json");
 /// Round a deviation for the file (1e-5 of the radius: a fraction of a micrometre).
 fn rounded(v: f64) -> f64 {
     (v * 1e5).round() / 1e5
+}
+
+/// A prior by the name users give it: "none" (no prior), "default" (the shipped one) or the path
+/// of a file from `acetab prior build`; with `leave_out`, learned without that subject's meshes.
+/// The prior (None for "none") and a line saying where it came from, for reports.
+pub fn choose_prior(
+    choice: &str,
+    leave_out: Option<&str>,
+) -> Result<(Option<ShapePrior>, String), PriorFileError> {
+    let file = match (choice, leave_out) {
+        ("none", None) => return Ok((None, "none".into())),
+        ("none", Some(s)) => return Err(PriorFileError::NothingToLeaveOut(s.into())),
+        ("default", _) => PriorFile::shipped(),
+        (path, _) => PriorFile::read(Path::new(path))?,
+    };
+    let (file, what) = match leave_out {
+        Some(s) => (
+            file.without_subject(s),
+            format!("{choice} without subject {s}"),
+        ),
+        None => (file, choice.to_string()),
+    };
+    let prior = file.prior().map_err(|e| match e {
+        PriorFileError::Learn { source, .. } => PriorFileError::Learn {
+            path: PathBuf::from(&what),
+            source,
+        },
+        other => other,
+    })?;
+    let what = format!(
+        "{what} ({} meshes, {} modes)",
+        file.meshes.len(),
+        prior.mode_count()
+    );
+    Ok((Some(prior), what))
 }
 
 impl PriorMesh {
@@ -309,6 +349,33 @@ mod tests {
         assert!(left.meshes.iter().all(|m| m.subject != "s0"));
         assert!(left.prior().unwrap() != f.prior().unwrap());
         assert!(PriorFile::shipped().prior().is_ok());
+    }
+
+    #[test]
+    fn a_prior_is_chosen_by_name_and_a_subject_left_out_of_it() {
+        assert!(choose_prior("none", None).unwrap().0.is_none());
+        assert!(matches!(
+            choose_prior("none", Some("a02")),
+            Err(PriorFileError::NothingToLeaveOut(_))
+        ));
+        let (all, what) = choose_prior("default", None).unwrap();
+        let shipped = PriorFile::shipped();
+        assert!(
+            what.contains(&format!("({} meshes, ", shipped.meshes.len())),
+            "{what}"
+        );
+        let (loso, what) = choose_prior("default", Some("a02")).unwrap();
+        let left = shipped.without_subject("a02").meshes.len();
+        assert_eq!(left + 2, shipped.meshes.len());
+        assert!(
+            what.contains(&format!("default without subject a02 ({left} meshes")),
+            "{what}"
+        );
+        assert!(all.unwrap() != loso.unwrap());
+        let e = choose_prior("/nonexistent/p.json", None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("/nonexistent/p.json"), "{e}");
     }
 
     #[test]

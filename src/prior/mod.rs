@@ -9,5 +9,7 @@ mod file;
 mod model;
 
 pub use field::{deviation_field, opens_to_plus_x, to_prior_frame, GRID_POINTS, KERNEL_DEG};
-pub use file::{PriorFile, PriorFileError, PriorMesh, DEFAULT_MODES, FORMAT, SHIPPED_JSON};
+pub use file::{
+    choose_prior, PriorFile, PriorFileError, PriorMesh, DEFAULT_MODES, FORMAT, SHIPPED_JSON,
+};
 pub use model::{PriorError, ShapePrior, MAX_MODES};

@@ -4,7 +4,7 @@
 use crate::common::{io_msg, load_truth};
 use acetab::io::write_atomic;
 use acetab::prior::{PriorFile, PriorMesh, DEFAULT_MODES, MAX_MODES};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 
 #[derive(clap::Args)]
@@ -117,35 +117,17 @@ fn build(args: BuildArgs) -> Result<(), String> {
     Ok(())
 }
 
-/// `--prior`: "none" (the bare sphere prior), "default" (the shipped prior), or a prior file;
-/// with `leave_out`, the prior learned without that subject's meshes. The prior and where it
-/// came from (for summary.json and report.json).
+/// `--prior`: "none", "default" or a prior file (see `acetab::prior::choose_prior`); with
+/// `leave_out`, the prior learned without that subject's meshes.
 pub fn choose(
     arg: &str,
     leave_out: Option<&str>,
 ) -> Result<(Option<Arc<acetab::prior::ShapePrior>>, String), String> {
-    let file = match arg {
-        "none" => {
-            if leave_out.is_some() {
-                return Err("--prior-leave-out needs a prior (--prior default or a file)".into());
-            }
-            return Ok((None, "none".into()));
+    let (p, what) = acetab::prior::choose_prior(arg, leave_out).map_err(|e| match e {
+        acetab::prior::PriorFileError::NothingToLeaveOut(_) => {
+            "--prior-leave-out needs a prior (--prior default or a file)".to_string()
         }
-        "default" => PriorFile::shipped(),
-        path => PriorFile::read(Path::new(path)).map_err(|e| format!("--prior {e}"))?,
-    };
-    let (file, what) = match leave_out {
-        Some(s) => (
-            file.without_subject(s),
-            format!("{arg} without subject {s}"),
-        ),
-        None => (file, arg.to_string()),
-    };
-    let prior = file.prior().map_err(|e| format!("--prior {what}: {e}"))?;
-    let what = format!(
-        "{what} ({} meshes, {} modes)",
-        file.meshes.len(),
-        prior.mode_count()
-    );
-    Ok((Some(Arc::new(prior)), what))
+        e => format!("--prior {e}"),
+    })?;
+    Ok((p.map(Arc::new), what))
 }

@@ -347,6 +347,7 @@ fn sweep(
         "levels": study.cfg.levels, "runs": study.runs, "methods": study.cfg.methods,
         "views": study.cfg.geometry.views.iter().map(|v| v.to_string()).collect::<Vec<_>>(),
         "seed": study.seed, "protocol": study.cfg.protocol, "sweep_seconds": start.elapsed().as_secs_f64(),
+        "prior": if study.prior.1 { format!("{} without each mesh's subject", study.prior.0) } else { study.prior.2.clone() },
     });
     let (rows, warning) = write_population(out, &tables, &meta).map_err(|e| e.to_string())?;
     if let Some(w) = warning {
