@@ -1042,21 +1042,29 @@ fn prior_build_makes_a_prior_a_study_leaves_its_subject_out_of_and_bad_input_is_
     let mut cmd = bin();
     cmd.args(["prior", "build"]).arg(dir.join("cm.obj"));
     fails_cleanly(cmd, &dir.join("cm-prior.json"), &["cm.obj", "millimetres?"]);
-    // A prior file with a bad field is refused by name, before any run.
+    // A prior file with a bad field, and one with more modes than its meshes can carry, are
+    // refused by name, before any run.
+    let study_with = |prior: &Path| {
+        let mut cmd = bin();
+        cmd.args(["simulate", "--gt", "phantom"])
+            .args(ONE_RUN.split(' '))
+            .arg("--prior")
+            .arg(prior);
+        cmd
+    };
     let mut bad = f.clone();
     bad.meshes[2].radius_mm = -3.0;
     let bad_path = dir.join("bad-prior.json");
     std::fs::write(&bad_path, bad.to_json()).unwrap();
-    let mut cmd = bin();
-    cmd.args(["simulate", "--gt", "phantom"])
-        .args(ONE_RUN.split(' '))
-        .arg("--prior")
-        .arg(&bad_path);
     fails_cleanly(
-        cmd,
+        study_with(&bad_path),
         &dir.join("bad-out"),
         &["bad-prior.json", "meshes[2].radius_mm", "-3"],
     );
+    let mut five = f.clone();
+    five.modes = 5;
+    let five_path = dir.join("five.json");
+    std::fs::write(&five_path, five.to_json()).unwrap();
     let mut cmd = bin();
     cmd.args(["simulate", "--gt", "phantom", "--prior-leave-out"])
         .args(ONE_RUN.split(' '));
@@ -1065,15 +1073,6 @@ fn prior_build_makes_a_prior_a_study_leaves_its_subject_out_of_and_bad_input_is_
         &dir.join("none-out"),
         &["--prior-leave-out needs a prior"],
     );
-    // A prior with more modes than its meshes can carry is refused too.
-    let mut five = f.clone();
-    five.modes = 5;
-    let five_path = dir.join("five.json");
-    std::fs::write(&five_path, five.to_json()).unwrap();
-    let mut cmd = bin();
-    cmd.args(["simulate", "--gt", "phantom"])
-        .args(ONE_RUN.split(' '))
-        .arg("--prior")
-        .arg(&five_path);
+    let cmd = study_with(&five_path);
     fails_cleanly(cmd, &dir.join("five-out"), &["five.json", "at least 7"]);
 }

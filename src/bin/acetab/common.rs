@@ -85,6 +85,33 @@ pub fn engine_on(dev: &Option<GpuDevice>) -> Result<Option<acetab::engine::gpu::
         .map_err(|e| e.to_string())
 }
 
+/// The mesh files (.stl, .ply, .obj, any case) in folder `dir`, sorted; an empty list when it
+/// has none.
+pub fn mesh_files_in(dir: &Path) -> Result<Vec<std::path::PathBuf>, String> {
+    let mut v: Vec<std::path::PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| io_msg(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|f| {
+            f.extension()
+                .and_then(|x| x.to_str())
+                .is_some_and(|x| ["stl", "ply", "obj"].contains(&x.to_ascii_lowercase().as_str()))
+        })
+        .collect();
+    v.sort();
+    Ok(v)
+}
+
+/// A mesh's name: its file name without the extension and the LibHip "_ac_wo_gap" suffix.
+pub fn mesh_name(path: &Path) -> String {
+    path.file_stem()
+        .map(|s| {
+            s.to_string_lossy()
+                .trim_end_matches("_ac_wo_gap")
+                .to_string()
+        })
+        .unwrap_or_default()
+}
+
 /// `--threads` if given (clap checks 1 to `MAX_THREADS`), or every core.
 pub fn threads_or_all(threads: Option<usize>) -> usize {
     threads.unwrap_or_else(|| {

@@ -1,7 +1,7 @@
 //! `acetab prior build`: learn the population shape prior from acetabula whose surfaces are
 //! known (see `acetab::prior`); `--prior` on demo, simulate and reconstruct uses it.
 
-use crate::common::{io_msg, load_truth};
+use crate::common::{io_msg, load_truth, mesh_files_in, mesh_name};
 use acetab::io::write_atomic;
 use acetab::prior::{PriorFile, PriorMesh, DEFAULT_MODES, MAX_MODES};
 use std::path::PathBuf;
@@ -43,21 +43,12 @@ pub fn run(args: PriorArgs) -> Result<(), String> {
     }
 }
 
-/// The mesh files of `paths` (a folder gives its .stl, .ply and .obj files, sorted).
+/// The mesh files of `paths` (a folder gives its mesh files, sorted).
 fn mesh_files(paths: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
     let mut out = Vec::new();
     for p in paths {
         if p.is_dir() {
-            let mut v: Vec<PathBuf> = std::fs::read_dir(p)
-                .map_err(|e| io_msg(p, e))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|f| {
-                    f.extension().and_then(|x| x.to_str()).is_some_and(|x| {
-                        ["stl", "ply", "obj"].contains(&x.to_ascii_lowercase().as_str())
-                    })
-                })
-                .collect();
-            v.sort();
+            let v = mesh_files_in(p)?;
             if v.is_empty() {
                 return Err(format!(
                     "{}: no .stl, .ply or .obj file in the folder",
@@ -77,14 +68,7 @@ fn build(args: BuildArgs) -> Result<(), String> {
     let mut meshes = Vec::new();
     for f in &files {
         let truth = load_truth(&f.to_string_lossy())?;
-        let name = f
-            .file_stem()
-            .map(|s| {
-                s.to_string_lossy()
-                    .trim_end_matches("_ac_wo_gap")
-                    .to_string()
-            })
-            .unwrap_or_default();
+        let name = mesh_name(f);
         if meshes.iter().any(|m: &PriorMesh| m.name == name) {
             return Err(format!("{}: two meshes are named {name:?}", f.display()));
         }

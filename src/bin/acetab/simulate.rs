@@ -1,8 +1,9 @@
 //! `acetab simulate`: the simulation study, levels x runs x methods on a ground-truth surface.
 
 use crate::common::{
-    count_in, engine_on, io_msg, levels, load_truth, methods, open_device, print_summary_as, shard,
-    threads_or_all, views, Levels, Methods, Views, MAX_RUNS, MAX_THREADS,
+    count_in, engine_on, io_msg, levels, load_truth, mesh_files_in, mesh_name, methods,
+    open_device, print_summary_as, shard, threads_or_all, views, Levels, Methods, Views, MAX_RUNS,
+    MAX_THREADS,
 };
 use acetab::contours::ContourSource;
 use acetab::engine::gpu::GpuBatcher;
@@ -272,16 +273,7 @@ fn population_meshes(gt: &[String]) -> Result<Vec<(String, PathBuf)>, String> {
     for g in gt {
         let p = PathBuf::from(g);
         let files: Vec<PathBuf> = if p.is_dir() {
-            let mut v: Vec<PathBuf> = std::fs::read_dir(&p)
-                .map_err(|e| io_msg(&p, e))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|f| {
-                    f.extension().and_then(|x| x.to_str()).is_some_and(|x| {
-                        ["stl", "ply", "obj"].contains(&x.to_ascii_lowercase().as_str())
-                    })
-                })
-                .collect();
-            v.sort();
+            let v = mesh_files_in(&p)?;
             if v.is_empty() {
                 return Err(format!(
                     "--gt {g}: no .stl, .ply or .obj file in the folder"
@@ -292,14 +284,7 @@ fn population_meshes(gt: &[String]) -> Result<Vec<(String, PathBuf)>, String> {
             vec![p]
         };
         for f in files {
-            let name = f
-                .file_stem()
-                .map(|s| {
-                    s.to_string_lossy()
-                        .trim_end_matches("_ac_wo_gap")
-                        .to_string()
-                })
-                .unwrap_or_else(|| g.clone());
+            let name = mesh_name(&f);
             if out.iter().any(|(n, _)| *n == name) {
                 return Err(format!(
                     "--gt: two meshes are named {name:?} ({})",
