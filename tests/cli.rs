@@ -759,6 +759,48 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
     // The run's SD holds the model error.
     let rows = acetab::study::read_csv(&out.join("runs.csv")).unwrap();
     assert!(rows[0].cup_sd_mm >= shipped, "{}", rows[0].cup_sd_mm);
+    // --realistic sets one error over the defaults, recorded in summary.json; a setting that is
+    // not one, a value out of range, or --realistic without the protocol are refused by name.
+    let whole = dir.join("whole");
+    let o = bin()
+        .args(["simulate", "--gt", "phantom", "--protocol", "realistic"])
+        .args(["--realistic", "left_out=0,pose_deg=0.5"])
+        .args(ONE_RUN.split(' '))
+        .args(["--uncertainty-samples", "0", "--out"])
+        .arg(&whole)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(whole.join("summary.json")).unwrap())
+            .unwrap();
+    let p = &s["study"]["protocol"]["Realistic"];
+    assert_eq!(p["left_out"], 0.0, "{p}");
+    assert_eq!(p["pose_deg"], 0.5, "{p}");
+    assert_eq!(p["pose_mm"], 2.0, "{p}");
+    for (args, needle, code) in [
+        (
+            vec!["--protocol", "realistic", "--realistic", "left=0"],
+            "\"left\" is not a setting",
+            2,
+        ),
+        (
+            vec!["--protocol", "realistic", "--realistic", "left_out=0.9"],
+            "left_out",
+            2,
+        ),
+        (
+            vec!["--realistic", "left_out=0"],
+            "add --protocol realistic",
+            1,
+        ),
+    ] {
+        let mut cmd = bin();
+        cmd.args(["simulate", "--gt", "phantom"])
+            .args(args)
+            .args(ONE_RUN.split(' '));
+        fails_cleanly_with(cmd, &dir.join("refused"), &[needle], code);
+    }
 }
 
 /// A picture that cannot be drawn (here: ACETAB_FONT names no font) loses nothing: the study's

@@ -198,6 +198,43 @@ pub fn views(s: &str) -> Result<Views, String> {
     Ok(Views(list))
 }
 
+/// `--realistic`: the realistic protocol's error settings, each KEY=VALUE over the defaults
+/// (clap value parser).
+#[derive(Clone, Debug)]
+pub struct Realistic(pub acetab::sim::RealisticErrors);
+
+/// Parse `--realistic` ("left_out=0,pose_deg=2"; keys as `RealisticErrors`' fields).
+pub fn realistic(s: &str) -> Result<Realistic, String> {
+    let mut e = acetab::sim::RealisticErrors::default();
+    for item in s.split(',').map(str::trim).filter(|x| !x.is_empty()) {
+        let (key, value) = item
+            .split_once('=')
+            .ok_or_else(|| format!("{item:?}: expected KEY=VALUE"))?;
+        let v: f64 = value
+            .trim()
+            .parse()
+            .map_err(|_| format!("{item:?}: {value:?} is not a number"))?;
+        let field = match key.trim() {
+            "pose_deg" => &mut e.pose_deg,
+            "pose_mm" => &mut e.pose_mm,
+            "magnification" => &mut e.magnification,
+            "left_out" => &mut e.left_out,
+            "drift_px" => &mut e.drift_px,
+            "drift_length_px" => &mut e.drift_length_px,
+            "jitter_px" => &mut e.jitter_px,
+            other => {
+                return Err(format!(
+                    "{other:?} is not a setting; expected pose_deg, pose_mm, magnification, \
+                     left_out, drift_px, drift_length_px or jitter_px"
+                ))
+            }
+        };
+        *field = v;
+    }
+    e.validate().map_err(|e| e.to_string())?;
+    Ok(Realistic(e))
+}
+
 /// `--methods`: a list of study methods (clap value parser).
 #[derive(Clone, Debug)]
 pub struct Methods(pub Vec<acetab::study::StudyMethod>);

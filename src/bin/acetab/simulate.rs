@@ -49,6 +49,12 @@ pub struct SimulateArgs {
     /// 2 px over about 20 px plus 1 px jitter; the reconstruction is told the nominal views).
     #[arg(long, value_enum, default_value_t = ProtocolArg::Ideal)]
     pub protocol: ProtocolArg,
+    /// The realistic protocol's errors, KEY=VALUE over the defaults above: pose_deg, pose_mm,
+    /// magnification (relative SD), left_out (share of each outline), drift_px,
+    /// drift_length_px, jitter_px; e.g. "left_out=0" for whole outlines. Needs --protocol
+    /// realistic.
+    #[arg(long, value_parser = crate::common::realistic)]
+    pub realistic: Option<crate::common::Realistic>,
     /// Refine small per-view pose corrections with the deformation (as `acetab reconstruct
     /// --refine-poses`; prior SD 2 deg, 5 mm; the first view defines the frame).
     #[arg(long)]
@@ -130,6 +136,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         views,
         runs,
         protocol,
+        realistic,
         refine_poses,
         methods,
         seed,
@@ -168,6 +175,11 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
             "realistic",
         ),
     }?;
+    if realistic.is_some() && protocol != ProtocolArg::Realistic {
+        return Err(
+            "--realistic sets the realistic protocol's errors: add --protocol realistic".into(),
+        );
+    }
     for (flag, w) in [("--w-rot", w_rot), ("--w-reg", w_reg), ("--w-obs", w_obs)] {
         if !(w.is_finite() && w >= 0.0) {
             return Err(format!("{flag} {w}: must be a finite non-negative weight"));
@@ -176,7 +188,9 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
     let cfg = StudyConfig {
         protocol: match protocol {
             ProtocolArg::Ideal => Protocol::Ideal,
-            ProtocolArg::Realistic => Protocol::Realistic(RealisticErrors::default()),
+            ProtocolArg::Realistic => {
+                Protocol::Realistic(realistic.map_or_else(RealisticErrors::default, |r| r.0))
+            }
         },
         levels: levels.0,
         runs,
