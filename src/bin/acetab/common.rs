@@ -204,7 +204,7 @@ pub fn views(s: &str) -> Result<Views, String> {
 pub struct Realistic(pub acetab::sim::RealisticErrors);
 
 /// Parse `--realistic` ("left_out=0,pose_deg=2"; keys as `RealisticErrors`' fields).
-pub fn realistic(s: &str) -> Result<Realistic, String> {
+pub fn realistic(s: &str) -> Result<Box<Realistic>, String> {
     let mut e = acetab::sim::RealisticErrors::default();
     for item in s.split(',').map(str::trim).filter(|x| !x.is_empty()) {
         let (key, value) = item
@@ -232,7 +232,7 @@ pub fn realistic(s: &str) -> Result<Realistic, String> {
         *field = v;
     }
     e.validate().map_err(|e| e.to_string())?;
-    Ok(Realistic(e))
+    Ok(Box::new(Realistic(e)))
 }
 
 /// `--methods`: a list of study methods (clap value parser).

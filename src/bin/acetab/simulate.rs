@@ -54,7 +54,7 @@ pub struct SimulateArgs {
     /// drift_length_px, jitter_px; e.g. "left_out=0" for whole outlines. Needs --protocol
     /// realistic.
     #[arg(long, value_parser = crate::common::realistic)]
-    pub realistic: Option<crate::common::Realistic>,
+    pub realistic: Option<Box<crate::common::Realistic>>,
     /// Refine small per-view pose corrections with the deformation (as `acetab reconstruct
     /// --refine-poses`; prior SD 2 deg, 5 mm; the first view defines the frame).
     #[arg(long)]
