@@ -733,20 +733,29 @@ fn calibrate_learns_the_model_sd_leaves_a_subject_out_and_names_bad_input() {
     fails_cleanly(cmd, &dir.join("study"), &["--calibration", "bad.json"]);
 }
 
+/// A one-run study of the phantom with `extra` flags written to `out`, which must succeed; its
+/// summary.json.
+fn phantom_study(extra: &[&str], out: &Path) -> serde_json::Value {
+    let o = bin()
+        .args(["simulate", "--gt", "phantom"])
+        .args(ONE_RUN.split(' '))
+        .args(extra)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap()
+}
+
 #[test]
 fn a_realistic_study_records_its_protocol_and_calibration() {
     let dir = tmp("realistic");
     let out = dir.join("study");
-    let o = bin()
-        .args(["simulate", "--gt", "phantom", "--protocol", "realistic"])
-        .args(ONE_RUN.split(' '))
-        .args(["--uncertainty-samples", "2", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let s: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let s = phantom_study(
+        &["--protocol", "realistic", "--uncertainty-samples", "2"],
+        &out,
+    );
     let study = &s["study"];
     assert_eq!(study["protocol"]["Realistic"]["pose_deg"], 1.0, "{study}");
     assert_eq!(study["calibration"], "shipped realistic");
@@ -761,19 +770,17 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
     assert!(rows[0].cup_sd_mm >= shipped, "{}", rows[0].cup_sd_mm);
     // --realistic sets one error over the defaults, recorded in summary.json; a setting that is
     // not one, a value out of range, or --realistic without the protocol are refused by name.
-    let whole = dir.join("whole");
-    let o = bin()
-        .args(["simulate", "--gt", "phantom", "--protocol", "realistic"])
-        .args(["--realistic", "left_out=0,pose_deg=0.5"])
-        .args(ONE_RUN.split(' '))
-        .args(["--uncertainty-samples", "0", "--out"])
-        .arg(&whole)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let s: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(whole.join("summary.json")).unwrap())
-            .unwrap();
+    let s = phantom_study(
+        &[
+            "--protocol",
+            "realistic",
+            "--realistic",
+            "left_out=0,pose_deg=0.5",
+            "--uncertainty-samples",
+            "0",
+        ],
+        &dir.join("whole"),
+    );
     let p = &s["study"]["protocol"]["Realistic"];
     assert_eq!(p["left_out"], 0.0, "{p}");
     assert_eq!(p["pose_deg"], 0.5, "{p}");

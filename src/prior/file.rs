@@ -2,7 +2,7 @@
 //! study can leave a subject out (both hips together) and learn the prior from the rest.
 
 use super::field::{deviation_field, GRID_POINTS, KERNEL_DEG};
-use super::model::{PriorError, ShapePrior, MAX_MODES};
+use super::model::{meshes_needed, PriorError, ShapePrior, MAX_MODES};
 use crate::geom::{fit_sphere, Mesh};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -185,7 +185,7 @@ impl PriorFile {
     }
 
     /// Parse and check prior JSON (`path` names it in errors): the format, the grid, the modes,
-    /// and every mesh's field, and that a prior can be learned from it.
+    /// every mesh's field, and that there are enough meshes for the modes.
     pub fn parse(text: &str, path: &Path) -> Result<PriorFile, PriorFileError> {
         let f: PriorFile = serde_json::from_str(text).map_err(|e| PriorFileError::Parse {
             path: path.to_path_buf(),
@@ -253,13 +253,19 @@ impl PriorFile {
                 ));
             }
         }
-        f.prior().map_err(|source| match source {
-            PriorFileError::Learn { source, .. } => PriorFileError::Learn {
+        // Enough meshes for the modes (the fields were checked above; the prior itself is
+        // learned when it is used, from whatever a leave-out keeps).
+        let need = meshes_needed(f.modes);
+        if f.meshes.len() < need {
+            return Err(PriorFileError::Learn {
                 path: path.to_path_buf(),
-                source,
-            },
-            other => other,
-        })?;
+                source: PriorError::TooFewMeshes {
+                    modes: f.modes,
+                    need,
+                    got: f.meshes.len(),
+                },
+            });
+        }
         Ok(f)
     }
 

@@ -62,6 +62,15 @@ pub enum PriorError {
     },
 }
 
+/// Fewest training meshes a prior with `modes` modes is learned from.
+pub fn meshes_needed(modes: usize) -> usize {
+    if modes == 0 {
+        1
+    } else {
+        modes + 2
+    }
+}
+
 impl ShapePrior {
     /// The prior of the fields `fields` (name, deviation per grid direction, None where the mesh
     /// does not reach) with `modes` principal modes.
@@ -69,7 +78,7 @@ impl ShapePrior {
         if modes > MAX_MODES {
             return Err(PriorError::TooManyModes(modes));
         }
-        let need = if modes == 0 { 1 } else { modes + 2 };
+        let need = meshes_needed(modes);
         if fields.len() < need {
             return Err(PriorError::TooFewMeshes {
                 modes,

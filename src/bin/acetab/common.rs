@@ -101,6 +101,31 @@ pub fn mesh_files_in(dir: &Path) -> Result<Vec<std::path::PathBuf>, String> {
     Ok(v)
 }
 
+/// The mesh files of `paths`: a folder gives its mesh files (`mesh_files_in`; one without any is
+/// an error, `label` before its name), a file itself.
+pub fn mesh_files<P: AsRef<Path>>(
+    paths: &[P],
+    label: &str,
+) -> Result<Vec<std::path::PathBuf>, String> {
+    let mut out = Vec::new();
+    for p in paths {
+        let p = p.as_ref();
+        if p.is_dir() {
+            let v = mesh_files_in(p)?;
+            if v.is_empty() {
+                return Err(format!(
+                    "{label}{}: no .stl, .ply or .obj file in the folder",
+                    p.display()
+                ));
+            }
+            out.extend(v);
+        } else {
+            out.push(p.to_path_buf());
+        }
+    }
+    Ok(out)
+}
+
 /// A mesh's name: its file name without the extension and the LibHip "_ac_wo_gap" suffix.
 pub fn mesh_name(path: &Path) -> String {
     path.file_stem()

@@ -1,7 +1,7 @@
 //! `acetab prior build`: learn the population shape prior from acetabula whose surfaces are
 //! known (see `acetab::prior`); `--prior` on demo, simulate and reconstruct uses it.
 
-use crate::common::{io_msg, load_truth, mesh_files_in, mesh_name};
+use crate::common::{io_msg, load_truth, mesh_files, mesh_name};
 use acetab::io::write_atomic;
 use acetab::prior::{PriorFile, PriorMesh, DEFAULT_MODES, MAX_MODES};
 use std::path::PathBuf;
@@ -43,28 +43,8 @@ pub fn run(args: PriorArgs) -> Result<(), String> {
     }
 }
 
-/// The mesh files of `paths` (a folder gives its mesh files, sorted).
-fn mesh_files(paths: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
-    let mut out = Vec::new();
-    for p in paths {
-        if p.is_dir() {
-            let v = mesh_files_in(p)?;
-            if v.is_empty() {
-                return Err(format!(
-                    "{}: no .stl, .ply or .obj file in the folder",
-                    p.display()
-                ));
-            }
-            out.extend(v);
-        } else {
-            out.push(p.clone());
-        }
-    }
-    Ok(out)
-}
-
 fn build(args: BuildArgs) -> Result<(), String> {
-    let files = mesh_files(&args.meshes)?;
+    let files = mesh_files(&args.meshes, "")?;
     let mut meshes = Vec::new();
     for f in &files {
         let truth = load_truth(&f.to_string_lossy())?;

@@ -1,9 +1,8 @@
 //! `acetab simulate`: the simulation study, levels x runs x methods on a ground-truth surface.
 
 use crate::common::{
-    count_in, engine_on, io_msg, levels, load_truth, mesh_files_in, mesh_name, methods,
-    open_device, print_summary_as, shard, threads_or_all, views, Levels, Methods, Views, MAX_RUNS,
-    MAX_THREADS,
+    count_in, engine_on, io_msg, levels, load_truth, mesh_files, mesh_name, methods, open_device,
+    print_summary_as, shard, threads_or_all, views, Levels, Methods, Views, MAX_RUNS, MAX_THREADS,
 };
 use acetab::contours::ContourSource;
 use acetab::engine::gpu::GpuBatcher;
@@ -238,7 +237,11 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         adapter: dev.as_ref().map(|d| d.describe()),
         adapter_json: dev.as_ref().map(|d| d.adapter_json()),
         loso: calibrate_loso,
-        prior: (prior, prior_leave_out, prior_from),
+        prior: PriorChoice {
+            arg: prior,
+            leave_out: prior_leave_out,
+            from: prior_from,
+        },
         runs,
         seed,
         shard,
@@ -256,6 +259,13 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
     sweep(&study, &meshes, &out, json)
 }
 
+/// `--prior` as given, `--prior-leave-out`, and where the prior came from (summary.json).
+struct PriorChoice {
+    arg: String,
+    leave_out: bool,
+    from: String,
+}
+
 /// One study's settings, shared by every mesh of a sweep.
 struct Study<'a> {
     cfg: &'a StudyConfig,
@@ -267,8 +277,8 @@ struct Study<'a> {
     adapter_json: Option<serde_json::Value>,
     /// `--calibrate-loso`: the studies each mesh's calibration is learned from.
     loso: Option<PathBuf>,
-    /// `--prior`, `--prior-leave-out` and where the prior came from (summary.json).
-    prior: (String, bool, String),
+    /// The prior asked for.
+    prior: PriorChoice,
     runs: usize,
     seed: u64,
     shard: (usize, usize),
@@ -284,29 +294,15 @@ fn population_meshes(gt: &[String]) -> Result<Vec<(String, PathBuf)>, String> {
         return Ok(Vec::new());
     }
     let mut out: Vec<(String, PathBuf)> = Vec::new();
-    for g in gt {
-        let p = PathBuf::from(g);
-        let files: Vec<PathBuf> = if p.is_dir() {
-            let v = mesh_files_in(&p)?;
-            if v.is_empty() {
-                return Err(format!(
-                    "--gt {g}: no .stl, .ply or .obj file in the folder"
-                ));
-            }
-            v
-        } else {
-            vec![p]
-        };
-        for f in files {
-            let name = mesh_name(&f);
-            if out.iter().any(|(n, _)| *n == name) {
-                return Err(format!(
-                    "--gt: two meshes are named {name:?} ({})",
-                    f.display()
-                ));
-            }
-            out.push((name, f));
+    for f in mesh_files(gt, "--gt ")? {
+        let name = mesh_name(&f);
+        if out.iter().any(|(n, _)| *n == name) {
+            return Err(format!(
+                "--gt: two meshes are named {name:?} ({})",
+                f.display()
+            ));
         }
+        out.push((name, f));
     }
     Ok(out)
 }
@@ -346,7 +342,7 @@ fn sweep(
         "levels": study.cfg.levels, "runs": study.runs, "methods": study.cfg.methods,
         "views": study.cfg.geometry.views.iter().map(|v| v.to_string()).collect::<Vec<_>>(),
         "seed": study.seed, "protocol": study.cfg.protocol, "sweep_seconds": start.elapsed().as_secs_f64(),
-        "prior": if study.prior.1 { format!("{} without each mesh's subject", study.prior.0) } else { study.prior.2.clone() },
+        "prior": if study.prior.leave_out { format!("{} without each mesh's subject", study.prior.arg) } else { study.prior.from.clone() },
     });
     let (rows, warning) = write_population(out, &tables, &meta).map_err(|e| e.to_string())?;
     if let Some(w) = warning {
@@ -439,10 +435,10 @@ impl Study<'_> {
                 cal.learned_from
             );
         }
-        let mut prior_from = prior.2.clone();
-        if prior.1 {
+        let mut prior_from = prior.from.clone();
+        if prior.leave_out {
             let subject = crate::calibrate::subject_of(Path::new(gt));
-            let (p, from) = crate::prior::choose(&prior.0, Some(&subject))?;
+            let (p, from) = crate::prior::choose(&prior.arg, Some(&subject))?;
             own.params.deformation.shape_prior = p;
             prior_from = from;
         }
