@@ -226,6 +226,8 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
         ("--runs", "4000000000", "4000000000 is not in 1..=100000"),
         ("--threads", "0", "0 is not in 1..=1024"),
         ("--coarse-nodes", "1", "1 is not in 2..=150"),
+        ("--correspondence-updates", "0", "0 is not in 1..=50"),
+        ("--srvf-samples", "7", "7 is not in 8..=2000"),
         ("--shard", "3/2", "expected I/N with 0 <= I < N"),
         (
             "--uncertainty-samples",
@@ -1124,4 +1126,42 @@ fn prior_build_makes_a_prior_a_study_leaves_its_subject_out_of_and_bad_input_is_
     );
     let cmd = study_with(&five_path);
     fails_cleanly(cmd, &dir.join("five-out"), &["five.json", "at least 7"]);
+}
+
+#[test]
+fn a_study_records_its_correspondence_schedule_and_runs_it() {
+    // --correspondence-updates and --srvf-samples reach the method: the rounds show in
+    // runs.csv and both settings in summary.json; the defaults are recorded the same way.
+    let dir = tmp("schedule");
+    let rounds = |out: &Path| -> Vec<String> {
+        let text = std::fs::read_to_string(out.join("runs.csv")).unwrap();
+        let mut lines = text.lines();
+        let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let (m, k) = (
+            head.iter().position(|h| *h == "method").unwrap(),
+            head.iter()
+                .position(|h| *h == "correspondence_updates")
+                .unwrap(),
+        );
+        lines
+            .map(|l| l.split(',').collect::<Vec<_>>())
+            .filter(|c| c[m] == "srvf")
+            .map(|c| c[k].to_string())
+            .collect()
+    };
+    let default = dir.join("default");
+    let s = phantom_study(&[], &default);
+    assert_eq!(s["study"]["correspondence_updates"], 3, "{}", s["study"]);
+    assert_eq!(s["study"]["srvf_samples"], 200);
+    let five = dir.join("five");
+    let s = phantom_study(
+        &["--correspondence-updates", "5", "--srvf-samples", "100"],
+        &five,
+    );
+    assert_eq!(s["study"]["correspondence_updates"], 5, "{}", s["study"]);
+    assert_eq!(s["study"]["srvf_samples"], 100);
+    let (r3, r5) = (rounds(&default), rounds(&five));
+    assert!(!r3.is_empty() && r3.iter().all(|r| r == "3"), "{r3:?}");
+    // The companion: the five-round study is told apart from the default by the same column.
+    assert!(!r5.is_empty() && r5.iter().all(|r| r == "5"), "{r5:?}");
 }

@@ -91,6 +91,14 @@ pub struct SimulateArgs {
     /// but the last (default: the full graph throughout; see docs/study.md).
     #[arg(long, value_parser = count_in(2, acetab::solve::GraphParams::default().nodes))]
     pub coarse_nodes: Option<usize>,
+    /// SRVF's correspondence rounds in stage B, each solved until the deformation settles
+    /// (default 3, the paper's 1-3; see docs/population.md on what more rounds do).
+    #[arg(long, default_value_t = DeformationParams::default().correspondence_updates, value_parser = count_in(1, 50))]
+    pub correspondence_updates: usize,
+    /// Arc-length samples per curve of the deformation's SRVF alignments (default 200; stage A
+    /// takes at most 100).
+    #[arg(long, default_value_t = acetab::correspond::CorrespondParams::default().srvf.samples, value_parser = count_in(acetab::correspond::srvf::MIN_SAMPLES, 2000))]
+    pub srvf_samples: usize,
     /// Resamples for every run's cup uncertainty (cup_sd_mm, size_probability and brier in
     /// runs.csv; the same resampling as `acetab reconstruct`, seeded by the run's seed); 0
     /// turns it off.
@@ -147,6 +155,8 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         w_reg,
         w_obs,
         coarse_nodes,
+        correspondence_updates,
+        srvf_samples,
         uncertainty_samples,
         calibration,
         calibrate_loso,
@@ -207,8 +217,14 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
             },
             deformation: DeformationParams {
                 coarse_graph_nodes: coarse_nodes,
+                correspondence_updates,
                 shape_prior,
                 ..Default::default()
+            },
+            correspond: {
+                let mut c = acetab::correspond::CorrespondParams::default();
+                c.srvf.samples = srvf_samples;
+                c
             },
             pose: refine_poses.then(acetab::solve::PoseParams::default),
             ..Default::default()
@@ -518,6 +534,8 @@ impl Study<'_> {
                 None => serde_json::json!({"backend": kernels.name(), "adapter": null, "batch": 1}),
             },
             "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
+            "correspondence_updates": cfg.params.deformation.correspondence_updates,
+            "srvf_samples": cfg.params.correspond.srvf.samples,
         });
         fill_dir_atomically(
             out,
