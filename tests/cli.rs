@@ -1133,20 +1133,12 @@ fn a_study_records_its_correspondence_schedule_and_runs_it() {
     // --correspondence-updates and --srvf-samples reach the method: the rounds show in
     // runs.csv and both settings in summary.json; the defaults are recorded the same way.
     let dir = tmp("schedule");
-    let rounds = |out: &Path| -> Vec<String> {
-        let text = std::fs::read_to_string(out.join("runs.csv")).unwrap();
-        let mut lines = text.lines();
-        let head: Vec<&str> = lines.next().unwrap().split(',').collect();
-        let (m, k) = (
-            head.iter().position(|h| *h == "method").unwrap(),
-            head.iter()
-                .position(|h| *h == "correspondence_updates")
-                .unwrap(),
-        );
-        lines
-            .map(|l| l.split(',').collect::<Vec<_>>())
-            .filter(|c| c[m] == "srvf")
-            .map(|c| c[k].to_string())
+    let rounds = |out: &Path| -> Vec<usize> {
+        acetab::study::read_csv(&out.join("runs.csv"))
+            .unwrap()
+            .iter()
+            .filter(|r| r.method == acetab::study::StudyMethod::Srvf)
+            .map(|r| r.correspondence_updates)
             .collect()
     };
     let default = dir.join("default");
@@ -1161,7 +1153,7 @@ fn a_study_records_its_correspondence_schedule_and_runs_it() {
     assert_eq!(s["study"]["correspondence_updates"], 5, "{}", s["study"]);
     assert_eq!(s["study"]["srvf_samples"], 100);
     let (r3, r5) = (rounds(&default), rounds(&five));
-    assert!(!r3.is_empty() && r3.iter().all(|r| r == "3"), "{r3:?}");
+    assert!(!r3.is_empty() && r3.iter().all(|&r| r == 3), "{r3:?}");
     // The companion: the five-round study is told apart from the default by the same column.
-    assert!(!r5.is_empty() && r5.iter().all(|r| r == "5"), "{r5:?}");
+    assert!(!r5.is_empty() && r5.iter().all(|&r| r == 5), "{r5:?}");
 }

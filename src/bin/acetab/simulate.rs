@@ -222,9 +222,14 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
                 ..Default::default()
             },
             correspond: {
-                let mut c = acetab::correspond::CorrespondParams::default();
-                c.srvf.samples = srvf_samples;
-                c
+                let d = acetab::correspond::CorrespondParams::default();
+                acetab::correspond::CorrespondParams {
+                    srvf: acetab::correspond::srvf::SrvfParams {
+                        samples: srvf_samples,
+                        ..d.srvf.clone()
+                    },
+                    ..d
+                }
             },
             pose: refine_poses.then(acetab::solve::PoseParams::default),
             ..Default::default()
