@@ -247,6 +247,10 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
         // clap's value parsers refuse them: a usage error, exit 2.
         fails_cleanly_with(cmd, &out, &[flag, needle], 2);
     }
+    // The DPs on a device that the study does not open.
+    let mut cmd = bin();
+    cmd.args(["simulate", "--gt", "phantom", "--dp", "device"]);
+    fails_cleanly_with(cmd, &out, &["--dp device", "--backend gpu"], 1);
 }
 
 #[test]

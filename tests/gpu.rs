@@ -336,6 +336,34 @@ fn study_runs_batched_on_the_gpu_match_the_cpu() {
         // Companion: the batched-vs-single check (1e-12) rejects a result 1e-9 mm away.
         let nudged = batched[0].mae_mm + 1e-9;
         assert!((single[0].mae_mm - nudged).abs() >= 1e-12);
+        // The SRVF DPs on the device too (`--dp device`): every DP a request to the
+        // srvf_band kernel, the runs' requests merged; the results the CPU's within the
+        // issue's bars (MAE 0.05 mm, cup 0.1 mm).
+        let on_device =
+            GpuBatcher::new(gpu, 2, std::time::Duration::from_millis(5)).with_dp_on_device(true);
+        let (dev, _) = run_study(&truth, &cfg, &|| {}, Kernels::Batched(&on_device)).unwrap();
+        let st = on_device.stats();
+        eprintln!("device DP: {:?}", st.srvf_band);
+        assert!(
+            st.srvf_band.requests > 0 && st.srvf_band.dispatches > 0,
+            "{st:?}"
+        );
+        assert_eq!(st.srvf_band_on_host, 0, "every DP ran on the device");
+        let agrees = |c: &acetab::study::Row, d: &acetab::study::Row| {
+            (c.mae_mm - d.mae_mm).abs() < 0.05
+                && (c.cup_diameter_mm - d.cup_diameter_mm).abs() < 0.1
+        };
+        for (c, d) in cpu.iter().zip(&dev) {
+            eprintln!(
+                "run {}: cpu {} / {} device DP {} / {}",
+                c.run, c.mae_mm, c.cup_diameter_mm, d.mae_mm, d.cup_diameter_mm
+            );
+            assert!(d.error.is_empty() && agrees(c, d));
+        }
+        // Companion: a run whose cup is 0.2 mm off fails the same check.
+        let mut off = dev[0].clone();
+        off.cup_diameter_mm += 0.2;
+        assert!(!agrees(&cpu[0], &off));
     });
 }
 
@@ -503,5 +531,180 @@ fn the_surface_picture_on_the_gpu_matches_its_cpu_twin() {
         assert!(gpu
             .render_surface(&points, &colors, &[0, 1, 99_999], &view(&look))
             .is_err());
+    });
+}
+
+/// q1, q2, the band's first and last columns per row, the position weight.
+type BandCase = (
+    Vec<Vector2<f64>>,
+    Vec<Vector2<f64>>,
+    Vec<usize>,
+    Vec<usize>,
+    f64,
+);
+
+/// Banded DP problems as alignments pose them: curves of several lengths, bands around a
+/// wandering path of several widths and the full feasible band, with and without the position
+/// term.
+fn band_problems() -> Vec<BandCase> {
+    let mut out = Vec::new();
+    for (k, &(n, half, weight)) in [
+        (40usize, 40usize, 0.0),
+        (64, 5, 3.0),
+        (101, 6, 3.0),
+        (200, 6, 3.0),
+        (200, 9, 0.0),
+    ]
+    .iter()
+    .enumerate()
+    {
+        let q1 = wave(n, 1.0 + 0.1 * k as f64, 0.0);
+        let q2 = wave(n, 1.2 + 0.07 * k as f64, 0.3 * k as f64);
+        // Around j = i + 3 sin(...), clamped to the grid; row 0 only the start.
+        let (mut lo, mut hi) = (vec![0usize; n], vec![0usize; n]);
+        for i in 1..n {
+            let c = i as f64 + 3.0 * (i as f64 / 17.0).sin();
+            lo[i] = ((c - half as f64).floor().max(1.0) as usize).min(n - 1);
+            hi[i] = ((c + half as f64).ceil() as usize).clamp(lo[i], n - 1);
+        }
+        hi[n - 1] = n - 1;
+        out.push((q1, q2, lo, hi, weight));
+    }
+    out
+}
+
+#[test]
+fn srvf_band_back_pointers_equal_the_twin_exactly() {
+    use acetab::correspond::srvf::{coprime_steps, Anchor, BandProblem};
+    use acetab::engine::cpu::srvf_band as cband;
+    with_gpu(|gpu| {
+        let steps = coprime_steps(5);
+        let owned = band_problems();
+        let problems: Vec<BandProblem> = owned
+            .iter()
+            .map(|(q1, q2, lo, hi, w)| BandProblem {
+                q1,
+                q2,
+                steps: &steps,
+                lo,
+                hi,
+                // The SRVFs themselves stand in for the positions.
+                anchor: Some(Anchor {
+                    a: q2,
+                    b: q1,
+                    weight: *w,
+                }),
+            })
+            .collect();
+        let batch = cband::BandBatch::new(&problems).unwrap();
+        let (cpu_cost, cpu_back) = cband::band_tables(&batch);
+        let (gpu_cost, gpu_back) = gpu.srvf_band_tables(&batch).unwrap();
+        assert_eq!(gpu_back.len(), batch.cells);
+        let differ = cpu_back
+            .iter()
+            .zip(&gpu_back)
+            .filter(|(a, b)| a != b)
+            .count();
+        assert_eq!(
+            differ, 0,
+            "{differ} of {} back-pointers differ",
+            batch.cells
+        );
+        for (i, (a, b)) in cpu_cost.iter().zip(&gpu_cost).enumerate() {
+            assert!(
+                (a - b).abs() <= 1e-6 * a.abs().max(1.0),
+                "cost {i}: {a} vs {b}"
+            );
+        }
+        // Every problem's band holds a path (the tables are not all unreached).
+        for (k, p) in problems.iter().enumerate() {
+            let back = batch.slice(&gpu_back, k);
+            assert!(
+                acetab::correspond::srvf::trace_band(back, p.lo, p.hi, &steps).is_some(),
+                "problem {k}: no path"
+            );
+        }
+        // Companion: one back-pointer changed is told apart.
+        let mut wrong = gpu_back.clone();
+        wrong[batch.cells / 2] ^= 1;
+        assert_ne!(
+            wrong, cpu_back,
+            "the comparison must reject one changed back-pointer"
+        );
+    });
+}
+
+/// A band solver that runs the GPU's DP and then points every cell at the diagonal step, so
+/// that every warp comes out straight: a wrong answer the alignment comparison must reject.
+struct Corrupted<'a>(&'a Gpu<'a>);
+
+impl acetab::correspond::srvf::BandSolver for Corrupted<'_> {
+    fn back_pointers(&self, p: &acetab::correspond::srvf::BandProblem) -> Option<Vec<u32>> {
+        let back = self.0.back_pointers(p)?;
+        let diagonal = p.steps.iter().position(|&s| s == (1, 1))? as u32;
+        Some(vec![diagonal; back.len()])
+    }
+}
+
+#[test]
+fn alignments_with_their_dps_on_the_gpu_equal_the_hosts() {
+    use acetab::correspond::srvf::{align, align_on, CurveKind, DpOn, SrvfParams};
+    use nalgebra::Point2;
+    with_gpu(|gpu| {
+        // A dented, noisy closed outline against a smooth ellipse, an open arc against it, and
+        // the study's settings (bounded rotation, position term).
+        let outline: Vec<Point2<f64>> = (0..28)
+            .map(|i| {
+                let t = std::f64::consts::TAU * i as f64 / 28.0;
+                let bump = 1.0 + 0.35 * (-((t - 1.2) / 0.4).powi(2)).exp();
+                let dent = if (4.0..4.5).contains(&t) { 0.8 } else { 1.0 };
+                let jitter = 0.3 * ((i * 7919) % 13) as f64 / 13.0;
+                let r = bump * dent;
+                Point2::new(r * 30.0 * t.cos() + jitter, r * 22.0 * t.sin() - jitter)
+            })
+            .collect();
+        let model: Vec<Point2<f64>> = (0..140)
+            .map(|i| {
+                let t = std::f64::consts::TAU * i as f64 / 140.0 + 0.1;
+                Point2::new(29.0 * t.cos() + 0.5, 23.0 * t.sin())
+            })
+            .collect();
+        let prm = acetab::correspond::CorrespondParams::default().srvf;
+        let coarse = SrvfParams {
+            samples: 100,
+            ..prm.clone()
+        };
+        let arc = &outline[3..20];
+        let cases = [
+            (&outline[..], CurveKind::Closed, &prm),
+            (&outline[..], CurveKind::Closed, &coarse),
+            (arc, CurveKind::Partial, &prm),
+        ];
+        let same = |x: &acetab::correspond::srvf::Alignment,
+                    y: &acetab::correspond::srvf::Alignment| {
+            x.seed == y.seed && x.gamma == y.gamma && x.rotation == y.rotation
+        };
+        for (k, (a, kind, p)) in cases.iter().enumerate() {
+            let host = align(a, &model, *kind, p).unwrap();
+            // The warp is not the straight one (the corrupted solver's), or the companion
+            // below would prove nothing.
+            let t = host.gamma.len();
+            let bend = host
+                .gamma
+                .iter()
+                .enumerate()
+                .map(|(i, g)| (g - i as f64 / (t - 1) as f64).abs())
+                .fold(0.0, f64::max);
+            assert!(bend > 0.01, "case {k}: a straight warp ({bend})");
+            let dev = align_on(a, &model, *kind, p, DpOn::Device(gpu)).unwrap();
+            assert!(
+                same(&host, &dev),
+                "case {k}: the device's alignment differs"
+            );
+            // Companion: wrong back-pointers give an alignment the same check rejects.
+            let bad = Corrupted(gpu);
+            let wrong = align_on(a, &model, *kind, p, DpOn::Device(&bad)).unwrap();
+            assert!(!same(&host, &wrong), "case {k}: corrupted tables passed");
+        }
     });
 }

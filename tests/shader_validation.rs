@@ -2,7 +2,8 @@
 //! listed in `acetab::engine::gpu::SHADERS`, and every host struct shared with WGSL has the size and
 //! member offsets naga computes for the WGSL struct of the same role.
 
-use acetab::engine::gpu::{deform, project, silhouette, srvf_dp, surface, SHADERS};
+use acetab::engine::cpu::srvf_band::{BandHeader, BandRow};
+use acetab::engine::gpu::{deform, project, silhouette, srvf_band, srvf_dp, surface, SHADERS};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 use std::mem::{offset_of, size_of};
 
@@ -151,6 +152,63 @@ fn host_structs_match_their_wgsl_layouts() {
         ),
         (
             "srvf_dp",
+            "Tap",
+            size_of::<srvf_dp::GpuTap>(),
+            vec![
+                offset_of!(srvf_dp::GpuTap, offset),
+                offset_of!(srvf_dp::GpuTap, frac),
+            ],
+        ),
+        (
+            "srvf_band",
+            "Params",
+            size_of::<srvf_band::BandParams>(),
+            vec![
+                offset_of!(srvf_band::BandParams, problems),
+                offset_of!(srvf_band::BandParams, step_count),
+                offset_of!(srvf_band::BandParams, _pad),
+                offset_of!(srvf_band::BandParams, _pad) + 4,
+            ],
+        ),
+        (
+            "srvf_band",
+            "Problem",
+            size_of::<BandHeader>(),
+            vec![
+                offset_of!(BandHeader, n),
+                offset_of!(BandHeader, rows),
+                offset_of!(BandHeader, cells),
+                offset_of!(BandHeader, curve),
+                offset_of!(BandHeader, weight),
+                offset_of!(BandHeader, _pad),
+                offset_of!(BandHeader, _pad) + 4,
+                offset_of!(BandHeader, _pad) + 8,
+            ],
+        ),
+        (
+            "srvf_band",
+            "Row",
+            size_of::<BandRow>(),
+            vec![
+                offset_of!(BandRow, lo),
+                offset_of!(BandRow, hi),
+                offset_of!(BandRow, offset),
+                offset_of!(BandRow, _pad),
+            ],
+        ),
+        (
+            "srvf_band",
+            "Step",
+            size_of::<srvf_dp::GpuStep>(),
+            vec![
+                offset_of!(srvf_dp::GpuStep, a),
+                offset_of!(srvf_dp::GpuStep, b),
+                offset_of!(srvf_dp::GpuStep, sqrt_slope),
+                offset_of!(srvf_dp::GpuStep, tap_start),
+            ],
+        ),
+        (
+            "srvf_band",
             "Tap",
             size_of::<srvf_dp::GpuTap>(),
             vec![

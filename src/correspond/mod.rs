@@ -161,6 +161,18 @@ pub fn correspond(
     observed: &Curve,
     prm: &CorrespondParams,
 ) -> Result<Vec<Observation>, SrvfError> {
+    correspond_on(method, view, model, observed, prm, srvf::DpOn::Host)
+}
+
+/// `correspond` with SRVF's DPs run where `dp` says (the host, or the study's device).
+pub fn correspond_on(
+    method: Method,
+    view: usize,
+    model: &ModelContour,
+    observed: &Curve,
+    prm: &CorrespondParams,
+    dp: srvf::DpOn,
+) -> Result<Vec<Observation>, SrvfError> {
     let obs_pts = observed.points.as_slice();
     let pairs: Vec<Pair> = match method {
         Method::Srvf => {
@@ -169,7 +181,7 @@ pub fn correspond(
             } else {
                 CurveKind::Partial
             };
-            let al = srvf::align(obs_pts, &model.points, kind, &prm.srvf)?;
+            let al = srvf::align_on(obs_pts, &model.points, kind, &prm.srvf, dp)?;
             aligned_targets(&al, model, observed.closed)
         }
         Method::Icp | Method::IcpNormvec => {

@@ -108,6 +108,15 @@ impl Kernels<'_> {
         )
     }
 
+    /// Where a run's SRVF DPs go: the device, through the study's batcher when it was built
+    /// with `GpuBatcher::with_dp_on_device`; the host otherwise.
+    pub fn dp(&self) -> crate::correspond::srvf::DpOn<'_> {
+        match self {
+            Kernels::Batched(b) if b.dp_on_device() => crate::correspond::srvf::DpOn::Device(*b),
+            _ => crate::correspond::srvf::DpOn::Host,
+        }
+    }
+
     /// "cpu" or "gpu".
     pub fn name(&self) -> &'static str {
         match self {

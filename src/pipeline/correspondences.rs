@@ -3,7 +3,7 @@
 
 use super::{ReconError, ReconParams};
 use crate::contours::ModelContour;
-use crate::correspond::{correspond, Method, Observation};
+use crate::correspond::{correspond_on, Method, Observation};
 use crate::engine::Kernels;
 use crate::geom::{Curve, Mesh};
 use crate::views::Camera;
@@ -39,12 +39,19 @@ impl Ctx<'_> {
         let view_pairs = |view: usize, curves: &Vec<Curve>| {
             let mut out = Vec::new();
             for (ci, curve) in curves.iter().enumerate() {
-                let o = correspond(prm.method, view, &model[view], curve, &prm.correspond)
-                    .map_err(|source| ReconError::Correspond {
-                        view,
-                        contour: ci,
-                        source,
-                    })?;
+                let o = correspond_on(
+                    prm.method,
+                    view,
+                    &model[view],
+                    curve,
+                    &prm.correspond,
+                    self.kernels.dp(),
+                )
+                .map_err(|source| ReconError::Correspond {
+                    view,
+                    contour: ci,
+                    source,
+                })?;
                 out.extend(o);
             }
             Ok::<_, ReconError>(out)

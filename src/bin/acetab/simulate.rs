@@ -75,6 +75,11 @@ pub struct SimulateArgs {
     /// Where the kernels run: cpu, gpu, or auto (the GPU when an adapter exists).
     #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
     pub backend: BackendChoice,
+    /// With --backend gpu, where the SRVF DPs run: on the device (the runs in flight share
+    /// one dispatch), on the host, or auto (the device unless the adapter is a CPU, where the
+    /// device is the host's own cores behind a driver).
+    #[arg(long, value_enum, default_value_t = DpChoice::Auto)]
+    pub dp: DpChoice,
     /// Model contours from alpha shapes or rasterised silhouettes.
     #[arg(long, value_enum, default_value_t = ContourSource::AlphaShape)]
     pub contours: ContourSource,
@@ -150,6 +155,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         threads,
         shard,
         backend,
+        dp,
         contours,
         w_rot,
         w_reg,
@@ -248,9 +254,18 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
     let dev = open_device(backend)?;
     let engine = engine_on(&dev)?;
     // On the GPU, runs in flight together share dispatches (one submit per kernel).
-    let batcher = engine
-        .as_ref()
-        .map(|g| GpuBatcher::new(g, cfg.threads, std::time::Duration::from_millis(2)));
+    let dp_on_device = match (dp, dev.as_ref()) {
+        (DpChoice::Host, _) => false,
+        (DpChoice::Device, Some(_)) => true,
+        (DpChoice::Device, None) => {
+            return Err("--dp device: the SRVF DPs go to the device only with --backend gpu (or auto with an adapter)".into())
+        }
+        (DpChoice::Auto, d) => d.is_some_and(|d| !d.is_software()),
+    };
+    let batcher = engine.as_ref().map(|g| {
+        GpuBatcher::new(g, cfg.threads, std::time::Duration::from_millis(2))
+            .with_dp_on_device(dp_on_device)
+    });
     let kernels = batcher.as_ref().map_or(Kernels::Cpu, Kernels::Batched);
     let study = Study {
         cfg: &cfg,
@@ -531,12 +546,13 @@ impl Study<'_> {
                         "backend": kernels.name(),
                         "adapter": adapter_json,
                         "batch": b.lanes(),
-                        "requests": k.deform.requests + k.project.requests,
-                        "dispatches": k.deform.dispatches + k.project.dispatches,
+                        "dp": if b.dp_on_device() { "device" } else { "host" },
+                        "requests": k.deform.requests + k.project.requests + k.srvf_band.requests,
+                        "dispatches": k.deform.dispatches + k.project.dispatches + k.srvf_band.dispatches,
                         "kernels": k,
                     })
                 }
-                None => serde_json::json!({"backend": kernels.name(), "adapter": null, "batch": 1}),
+                None => serde_json::json!({"backend": kernels.name(), "adapter": null, "batch": 1, "dp": "host"}),
             },
             "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
             "correspondence_updates": cfg.params.deformation.correspondence_updates,
@@ -570,4 +586,15 @@ impl Study<'_> {
         }
         Ok(rows)
     }
+}
+
+/// `--dp`: where a GPU study's SRVF DPs run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum DpChoice {
+    /// The host's f64 DP (the reference).
+    Host,
+    /// The `srvf_band` kernel (f32), the runs in flight sharing dispatches.
+    Device,
+    /// The device unless the adapter is a CPU.
+    Auto,
 }

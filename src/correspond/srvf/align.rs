@@ -3,9 +3,10 @@
 //! ||q_A - O q_B(gamma) sqrt(gamma')||^2, alternating rotation and DP until the energy stops
 //! falling.
 
+use super::band::DpOn;
 use super::curve::{best_rotation, dist2, rotate, srvf};
 use super::dp::{
-    coprime_steps, dp_warp_anchored, dp_warp_fast, dp_warp_near, Anchor, CurvePair, Warp,
+    coprime_steps, dp_warp_anchored_on, dp_warp_fast_on, dp_warp_near_on, Anchor, CurvePair, Warp,
 };
 use crate::geom::{polyline_length, resample_closed, resample_open, ClosedPolyline};
 use nalgebra::{Point2, Vector2};
@@ -192,6 +193,7 @@ fn check(curve: &'static str, p: &[Point2<f64>]) -> Result<(), SrvfError> {
 /// Optimal rotation + warp with alternation, starting from rotation `theta`. The first DP runs
 /// coarse to fine (or in a band around `hint`, the path of a neighbouring problem); each later
 /// one in a band around the previous path, since a small rotation change moves the path little.
+#[allow(clippy::too_many_arguments)]
 fn rotate_and_warp(
     q1: &[Vector2<f64>],
     q2: &[Vector2<f64>],
@@ -200,16 +202,17 @@ fn rotate_and_warp(
     steps: &[(usize, usize)],
     hint: Option<&[(usize, usize)]>,
     anchor: Option<Anchor>,
+    on: DpOn,
 ) -> (f64, Warp) {
     let mut theta = prm.bounded(theta);
     let anchor = anchor.filter(|a| a.weight > 0.0);
     let dp = |q: &[Vector2<f64>], near: Option<&[(usize, usize)]>| {
         if prm.band == 0 {
-            dp_warp_anchored(q1, q, steps, anchor)
+            dp_warp_anchored_on(q1, q, steps, anchor, on)
         } else if let Some(path) = near {
-            dp_warp_near(q1, q, steps, path, prm.band, anchor)
+            dp_warp_near_on(q1, q, steps, path, prm.band, anchor, on)
         } else {
-            dp_warp_fast(q1, q, steps, prm.band, anchor)
+            dp_warp_fast_on(q1, q, steps, prm.band, anchor, on)
         }
     };
     let mut w = dp(&rotate(q2, theta), hint);
@@ -352,6 +355,17 @@ pub fn align_closed(
     prm: &SrvfParams,
     exhaustive: bool,
 ) -> Result<Alignment, SrvfError> {
+    align_closed_on(a, b, prm, exhaustive, DpOn::Host)
+}
+
+/// `align_closed` with its DPs run where `on` says.
+fn align_closed_on(
+    a: &[Point2<f64>],
+    b: &[Point2<f64>],
+    prm: &SrvfParams,
+    exhaustive: bool,
+    on: DpOn,
+) -> Result<Alignment, SrvfError> {
     let Resampled {
         t,
         ra,
@@ -394,6 +408,7 @@ pub fn align_closed(
                     b: &pbg,
                     weight: p.anchor,
                 }),
+                on,
             );
             if best.as_ref().is_none_or(|b| w.energy < b.0) {
                 *best = Some((w.energy, s, theta, w));
@@ -443,6 +458,7 @@ pub fn align_closed(
                         &steps,
                         None,
                         Some(anchor),
+                        on,
                     );
                     (w.energy, s)
                 })
@@ -523,6 +539,16 @@ pub fn align_open(
     b: &[Point2<f64>],
     prm: &SrvfParams,
 ) -> Result<Alignment, SrvfError> {
+    align_open_on(a, b, prm, DpOn::Host)
+}
+
+/// `align_open` with its DPs run where `on` says.
+fn align_open_on(
+    a: &[Point2<f64>],
+    b: &[Point2<f64>],
+    prm: &SrvfParams,
+    on: DpOn,
+) -> Result<Alignment, SrvfError> {
     let Resampled {
         ra,
         rb,
@@ -546,6 +572,7 @@ pub fn align_open(
         &steps,
         None,
         Some(anchor),
+        on,
     );
     let total = polyline_length(b, false);
     let mut out = Alignment {
@@ -631,6 +658,16 @@ pub fn align_partial(
     a: &[Point2<f64>],
     b: &[Point2<f64>],
     prm: &SrvfParams,
+) -> Result<Alignment, SrvfError> {
+    align_partial_on(a, b, prm, DpOn::Host)
+}
+
+/// `align_partial` with its DPs run where `on` says.
+fn align_partial_on(
+    a: &[Point2<f64>],
+    b: &[Point2<f64>],
+    prm: &SrvfParams,
+    on: DpOn,
 ) -> Result<Alignment, SrvfError> {
     check("A", a)?;
     check("B", b)?;
@@ -725,6 +762,7 @@ pub fn align_partial(
             &steps,
             hint,
             Some(anchor),
+            on,
         )
     };
     // The candidates are told apart by a DP at the ranking resolution; the winner is polished at
@@ -804,9 +842,21 @@ pub fn align(
     kind: CurveKind,
     prm: &SrvfParams,
 ) -> Result<Alignment, SrvfError> {
+    align_on(a, b, kind, prm, DpOn::Host)
+}
+
+/// `align` with its DPs run where `on` says (the host's f64 DP, or an engine's: the GPU's in a
+/// study on the device).
+pub fn align_on(
+    a: &[Point2<f64>],
+    b: &[Point2<f64>],
+    kind: CurveKind,
+    prm: &SrvfParams,
+    on: DpOn,
+) -> Result<Alignment, SrvfError> {
     match kind {
-        CurveKind::Closed => align_closed(a, b, prm, false),
-        CurveKind::Open => align_open(a, b, prm),
-        CurveKind::Partial => align_partial(a, b, prm),
+        CurveKind::Closed => align_closed_on(a, b, prm, false, on),
+        CurveKind::Open => align_open_on(a, b, prm, on),
+        CurveKind::Partial => align_partial_on(a, b, prm, on),
     }
 }

@@ -3,6 +3,7 @@
 //! increasing gamma with gamma(0) = 0, gamma(1) = 1, whose pieces join grid nodes by steps from
 //! the coprime neighbourhood {(a, b): 1 <= a, b <= N, gcd(a, b) = 1}.
 
+use super::band::{trace_band, BandProblem, DpOn};
 use nalgebra::Vector2;
 
 /// Two SRVFs to align, sampled alike: (q1, q2).
@@ -119,8 +120,19 @@ pub fn dp_warp_anchored(
     steps: &[(usize, usize)],
     anchor: Option<Anchor>,
 ) -> Warp {
+    dp_warp_anchored_on(q1, q2, steps, anchor, DpOn::Host)
+}
+
+/// `dp_warp_anchored` with its DP run where `dp` says.
+pub(crate) fn dp_warp_anchored_on(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    steps: &[(usize, usize)],
+    anchor: Option<Anchor>,
+    dp: DpOn,
+) -> Warp {
     let n = q1.len();
-    dp_in_band(q1, q2, steps, &feasible_band(n, steps), anchor)
+    dp_in_band(q1, q2, steps, &feasible_band(n, steps), anchor, dp)
 }
 
 /// Per row of an n x n grid, the columns a path from (0, 0) to (n-1, n-1) can pass through.
@@ -187,19 +199,35 @@ pub(crate) fn prepare(steps: &[(usize, usize)]) -> Vec<PreparedStep> {
 /// Costs are kept only inside the band (row-major, one offset per row), so memory and time are
 /// O(cells in the band); the per-step interpolation taps are precomputed, and the sum matches
 /// `edge_cost` times n. The tables and the tap tables live in a per-thread scratch that the
-/// next DP on the thread reuses (thousands of DPs run per reconstruction).
+/// next DP on the thread reuses (thousands of DPs run per reconstruction). With `DpOn::Device`
+/// the tables are the device's (the host's DP where it cannot), traced back here.
 fn dp_in_band(
     q1: &[Vector2<f64>],
     q2: &[Vector2<f64>],
     steps: &[(usize, usize)],
     band: &[(usize, usize)],
     anchor: Option<Anchor>,
+    dp: DpOn,
 ) -> Warp {
     thread_local! {
         static SCRATCH: std::cell::RefCell<(CostTables, Scratch)> =
             std::cell::RefCell::default();
     }
     let path = |band: &[(usize, usize)]| {
+        if let DpOn::Device(solver) = dp {
+            let (lo, hi, _) = band_rows(band, q1.len());
+            let problem = BandProblem {
+                q1,
+                q2,
+                steps,
+                lo: &lo,
+                hi: &hi,
+                anchor: anchor.filter(|a| a.weight > 0.0),
+            };
+            if let Some(back) = solver.back_pointers(&problem) {
+                return trace_band(&back, &lo, &hi, steps);
+            }
+        }
         SCRATCH.with(|cell| {
             let (tables, scratch) = &mut *cell.borrow_mut();
             band_path(q1, q2, steps, band, anchor, tables, scratch)
@@ -484,27 +512,7 @@ fn band_path(
             }
         }
     }
-    // Traceback through the banded storage.
-    let mut path = vec![(n - 1, n - 1)];
-    let (mut i, mut j) = (n - 1, n - 1);
-    while i > 0 && j > 0 {
-        if j < lo[i] || j > hi[i] {
-            break;
-        }
-        let s = back[offset[i] + j - lo[i]];
-        if s == u32::MAX {
-            break;
-        }
-        let (a, b) = steps[s as usize];
-        i -= a;
-        j -= b;
-        path.push((i, j));
-    }
-    if path.last() != Some(&(0, 0)) {
-        return None;
-    }
-    path.reverse();
-    Some(path)
+    trace_band(back, &lo, &hi, steps)
 }
 
 /// A banded DP's costs and back-pointers, row-major (`band_rows`' layout).
@@ -648,7 +656,7 @@ fn relax_any(
 /// A band's rows as stored: each row's first and last column (clamped; row 0 holds only the
 /// start cell; an empty row is kept one cell wide so every row can be reached) and where each
 /// row starts in the row-major storage (n + 1 offsets, the last the cell count).
-fn band_rows(band: &[(usize, usize)], n: usize) -> (Vec<usize>, Vec<usize>, Vec<usize>) {
+pub(crate) fn band_rows(band: &[(usize, usize)], n: usize) -> (Vec<usize>, Vec<usize>, Vec<usize>) {
     let mut lo = vec![0usize; n];
     let mut hi = vec![0usize; n];
     let mut offset = vec![0usize; n + 1];
@@ -723,6 +731,7 @@ fn band_around(
 /// Coarse-to-fine DP: solve on every other sample (recursively), then the full grid only in a
 /// band of +-`halfwidth` cells around the coarse path. O(n * band) instead of O(n^2); the exact
 /// `dp_warp` is its test oracle.
+#[cfg(test)]
 pub fn dp_warp_fast(
     q1: &[Vector2<f64>],
     q2: &[Vector2<f64>],
@@ -730,9 +739,21 @@ pub fn dp_warp_fast(
     halfwidth: usize,
     anchor: Option<Anchor>,
 ) -> Warp {
+    dp_warp_fast_on(q1, q2, steps, halfwidth, anchor, DpOn::Host)
+}
+
+/// `dp_warp_fast` with its DPs run where `dp` says.
+pub(crate) fn dp_warp_fast_on(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    steps: &[(usize, usize)],
+    halfwidth: usize,
+    anchor: Option<Anchor>,
+    dp: DpOn,
+) -> Warp {
     let n = q1.len();
     if n <= EXACT_DP_MAX {
-        return dp_warp_anchored(q1, q2, steps, anchor);
+        return dp_warp_anchored_on(q1, q2, steps, anchor, dp);
     }
     let m = n.div_ceil(2) + usize::from(n.is_multiple_of(2));
     let fine = |c: usize| (2 * c).min(n - 1);
@@ -745,31 +766,41 @@ pub fn dp_warp_fast(
         b,
         weight: *weight,
     });
-    let coarse = dp_warp_fast(&c1, &c2, steps, halfwidth, coarse_anchor);
+    let coarse = dp_warp_fast_on(&c1, &c2, steps, halfwidth, coarse_anchor, dp);
     dp_in_band(
         q1,
         q2,
         steps,
         &band_around(&coarse.path, 2, n, halfwidth),
         anchor,
+        dp,
     )
 }
 
 /// DP in a band of +-`halfwidth` cells around `hint`, a path on the same grid (the previous
-/// solution of a nearby problem: the next rotation of an alternation, a neighbouring seed).
-pub fn dp_warp_near(
+/// solution of a nearby problem: the next rotation of an alternation, a neighbouring seed),
+/// its DP run where `dp` says.
+pub(crate) fn dp_warp_near_on(
     q1: &[Vector2<f64>],
     q2: &[Vector2<f64>],
     steps: &[(usize, usize)],
     hint: &[(usize, usize)],
     halfwidth: usize,
     anchor: Option<Anchor>,
+    dp: DpOn,
 ) -> Warp {
     let n = q1.len();
     if n <= 24 || hint.len() < 2 {
-        return dp_warp_anchored(q1, q2, steps, anchor);
+        return dp_warp_anchored_on(q1, q2, steps, anchor, dp);
     }
-    dp_in_band(q1, q2, steps, &band_around(hint, 1, n, halfwidth), anchor)
+    dp_in_band(
+        q1,
+        q2,
+        steps,
+        &band_around(hint, 1, n, halfwidth),
+        anchor,
+        dp,
+    )
 }
 
 /// Follow back-pointers from (n-1, n-1) to (0, 0).
@@ -1005,7 +1036,8 @@ mod tests {
                         b: &b,
                         weight: 2.0,
                     });
-                    let square = dp_in_band(&q1, &q2, &steps, &vec![(1, n - 1); n], anchor);
+                    let square =
+                        dp_in_band(&q1, &q2, &steps, &vec![(1, n - 1); n], anchor, DpOn::Host);
                     let ours = dp_warp_anchored(&q1, &q2, &steps, anchor);
                     assert!(same_warp(&ours, &square), "n {n} steps {steps:?}");
                 }
@@ -1035,7 +1067,7 @@ mod tests {
         let n = 40;
         let steps = coprime_steps(5);
         let (q1, q2, _, _) = problem(n, &mut seed);
-        let square = dp_in_band(&q1, &q2, &steps, &vec![(1, n - 1); n], None);
+        let square = dp_in_band(&q1, &q2, &steps, &vec![(1, n - 1); n], None, DpOn::Host);
         let (i, j) = square.path[square.path.len() / 2];
         let mut band = feasible_band(n, &steps);
         if j > band[i].0 {
@@ -1043,7 +1075,7 @@ mod tests {
         } else {
             band[i].0 = j + 1;
         }
-        let cut = dp_in_band(&q1, &q2, &steps, &band, None);
+        let cut = dp_in_band(&q1, &q2, &steps, &band, None, DpOn::Host);
         assert!(!same_warp(&cut, &square));
     }
 

@@ -1,18 +1,22 @@
 //! SRVF elastic registration: q = b' / sqrt(|b'|); rotation, seed and warp by dynamic programming.
 
 mod align;
+mod band;
 mod batch;
 mod curve;
 mod dp;
 
 pub use align::{
-    align, align_closed, align_open, align_partial, Alignment, CurveKind, SrvfError, SrvfParams,
-    MAX_SAMPLES, MIN_SAMPLES,
+    align, align_closed, align_on, align_open, align_partial, Alignment, CurveKind, SrvfError,
+    SrvfParams, MAX_SAMPLES, MIN_SAMPLES,
 };
+pub use band::{trace_band, BandProblem, BandSolver, DpOn, NO_STEP};
 pub use batch::{align_batch, aligned_b, AlignProblem};
 pub use curve::{best_rotation, dist2, inner, rotate, srvf};
 pub(crate) use dp::prepare as prepare_steps;
-pub use dp::{coprime_steps, dp_warp, edge_cost, traceback, warp_from_path, CurvePair, Warp};
+pub use dp::{
+    coprime_steps, dp_warp, edge_cost, traceback, warp_from_path, Anchor, CurvePair, Warp,
+};
 
 #[cfg(test)]
 mod tests {

@@ -6,5 +6,6 @@
 pub mod deform;
 pub mod project;
 pub mod silhouette;
+pub mod srvf_band;
 pub mod srvf_dp;
 pub mod surface;

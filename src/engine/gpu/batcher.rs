@@ -1,30 +1,33 @@
 //! Cross-run batching: the runs of a study that are in flight at the same time hand their
-//! deform and project requests to one `GpuBatcher`, which merges compatible requests (same mesh
-//! size, graph size and views) into one dispatch per kernel and one submit, and hands each run
-//! its slice back. A request waits at most `wait` for companions, so a lone run is not held up.
+//! deform, project and banded SRVF DP requests to one `GpuBatcher`, which merges compatible
+//! requests (same mesh size, graph size and views; the same DP step set) into one dispatch per
+//! kernel and one submit, and hands each run its slice back. A request waits at most `wait` for
+//! companions, so a lone run is not held up.
 
 use super::{Gpu, GpuError};
+use crate::correspond::srvf::{BandProblem, BandSolver};
 use crate::engine::cpu::deform::DeformBatch;
 use crate::engine::cpu::project::ViewRows;
+use crate::engine::cpu::srvf_band::BandBatch;
 use std::collections::HashMap;
 use std::sync::{Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 type Out = Result<Vec<[f32; 4]>, GpuError>;
 
-struct LaneState<T> {
+struct LaneState<T, R> {
     pending: Vec<(u64, T)>,
-    done: HashMap<u64, Out>,
+    done: HashMap<u64, R>,
     next: u64,
     busy: bool,
 }
 
-struct Lane<T> {
-    state: Mutex<LaneState<T>>,
+struct Lane<T, R = Out> {
+    state: Mutex<LaneState<T, R>>,
     cv: Condvar,
 }
 
-impl<T> Lane<T> {
+impl<T, R> Lane<T, R> {
     fn new() -> Self {
         Lane {
             state: Mutex::new(LaneState {
@@ -44,8 +47,8 @@ impl<T> Lane<T> {
         input: T,
         lanes: usize,
         wait: Duration,
-        run: impl Fn(Vec<(u64, T)>) -> Vec<(u64, Out)>,
-    ) -> Out {
+        run: impl Fn(Vec<(u64, T)>) -> Vec<(u64, R)>,
+    ) -> R {
         let start = Instant::now();
         let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
         let id = s.next;
@@ -105,13 +108,18 @@ impl KernelStats {
     }
 }
 
-/// Per kernel, what a batcher did: (deform, project).
+/// Per kernel, what a batcher did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct BatcherStats {
     /// The deformation kernel.
     pub deform: KernelStats,
     /// The projection kernel.
     pub project: KernelStats,
+    /// The banded SRVF DP kernel.
+    pub srvf_band: KernelStats,
+    /// Banded DPs the device could not take (a failed dispatch, an input it refused), solved
+    /// on the host instead.
+    pub srvf_band_on_host: usize,
 }
 
 impl BatcherStats {
@@ -120,6 +128,8 @@ impl BatcherStats {
         BatcherStats {
             deform: self.deform.since(&before.deform),
             project: self.project.since(&before.project),
+            srvf_band: self.srvf_band.since(&before.srvf_band),
+            srvf_band_on_host: self.srvf_band_on_host - before.srvf_band_on_host,
         }
     }
 }
@@ -131,6 +141,8 @@ pub struct GpuBatcher<'g> {
     wait: Duration,
     deform: Lane<DeformBatch>,
     project: Lane<(Vec<[f32; 4]>, usize, Vec<ViewRows>)>,
+    band: Lane<BandBatch, Result<Vec<u32>, GpuError>>,
+    dp_on_device: bool,
     stats: Mutex<BatcherStats>,
 }
 
@@ -144,8 +156,22 @@ impl<'g> GpuBatcher<'g> {
             wait,
             deform: Lane::new(),
             project: Lane::new(),
+            band: Lane::new(),
+            dp_on_device: false,
             stats: Mutex::new(BatcherStats::default()),
         }
+    }
+
+    /// The same batcher with the runs' SRVF DPs on the device (`true`) or on the host (`false`,
+    /// the default).
+    pub fn with_dp_on_device(mut self, on: bool) -> Self {
+        self.dp_on_device = on;
+        self
+    }
+
+    /// Whether the runs' SRVF DPs go to the device.
+    pub fn dp_on_device(&self) -> bool {
+        self.dp_on_device
     }
 
     /// The engine it submits to.
@@ -162,8 +188,8 @@ impl<'g> GpuBatcher<'g> {
     pub fn counts(&self) -> (usize, usize) {
         let s = self.stats();
         (
-            s.deform.requests + s.project.requests,
-            s.deform.dispatches + s.project.dispatches,
+            s.deform.requests + s.project.requests + s.srvf_band.requests,
+            s.deform.dispatches + s.project.dispatches + s.srvf_band.dispatches,
         )
     }
 
@@ -275,5 +301,60 @@ impl<'g> GpuBatcher<'g> {
                 out
             },
         )
+    }
+}
+
+impl GpuBatcher<'_> {
+    /// As `Gpu::srvf_band_tables` for one problem's batch, merged with other runs' problems of
+    /// the same step set; the problem's back-pointers.
+    pub fn band_back_pointers(&self, b: BandBatch) -> Result<Vec<u32>, GpuError> {
+        self.band.submit(b, self.lanes, self.wait, |jobs| {
+            let mut out = Vec::new();
+            let mut groups: Vec<Vec<(u64, BandBatch)>> = Vec::new();
+            for j in jobs {
+                match groups.iter_mut().find(|g| g[0].1.step_set == j.1.step_set) {
+                    Some(g) => g.push(j),
+                    None => groups.push(vec![j]),
+                }
+            }
+            for g in groups {
+                let mut merged = g[0].1.clone();
+                for (_, b) in &g[1..] {
+                    merged.append(b);
+                }
+                match self.count(
+                    |s| &mut s.srvf_band,
+                    g.len(),
+                    || self.gpu.srvf_band_tables(&merged),
+                ) {
+                    Ok((_, back)) => {
+                        let mut at = 0;
+                        for (id, b) in &g {
+                            out.push((*id, Ok(back[at..at + b.cells].to_vec())));
+                            at += b.cells;
+                        }
+                    }
+                    Err(e) => out.extend(g.iter().map(|(id, _)| (*id, Err(e.clone())))),
+                }
+            }
+            out
+        })
+    }
+}
+
+/// The study's runs hand their SRVF DPs to the device through the batcher; a problem the device
+/// cannot take is solved on the host and counted (`BatcherStats::srvf_band_on_host`).
+impl BandSolver for GpuBatcher<'_> {
+    fn back_pointers(&self, p: &BandProblem) -> Option<Vec<u32>> {
+        let back = BandBatch::new(std::slice::from_ref(p))
+            .map_err(GpuError::from)
+            .and_then(|b| self.band_back_pointers(b));
+        if back.is_err() {
+            self.stats
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .srvf_band_on_host += 1;
+        }
+        back.ok()
     }
 }

@@ -3,7 +3,7 @@
 use super::buffers::BufferPool;
 use super::{
     deform::DeformKernel, project::ProjectKernel, silhouette::SilhouetteKernel,
-    srvf_dp::SrvfDpKernel,
+    srvf_band::SrvfBandKernel, srvf_dp::SrvfDpKernel,
 };
 use std::sync::Mutex;
 
@@ -51,6 +51,9 @@ pub enum GpuError {
     /// An SRVF DP batch the kernel cannot take.
     #[error("srvf_dp: {0}")]
     DpBatch(#[from] crate::engine::cpu::srvf_dp::DpBatchError),
+    /// A banded DP batch that cannot be built.
+    #[error("srvf_band: {0}")]
+    BandBatch(#[from] crate::engine::cpu::srvf_band::BandBatchError),
     /// An input the kernel cannot take (no vertex in front of the source, triangles that do not
     /// index the vertices).
     #[error("{kernel}: {message}")]
@@ -106,6 +109,11 @@ impl GpuDevice {
         )
     }
 
+    /// Whether the adapter is a CPU (a software rasteriser such as lavapipe or llvmpipe).
+    pub fn is_software(&self) -> bool {
+        self.adapter.device_type == wgpu::DeviceType::Cpu
+    }
+
     /// The adapter for reports: name, driver and its version, device type, graphics API.
     pub fn adapter_json(&self) -> serde_json::Value {
         let a = &self.adapter;
@@ -133,6 +141,7 @@ pub struct Gpu<'a> {
     pub(crate) deform: DeformKernel,
     pub(crate) project: ProjectKernel,
     pub(crate) silhouette: SilhouetteKernel,
+    pub(crate) srvf_band: SrvfBandKernel,
     pub(crate) srvf_dp: SrvfDpKernel,
     pub(crate) surface: super::surface::SurfaceKernel,
     pub(crate) pool: BufferPool,
@@ -146,6 +155,7 @@ impl<'a> Gpu<'a> {
         let deform = DeformKernel::new(device);
         let project = ProjectKernel::new(device);
         let silhouette = SilhouetteKernel::new(device);
+        let srvf_band = SrvfBandKernel::new(device);
         let srvf_dp = SrvfDpKernel::new(device);
         let surface = super::surface::SurfaceKernel::new(device);
         if let Some(e) = pollster::block_on(scope.pop()) {
@@ -160,6 +170,7 @@ impl<'a> Gpu<'a> {
             deform,
             project,
             silhouette,
+            srvf_band,
             srvf_dp,
             surface,
             pool: BufferPool::default(),

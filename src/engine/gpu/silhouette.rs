@@ -46,7 +46,7 @@ const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 
 impl SilhouetteKernel {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
-        let source = super::SHADERS[2].1;
+        let source = super::shader("silhouette");
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("silhouette"),
             source: wgpu::ShaderSource::Wgsl(source.into()),

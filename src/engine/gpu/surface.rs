@@ -18,7 +18,7 @@ const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 impl SurfaceKernel {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
-        let source = super::SHADERS[4].1;
+        let source = super::shader("surface");
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("surface"),
             source: wgpu::ShaderSource::Wgsl(source.into()),

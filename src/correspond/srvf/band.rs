@@ -1,0 +1,99 @@
+//! The banded DP as a problem another engine can solve: what one DP of an alignment asks (the two
+//! SRVFs, the step set, the band's rows and the position term), the trait an engine implements
+//! to return its back-pointers (the GPU's `srvf_band` kernel through the study's batcher), and
+//! the traceback that turns them into a path. The host's own banded DP (`dp::band_path`) is the
+//! reference every such engine is tested against.
+
+use super::dp::Anchor;
+use nalgebra::Vector2;
+
+/// The back-pointer of a cell no step reaches.
+pub const NO_STEP: u32 = u32::MAX;
+
+/// One banded DP: q2 warped onto q1 over the cells (i, j) with `lo[i] <= j <= hi[i]` (row 0 holds
+/// only the start cell), by the coprime `steps`, with the position term of `anchor`.
+#[derive(Clone, Copy, Debug)]
+pub struct BandProblem<'a> {
+    /// The reference SRVF (rows).
+    pub q1: &'a [Vector2<f64>],
+    /// The warped SRVF (columns), as many samples as q1.
+    pub q2: &'a [Vector2<f64>],
+    /// The DP's steps (a, b).
+    pub steps: &'a [(usize, usize)],
+    /// Per row, the first column of the band.
+    pub lo: &'a [usize],
+    /// Per row, the last column of the band.
+    pub hi: &'a [usize],
+    /// The position term (weight > 0), or none.
+    pub anchor: Option<Anchor<'a>>,
+}
+
+impl BandProblem<'_> {
+    /// Cells in the band (the length of the back-pointer table).
+    pub fn cells(&self) -> usize {
+        self.lo.iter().zip(self.hi).map(|(l, h)| h + 1 - l).sum()
+    }
+}
+
+/// An engine that fills banded DP tables. `None` when it cannot (the device lost, a batch too
+/// large): the DP then runs on the host and the engine counts it.
+pub trait BandSolver: Sync {
+    /// The back-pointers of `p`, one per band cell, row-major (row i from `lo[i]` to `hi[i]`),
+    /// each the index of the step that reached the cell or `NO_STEP`.
+    fn back_pointers(&self, p: &BandProblem) -> Option<Vec<u32>>;
+}
+
+/// Where an alignment's DPs run.
+#[derive(Clone, Copy, Default)]
+pub enum DpOn<'a> {
+    /// The host's f64 banded DP (the reference).
+    #[default]
+    Host,
+    /// Another engine (the GPU through the study's batcher).
+    Device(&'a dyn BandSolver),
+}
+
+/// The path from (0, 0) to (n-1, n-1) that the back-pointers of a band give (`lo`, `hi` per row,
+/// `back` row-major over the band), or None when the band cuts every path.
+pub fn trace_band(
+    back: &[u32],
+    lo: &[usize],
+    hi: &[usize],
+    steps: &[(usize, usize)],
+) -> Option<Vec<(usize, usize)>> {
+    let n = lo.len();
+    if n == 0 || hi.len() != n {
+        return None;
+    }
+    let mut offset = Vec::with_capacity(n);
+    let mut at = 0;
+    for i in 0..n {
+        offset.push(at);
+        at += hi[i] + 1 - lo[i];
+    }
+    if back.len() != at {
+        return None;
+    }
+    let mut path = vec![(n - 1, n - 1)];
+    let (mut i, mut j) = (n - 1, n - 1);
+    while i > 0 && j > 0 {
+        if j < lo[i] || j > hi[i] {
+            break;
+        }
+        let s = back[offset[i] + j - lo[i]];
+        let Some(&(a, b)) = steps.get(s as usize) else {
+            break;
+        };
+        if a > i || b > j {
+            break;
+        }
+        i -= a;
+        j -= b;
+        path.push((i, j));
+    }
+    if path.last() != Some(&(0, 0)) {
+        return None;
+    }
+    path.reverse();
+    Some(path)
+}

@@ -1,0 +1,115 @@
+//! GPU module of `shaders/srvf_band.wgsl` (CPU twin: `crate::engine::cpu::srvf_band`): the
+//! banded SRVF DPs of alignments, one problem per workgroup, rows in order; the back-pointers
+//! come back and are traced on the host (`correspond::srvf::trace_band`).
+
+use super::buffers::{
+    bind, bytes_of, compute_pipeline, fill, kernel_entries, uniform, SENTINEL_F32, SENTINEL_U32,
+};
+use super::srvf_dp::{GpuStep, GpuTap};
+use super::{Gpu, GpuError};
+use crate::engine::cpu::srvf_band::BandBatch;
+
+/// Keep in sync with `Params` in shaders/srvf_band.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct BandParams {
+    /// Problems in the batch.
+    pub problems: u32,
+    /// DP steps.
+    pub step_count: u32,
+    /// Padding to 16 bytes.
+    pub _pad: [u32; 2],
+}
+
+pub(crate) struct SrvfBandKernel {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+impl SrvfBandKernel {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        let entries = kernel_entries(6, 2);
+        let (pipeline, layout) = compute_pipeline(device, "srvf_band", "main", &entries);
+        SrvfBandKernel { pipeline, layout }
+    }
+}
+
+impl Gpu<'_> {
+    /// The (cost, back-pointer) tables of every problem, as `cpu::srvf_band::band_tables`.
+    pub fn srvf_band_tables(&self, b: &BandBatch) -> Result<(Vec<f32>, Vec<u32>), GpuError> {
+        const K: &str = "srvf_band";
+        let problems = b.headers.len() as u32;
+        if problems == 0 {
+            return Ok((Vec::new(), Vec::new()));
+        }
+        let max_groups = self.device.limits().max_compute_workgroups_per_dimension;
+        if problems > max_groups {
+            return Err(GpuError::TooLarge {
+                kernel: K,
+                what: "problems per batch",
+                value: problems as u64,
+                limit: max_groups as u64,
+            });
+        }
+        let table_bytes = (b.cells * 4) as u64;
+        self.check_size(K, "table bytes", table_bytes)?;
+        self.check_size(K, "curve bytes", (b.curves.len() * 16) as u64)?;
+        let params = BandParams {
+            problems,
+            step_count: b.steps.len() as u32,
+            _pad: [0; 2],
+        };
+        let steps: Vec<GpuStep> = b.steps.iter().map(GpuStep::from).collect();
+        let taps: Vec<GpuTap> = b.taps.iter().map(GpuTap::from).collect();
+        let (d, q, pool) = (self.device, self.queue, &self.pool);
+        let u = uniform(d, K, bytemuck::bytes_of(&params));
+        let none = wgpu::BufferUsages::empty();
+        let ins = [
+            pool.upload(d, q, K, bytes_of(&b.headers), none),
+            pool.upload(d, q, K, bytes_of(&b.rows), none),
+            pool.upload(d, q, K, bytes_of(&b.curves), none),
+            pool.upload(d, q, K, bytes_of(&b.positions), none),
+            pool.upload(d, q, K, bytes_of(&steps), none),
+            pool.upload(d, q, K, bytes_of(&taps), none),
+        ];
+        let usage = wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST;
+        let cost = pool.take(d, K, table_bytes, usage);
+        let back = pool.take(d, K, table_bytes, usage);
+        fill(q, &cost, b.cells, SENTINEL_F32);
+        fill(q, &back, b.cells, SENTINEL_U32);
+        let group = bind(
+            d,
+            &self.srvf_band.layout,
+            K,
+            &[
+                &u, &ins[0], &ins[1], &ins[2], &ins[3], &ins[4], &ins[5], &cost, &back,
+            ],
+        );
+        let read = self.dispatch_and_read(
+            K,
+            &self.srvf_band.pipeline,
+            &group,
+            (problems, 1, 1),
+            &[(&cost, table_bytes), (&back, table_bytes)],
+        );
+        pool.give(ins);
+        pool.give([cost, back]);
+        let read = read?;
+        Ok((
+            bytemuck::pod_collect_to_vec(&read[0]),
+            bytemuck::pod_collect_to_vec(&read[1]),
+        ))
+    }
+}
+
+/// One problem per dispatch on the engine (a reconstruction's alignments on a borrowed device;
+/// the study merges its runs' problems through `GpuBatcher` instead). A problem the device
+/// cannot take is left to the host.
+impl crate::correspond::srvf::BandSolver for Gpu<'_> {
+    fn back_pointers(&self, p: &crate::correspond::srvf::BandProblem) -> Option<Vec<u32>> {
+        let b = BandBatch::new(std::slice::from_ref(p)).ok()?;
+        self.srvf_band_tables(&b).ok().map(|(_, back)| back)
+    }
+}
