@@ -54,11 +54,20 @@ else
     | tee "$out/batches.txt" | tee -a "$out/check.log" \
     || log "study batches failed or ran out of time (see $out/batches.err)"
 fi
-for be in cpu ${backend:+gpu}; do
-  log "study: phantom, srvf, level 3, $runs runs, $cores threads, backend $be"
+# The GPU study twice: its SRVF DPs on the device (--dp auto picks it on a real GPU) and on
+# the host, so the DP kernel's share shows.
+for be in cpu ${backend:+gpu gpu-dp-host}; do
+  case $be in
+    cpu) flags="--backend cpu" ;;
+    gpu) flags="--backend gpu --dp device" ;;
+    gpu-dp-host) flags="--backend gpu --dp host" ;;
+  esac
+  log "study: phantom, srvf, level 3, $runs runs, $cores threads, $flags"
   timeout 150 "$bin" simulate --gt phantom --levels 3 --runs "$runs" --methods srvf --threads "$cores" \
-    --uncertainty-samples 0 --backend "$be" --out "$out/study-$be" >"$out/study-$be.txt" 2>&1 \
+    --uncertainty-samples 0 $flags --out "$out/study-$be" >"$out/study-$be.txt" 2>&1 \
     || log "study on $be failed or ran out of time (see $out/study-$be.txt)"
   grep "runs in" "$out/study-$be.txt" | tee -a "$out/check.log"
+  python3 -c 'import json,sys; print(json.dumps(json.load(open(sys.argv[1]))["study"]["engine"]))' \
+    "$out/study-$be/summary.json" 2>/dev/null | tee -a "$out/check.log"
 done
 log "done"

@@ -48,7 +48,7 @@ struct Tap {
 
 const UNREACHED: f32 = 1e30;
 const NO_STEP: u32 = 0xffffffffu;
-const WG: u32 = 64u;
+const WG: u32 = 32u;
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> problems: array<Problem>;
@@ -120,7 +120,7 @@ fn relax(pr: Problem, i: u32, j: u32) -> vec2<u32> {
     return vec2<u32>(bitcast<u32>(best), arg);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(32)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let index = wg.x;
     if (index >= params.problems) {

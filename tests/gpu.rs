@@ -430,7 +430,7 @@ fn acetab_bench_prints_its_table_as_json() {
         .iter()
         .map(|r| r["kernel"].as_str().unwrap())
         .collect();
-    for k in ["deform", "project", "silhouette", "srvf_dp"] {
+    for k in ["deform", "project", "silhouette", "srvf_dp", "srvf_band"] {
         assert!(kernels.contains(&k), "{k} missing from {kernels:?}");
     }
     for r in v["kernels"].as_array().unwrap() {
@@ -442,8 +442,9 @@ fn acetab_bench_prints_its_table_as_json() {
         }
     }
     let study = v["study"].as_array().unwrap();
-    // cpu and gpu at --threads, then per batch size (--quick: 1 and 2) cpu and batched gpu.
-    assert_eq!(study.len(), 6, "{study:?}");
+    // cpu and gpu at --threads, then per batch size (--quick: 1 and 2) cpu, batched gpu and
+    // batched gpu with the DPs on the device.
+    assert_eq!(study.len(), 8, "{study:?}");
     let batches: Vec<(String, u64)> = study
         .iter()
         .map(|s| {
@@ -454,7 +455,11 @@ fn acetab_bench_prints_its_table_as_json() {
         })
         .collect();
     assert_eq!(batches[2], ("cpu".to_string(), 1));
-    assert_eq!(batches[5], ("gpu, runs batched".to_string(), 2));
+    assert_eq!(batches[6], ("gpu, runs batched".to_string(), 2));
+    assert_eq!(
+        batches[7],
+        ("gpu, runs batched, DP on the device".to_string(), 2)
+    );
     assert!(study
         .iter()
         .all(|s| s["runs"] == 2 && s["runs_per_second"].as_f64().unwrap() > 0.0));

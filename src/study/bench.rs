@@ -3,9 +3,9 @@
 //! read-back on the GPU side (what a caller pays). On lavapipe the "GPU" is the CPU, so the
 //! ratios show dispatch overhead and batching, not GPU speed.
 
-use crate::correspond::srvf::{coprime_steps, srvf};
+use crate::correspond::srvf::{coprime_steps, srvf, Anchor, BandProblem};
 use crate::engine::cpu::{
-    deform as cdeform, project as cproject, silhouette as csil, srvf_dp as cdp,
+    deform as cdeform, project as cproject, silhouette as csil, srvf_band as cband, srvf_dp as cdp,
 };
 use crate::engine::gpu::{Gpu, GpuError};
 use crate::engine::Kernels;
@@ -14,7 +14,7 @@ use crate::sim::{simulated_views, XrayGeometry};
 use crate::solve::{DeformationGraph, GraphParams};
 use crate::study::{run_study, StudyConfig, StudyMethod};
 use crate::template::hemisphere;
-use nalgebra::{Point2, Point3};
+use nalgebra::{Point2, Point3, Vector2};
 use std::time::Instant;
 
 /// One line of the table.
@@ -224,6 +224,63 @@ pub fn run_bench(
         rows.push(row("srvf_dp", format!("{bsz} problems, T = {n}"), c, g));
         progress(&format!("srvf_dp {bsz}"));
     }
+    // The study's own DP: T = 200 samples, a band of +-6 cells about a gently bent path, the
+    // position term (weight 3), as `srvf_band` runs it for a study's alignments.
+    let t = 200;
+    let band: Vec<(Vec<Vector2<f64>>, Vec<Vector2<f64>>)> =
+        (0..p.dp_batches.iter().copied().max().unwrap_or(0))
+            .map(|k| {
+                let c = |f: f64, ph: f64| -> Vec<Point2<f64>> {
+                    (0..t)
+                        .map(|i| {
+                            let u = i as f64 / (t - 1) as f64 * 3.0;
+                            Point2::new(u, (f * u + ph).sin())
+                        })
+                        .collect()
+                };
+                (
+                    srvf(&c(2.0, 0.0), false),
+                    srvf(&c(2.0 + 0.01 * k as f64, 0.3), false),
+                )
+            })
+            .collect();
+    let (mut lo, mut hi) = (vec![0usize; t], vec![0usize; t]);
+    for i in 1..t {
+        let c = i as f64 + 3.0 * (i as f64 * std::f64::consts::PI / (t - 1) as f64).sin();
+        lo[i] = ((c - 6.0).floor().max(1.0) as usize).min(t - 1);
+        hi[i] = ((c + 6.0).ceil() as usize).clamp(lo[i], t - 1);
+    }
+    hi[t - 1] = t - 1;
+    for &bsz in &p.dp_batches {
+        let problems: Vec<BandProblem> = band[..bsz]
+            .iter()
+            .map(|(a, b)| BandProblem {
+                q1: a,
+                q2: b,
+                steps: &steps,
+                lo: &lo,
+                hi: &hi,
+                anchor: Some(Anchor {
+                    a: b,
+                    b: a,
+                    weight: 3.0,
+                }),
+            })
+            .collect();
+        let batch = cband::BandBatch::new(&problems).map_err(GpuError::from)?;
+        let c = median_ms(p.repeats, || {
+            std::hint::black_box(cband::band_tables(&batch));
+            Ok(())
+        })?;
+        let g = median_ms(p.repeats, || gpu.srvf_band_tables(&batch).map(|_| ()))?;
+        rows.push(row(
+            "srvf_band",
+            format!("{bsz} problems, T = {t}, band +-6"),
+            c,
+            g,
+        ));
+        progress(&format!("srvf_band {bsz}"));
+    }
     let mut study = Vec::new();
     if p.study_runs > 0 {
         let truth = phantom(&PhantomParams::default()).mesh;
@@ -285,6 +342,28 @@ pub fn run_bench(
             t.device_seconds = Some(st.deform.device_seconds + st.project.device_seconds);
             study.push(t);
             progress(&format!("study on the gpu, batch {b}"));
+            // The same with every SRVF DP on the device (`simulate --dp device`).
+            let batcher = crate::engine::gpu::GpuBatcher::new(
+                gpu,
+                cfg.threads,
+                std::time::Duration::from_millis(2),
+            )
+            .with_dp_on_device(true);
+            let mut t = through(
+                "gpu, runs batched, DP on the device",
+                cfg.threads,
+                timed(&cfg, Kernels::Batched(&batcher))?,
+            );
+            let (req, disp) = batcher.counts();
+            let st = batcher.stats();
+            t.requests_per_dispatch = (disp > 0).then(|| req as f64 / disp as f64);
+            t.device_seconds = Some(
+                st.deform.device_seconds + st.project.device_seconds + st.srvf_band.device_seconds,
+            );
+            study.push(t);
+            progress(&format!(
+                "study on the gpu with the DP on the device, batch {b}"
+            ));
         }
     }
     Ok(BenchReport {
