@@ -227,23 +227,23 @@ pub fn run_bench(
     // The study's own DP: T = 200 samples, a band of +-6 cells about a gently bent path, the
     // position term (weight 3), as `srvf_band` runs it for a study's alignments.
     let t = 200;
-    let band: Vec<(Vec<Vector2<f64>>, Vec<Vector2<f64>>)> =
-        (0..p.dp_batches.iter().copied().max().unwrap_or(0))
-            .map(|k| {
-                let c = |f: f64, ph: f64| -> Vec<Point2<f64>> {
-                    (0..t)
-                        .map(|i| {
-                            let u = i as f64 / (t - 1) as f64 * 3.0;
-                            Point2::new(u, (f * u + ph).sin())
-                        })
-                        .collect()
-                };
-                (
-                    srvf(&c(2.0, 0.0), false),
-                    srvf(&c(2.0 + 0.01 * k as f64, 0.3), false),
-                )
-            })
-            .collect();
+    type Pair = (Vec<Vector2<f64>>, Vec<Vector2<f64>>);
+    let band: Vec<Pair> = (0..p.dp_batches.iter().copied().max().unwrap_or(0))
+        .map(|k| {
+            let c = |f: f64, ph: f64| -> Vec<Point2<f64>> {
+                (0..t)
+                    .map(|i| {
+                        let u = i as f64 / (t - 1) as f64 * 3.0;
+                        Point2::new(u, (f * u + ph).sin())
+                    })
+                    .collect()
+            };
+            (
+                srvf(&c(2.0, 0.0), false),
+                srvf(&c(2.0 + 0.01 * k as f64, 0.3), false),
+            )
+        })
+        .collect();
     let (mut lo, mut hi) = (vec![0usize; t], vec![0usize; t]);
     for i in 1..t {
         let c = i as f64 + 3.0 * (i as f64 * std::f64::consts::PI / (t - 1) as f64).sin();
