@@ -228,6 +228,7 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
         ("--coarse-nodes", "1", "1 is not in 2..=150"),
         ("--correspondence-updates", "0", "0 is not in 1..=50"),
         ("--srvf-samples", "7", "7 is not in 8..=2000"),
+        ("--batch", "0", "0 is not in 1..=1024"),
         ("--shard", "3/2", "expected I/N with 0 <= I < N"),
         (
             "--uncertainty-samples",
@@ -251,6 +252,9 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
     let mut cmd = bin();
     cmd.args(["simulate", "--gt", "phantom", "--dp", "device"]);
     fails_cleanly_with(cmd, &out, &["--dp device", "--backend gpu"], 1);
+    let mut cmd = bin();
+    cmd.args(["simulate", "--gt", "phantom", "--batch", "8"]);
+    fails_cleanly_with(cmd, &out, &["--batch 8", "--backend gpu"], 1);
 }
 
 #[test]

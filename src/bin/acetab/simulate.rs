@@ -75,6 +75,11 @@ pub struct SimulateArgs {
     /// Where the kernels run: cpu, gpu, or auto (the GPU when an adapter exists).
     #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
     pub backend: BackendChoice,
+    /// With --backend gpu: runs in flight at once (default: --threads), each on its own
+    /// thread, their kernel requests (deformation, and with --dp device every SRVF DP) merged
+    /// into shared dispatches. Results do not depend on it.
+    #[arg(long, value_parser = count_in(1, MAX_THREADS))]
+    pub batch: Option<usize>,
     /// With --backend gpu, where the SRVF DPs run: on the device (the runs in flight share
     /// one dispatch), on the host, or auto (the device unless the adapter is a CPU, where the
     /// device is the host's own cores behind a driver).
@@ -155,6 +160,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         threads,
         shard,
         backend,
+        batch,
         dp,
         contours,
         w_rot,
@@ -200,7 +206,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
             return Err(format!("{flag} {w}: must be a finite non-negative weight"));
         }
     }
-    let cfg = StudyConfig {
+    let mut cfg = StudyConfig {
         protocol: match protocol {
             ProtocolArg::Ideal => Protocol::Ideal,
             ProtocolArg::Realistic => {
@@ -254,6 +260,15 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
     let dev = open_device(backend)?;
     let engine = engine_on(&dev)?;
     // On the GPU, runs in flight together share dispatches (one submit per kernel).
+    match (batch, dev.as_ref()) {
+        (Some(b), Some(_)) => cfg.threads = b,
+        (Some(b), None) => {
+            return Err(format!(
+                "--batch {b}: runs are batched on the device only with --backend gpu (or auto with an adapter); on the CPU use --threads"
+            ))
+        }
+        (None, _) => {}
+    }
     let dp_on_device = match (dp, dev.as_ref()) {
         (DpChoice::Host, _) => false,
         (DpChoice::Device, Some(_)) => true,
