@@ -713,3 +713,55 @@ fn alignments_with_their_dps_on_the_gpu_equal_the_hosts() {
         }
     });
 }
+
+#[test]
+fn registered_runs_go_to_the_device_in_lock_step() {
+    with_gpu(|gpu| {
+        use acetab::engine::gpu::GpuBatcher;
+        use std::time::{Duration, Instant};
+        let gs = graphs();
+        let batches: Vec<cdeform::DeformBatch> = gs
+            .iter()
+            .map(|(g, x)| cdeform::DeformBatch::from_graphs(&[(g, &x[..])]).unwrap())
+            .collect();
+        let alone: Vec<Vec<[f32; 4]>> = batches.iter().map(|b| gpu.deform(b).unwrap()).collect();
+        // Three runs reach the device 0, 30 and 60 ms apart (host work of different lengths);
+        // `lanes` above their number and a 5 s wait, so only the lock-step rule can send them.
+        let staggered = |batcher: &GpuBatcher, register: bool| {
+            let start = Instant::now();
+            let out: Vec<Vec<[f32; 4]>> = std::thread::scope(|s| {
+                let hs: Vec<_> = batches
+                    .iter()
+                    .enumerate()
+                    .map(|(k, b)| {
+                        let guard = register.then(|| batcher.run());
+                        s.spawn(move || {
+                            let _guard = guard;
+                            std::thread::sleep(Duration::from_millis(30 * k as u64));
+                            batcher.deform(b.clone()).unwrap()
+                        })
+                    })
+                    .collect();
+                hs.into_iter().map(|h| h.join().unwrap()).collect()
+            });
+            (out, start.elapsed())
+        };
+        let locked = GpuBatcher::new(gpu, 10, Duration::from_secs(5));
+        let (out, took) = staggered(&locked, true);
+        assert_eq!(out, alone, "each run gets exactly its own slice");
+        assert_eq!(
+            locked.counts(),
+            (batches.len(), 1),
+            "one dispatch for the step"
+        );
+        assert!(
+            took < Duration::from_secs(2),
+            "sent when all waited: {took:?}"
+        );
+        // Companion: the same runs unregistered, with a short wait, are not sent together.
+        let free = GpuBatcher::new(gpu, 10, Duration::from_millis(5));
+        let (out, _) = staggered(&free, false);
+        assert_eq!(out, alone);
+        assert!(free.counts().1 > 1, "{:?}", free.counts());
+    });
+}

@@ -329,7 +329,7 @@ pub fn run_bench(
             let batcher = crate::engine::gpu::GpuBatcher::new(
                 gpu,
                 cfg.threads,
-                std::time::Duration::from_millis(2),
+                crate::engine::gpu::batcher::STUDY_WAIT,
             );
             let mut t = through(
                 "gpu, runs batched",
@@ -346,7 +346,7 @@ pub fn run_bench(
             let batcher = crate::engine::gpu::GpuBatcher::new(
                 gpu,
                 cfg.threads,
-                std::time::Duration::from_millis(2),
+                crate::engine::gpu::batcher::STUDY_WAIT,
             )
             .with_dp_on_device(true);
             let mut t = through(

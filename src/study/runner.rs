@@ -296,6 +296,11 @@ pub fn run_study(
     let first_of_method =
         |k: usize| list.iter().position(|t| t.method == list[k].method) == Some(k);
     let done = pool_map(cfg.threads, &list, |k, task| {
+        // On the batched GPU the runs in flight advance in lock-step.
+        let _lockstep = match kernels {
+            Kernels::Batched(b) => Some(b.run()),
+            _ => None,
+        };
         let (row, ex) = run_prepared(&prep, task, cfg, kernels);
         tick();
         (row, ex.filter(|_| first_of_method(k)))

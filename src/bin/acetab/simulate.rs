@@ -278,7 +278,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         (DpChoice::Auto, d) => d.is_some_and(|d| !d.is_software()),
     };
     let batcher = engine.as_ref().map(|g| {
-        GpuBatcher::new(g, cfg.threads, std::time::Duration::from_millis(2))
+        GpuBatcher::new(g, cfg.threads, acetab::engine::gpu::batcher::STUDY_WAIT)
             .with_dp_on_device(dp_on_device)
     });
     let kernels = batcher.as_ref().map_or(Kernels::Cpu, Kernels::Batched);
