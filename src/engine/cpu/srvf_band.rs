@@ -384,6 +384,66 @@ mod tests {
         assert_ne!(trace_band(&back2, &lo, &hi, &steps).unwrap(), path);
     }
 
+    /// The twin as an alignment's DP engine; `straight` points every cell at the diagonal
+    /// step instead (a wrong answer).
+    struct Twin {
+        straight: bool,
+    }
+
+    impl crate::correspond::srvf::BandSolver for Twin {
+        fn back_pointers(&self, p: &BandProblem) -> Option<Vec<u32>> {
+            let (_, back) = band_tables(&BandBatch::new(std::slice::from_ref(p)).ok()?);
+            if self.straight {
+                let diagonal = p.steps.iter().position(|&s| s == (1, 1))? as u32;
+                return Some(vec![diagonal; back.len()]);
+            }
+            Some(back)
+        }
+    }
+
+    #[test]
+    fn alignments_on_the_twins_tables_equal_the_hosts() {
+        use crate::correspond::srvf::{align, align_on, CurveKind, DpOn};
+        use nalgebra::Point2;
+        // A coarse polygon with a bulge and a dent against a smooth ellipse, closed and as an
+        // open arc, with the study's SRVF settings (bounded rotation, position term).
+        let outline: Vec<Point2<f64>> = (0..28)
+            .map(|i| {
+                let t = std::f64::consts::TAU * i as f64 / 28.0;
+                let bump = 1.0 + 0.35 * (-((t - 1.2) / 0.4).powi(2)).exp();
+                let dent = if (4.0..4.5).contains(&t) { 0.8 } else { 1.0 };
+                let r = bump * dent;
+                Point2::new(r * 30.0 * t.cos(), r * 22.0 * t.sin())
+            })
+            .collect();
+        let model: Vec<Point2<f64>> = (0..140)
+            .map(|i| {
+                let t = std::f64::consts::TAU * i as f64 / 140.0 + 0.1;
+                Point2::new(29.0 * t.cos() + 0.5, 23.0 * t.sin())
+            })
+            .collect();
+        let prm = crate::correspond::CorrespondParams::default().srvf;
+        let same = |x: &crate::correspond::srvf::Alignment,
+                    y: &crate::correspond::srvf::Alignment| {
+            x.seed == y.seed && x.gamma == y.gamma && x.rotation == y.rotation
+        };
+        for (a, kind) in [
+            (&outline[..], CurveKind::Closed),
+            (&outline[3..20], CurveKind::Partial),
+        ] {
+            let host = align(a, &model, kind, &prm).unwrap();
+            let twin = Twin { straight: false };
+            let on_twin = align_on(a, &model, kind, &prm, DpOn::Device(&twin)).unwrap();
+            assert!(
+                same(&host, &on_twin),
+                "{kind:?}: the twin's alignment differs"
+            );
+            let wrong = Twin { straight: true };
+            let on_wrong = align_on(a, &model, kind, &prm, DpOn::Device(&wrong)).unwrap();
+            assert!(!same(&host, &on_wrong), "{kind:?}: straight warps passed");
+        }
+    }
+
     #[test]
     fn a_bad_problem_is_named() {
         let q = wavy(10, 2.0, 0.0);
