@@ -4,8 +4,8 @@
 //! threads), the steps in order with a strict "<", and per cell the same sums in the same order
 //! as the kernel, so that the back-pointers agree with the GPU's exactly.
 
-use crate::correspond::srvf::{prepare_steps, BandProblem, NO_STEP};
-use crate::engine::cpu::srvf_dp::{StepEntry, TapEntry};
+use crate::correspond::srvf::{BandProblem, NO_STEP};
+use crate::engine::cpu::srvf_dp::{step_tables, StepEntry, TapEntry};
 
 /// Cost of a cell no path reaches (the kernel's UNREACHED).
 pub const UNREACHED: f32 = 1e30;
@@ -104,29 +104,17 @@ impl BandBatch {
     /// The batch of `problems` (at least one, all with the same step set).
     pub fn new(problems: &[BandProblem]) -> Result<Self, BandBatchError> {
         let first = problems.first().ok_or(BandBatchError::Empty)?;
+        let (steps, taps) = step_tables(first.steps);
         let mut b = BandBatch {
             headers: Vec::with_capacity(problems.len()),
             rows: Vec::new(),
             curves: Vec::new(),
             positions: Vec::new(),
-            steps: Vec::new(),
-            taps: Vec::new(),
+            steps,
+            taps,
             step_set: first.steps.to_vec(),
             cells: 0,
         };
-        for st in prepare_steps(first.steps) {
-            b.steps.push(StepEntry {
-                a: st.a as u32,
-                b: st.b as u32,
-                sqrt_slope: st.sqrt_slope as f32,
-                tap_start: b.taps.len() as u32,
-            });
-            b.taps
-                .extend(st.taps.iter().map(|&(offset, frac)| TapEntry {
-                    offset: offset as u32,
-                    frac: frac as f32,
-                }));
-        }
         for (problem, p) in problems.iter().enumerate() {
             b.push(problem, p)?;
         }

@@ -31,6 +31,24 @@ pub struct TapEntry {
     pub frac: f32,
 }
 
+/// The kernels' step and tap tables of a step set (both DP kernels read them).
+pub fn step_tables(steps: &[(usize, usize)]) -> (Vec<StepEntry>, Vec<TapEntry>) {
+    let (mut entries, mut taps) = (Vec::new(), Vec::new());
+    for st in prepare_steps(steps) {
+        entries.push(StepEntry {
+            a: st.a as u32,
+            b: st.b as u32,
+            sqrt_slope: st.sqrt_slope as f32,
+            tap_start: taps.len() as u32,
+        });
+        taps.extend(st.taps.iter().map(|&(offset, frac)| TapEntry {
+            offset: offset as u32,
+            frac: frac as f32,
+        }));
+    }
+    (entries, taps)
+}
+
 /// A batch of DP problems, all with n samples per curve.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DpBatch {
@@ -118,19 +136,7 @@ impl DpBatch {
             b.q1.extend(q1.iter().map(|v| [v.x as f32, v.y as f32]));
             b.q2.extend(q2.iter().map(|v| [v.x as f32, v.y as f32]));
         }
-        for st in prepare_steps(steps) {
-            b.steps.push(StepEntry {
-                a: st.a as u32,
-                b: st.b as u32,
-                sqrt_slope: st.sqrt_slope as f32,
-                tap_start: b.taps.len() as u32,
-            });
-            b.taps
-                .extend(st.taps.iter().map(|&(offset, frac)| TapEntry {
-                    offset: offset as u32,
-                    frac: frac as f32,
-                }));
-        }
+        (b.steps, b.taps) = step_tables(steps);
         Ok(b)
     }
 

@@ -49,6 +49,22 @@ impl Gate {
     }
 }
 
+/// This thread waits for the device until dropped (counted in `Gate::waiting`).
+struct Waiting<'g>(&'g Gate);
+
+impl<'g> Waiting<'g> {
+    fn on(gate: &'g Gate) -> Self {
+        gate.waiting.fetch_add(1, Ordering::SeqCst);
+        Waiting(gate)
+    }
+}
+
+impl Drop for Waiting<'_> {
+    fn drop(&mut self) {
+        self.0.waiting.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
 /// How often a waiting request looks whether every registered run waits (a run waiting in
 /// another lane does not wake this one).
 const GATE_POLL: Duration = Duration::from_micros(200);
@@ -77,20 +93,7 @@ impl<T, R> Lane<T, R> {
         gate: &Gate,
         run: impl Fn(Vec<(u64, T)>) -> Vec<(u64, R)>,
     ) -> R {
-        gate.waiting.fetch_add(1, Ordering::SeqCst);
-        let r = self.submit_waiting(input, lanes, wait, gate, run);
-        gate.waiting.fetch_sub(1, Ordering::SeqCst);
-        r
-    }
-
-    fn submit_waiting(
-        &self,
-        input: T,
-        lanes: usize,
-        wait: Duration,
-        gate: &Gate,
-        run: impl Fn(Vec<(u64, T)>) -> Vec<(u64, R)>,
-    ) -> R {
+        let _waiting = Waiting::on(gate);
         let start = Instant::now();
         let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
         let id = s.next;
