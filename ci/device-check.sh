@@ -50,7 +50,7 @@ else
   # batched (runs in flight at once, their kernel requests merged) at each batch size.
   log "study batches: acetab bench --study-runs $runs --threads $cores --study-batches $study_batches"
   timeout 200 "$bin" bench --mesh-sizes 1000 --dp-batches 1 --repeats 1 --study-runs "$runs" \
-    --threads "$cores" --study-batches "$study_batches" 2>"$out/batches.err" | grep study \
+    --threads "$cores" --study-batches "$study_batches" --dp both 2>"$out/batches.err" | grep study \
     | tee "$out/batches.txt" | tee -a "$out/check.log" \
     || log "study batches failed or ran out of time (see $out/batches.err)"
 fi

@@ -419,6 +419,8 @@ fn acetab_bench_prints_its_table_as_json() {
             "2",
             "--repeats",
             "1",
+            "--dp",
+            "both",
         ])
         .output()
         .unwrap();

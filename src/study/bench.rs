@@ -80,6 +80,10 @@ pub struct BenchParams {
     pub study_batches: Vec<usize>,
     /// Repetitions per timing (the median is reported).
     pub repeats: usize,
+    /// Time the batched GPU study with its SRVF DPs on the host.
+    pub dp_host: bool,
+    /// Time the batched GPU study with its SRVF DPs on the device.
+    pub dp_device: bool,
 }
 
 impl Default for BenchParams {
@@ -92,6 +96,8 @@ impl Default for BenchParams {
             threads: 2,
             study_batches: vec![1, 8, 32, 128],
             repeats: 5,
+            dp_host: true,
+            dp_device: true,
         }
     }
 }
@@ -326,44 +332,33 @@ pub fn run_bench(
             };
             study.push(through("cpu", cfg.threads, timed(&cfg, Kernels::Cpu)?));
             progress(&format!("study on the cpu, batch {b}"));
-            let batcher = crate::engine::gpu::GpuBatcher::new(
-                gpu,
-                cfg.threads,
-                crate::engine::gpu::batcher::STUDY_WAIT,
-            );
-            let mut t = through(
-                "gpu, runs batched",
-                cfg.threads,
-                timed(&cfg, Kernels::Batched(&batcher))?,
-            );
-            let (req, disp) = batcher.counts();
-            let st = batcher.stats();
-            t.requests_per_dispatch = (disp > 0).then(|| req as f64 / disp as f64);
-            t.device_seconds = Some(st.deform.device_seconds + st.project.device_seconds);
-            study.push(t);
-            progress(&format!("study on the gpu, batch {b}"));
-            // The same with every SRVF DP on the device (`simulate --dp device`).
-            let batcher = crate::engine::gpu::GpuBatcher::new(
-                gpu,
-                cfg.threads,
-                crate::engine::gpu::batcher::STUDY_WAIT,
-            )
-            .with_dp_on_device(true);
-            let mut t = through(
-                "gpu, runs batched, DP on the device",
-                cfg.threads,
-                timed(&cfg, Kernels::Batched(&batcher))?,
-            );
-            let (req, disp) = batcher.counts();
-            let st = batcher.stats();
-            t.requests_per_dispatch = (disp > 0).then(|| req as f64 / disp as f64);
-            t.device_seconds = Some(
-                st.deform.device_seconds + st.project.device_seconds + st.srvf_band.device_seconds,
-            );
-            study.push(t);
-            progress(&format!(
-                "study on the gpu with the DP on the device, batch {b}"
-            ));
+            // The GPU with the runs batched, their SRVF DPs on the host and on the device
+            // (`simulate --dp host|device`), as asked.
+            for (on_device, label) in [
+                (false, "gpu, runs batched"),
+                (true, "gpu, runs batched, DP on the device"),
+            ] {
+                if !(if on_device { p.dp_device } else { p.dp_host }) {
+                    continue;
+                }
+                let batcher = crate::engine::gpu::GpuBatcher::new(
+                    gpu,
+                    cfg.threads,
+                    crate::engine::gpu::batcher::STUDY_WAIT,
+                )
+                .with_dp_on_device(on_device);
+                let mut t = through(label, cfg.threads, timed(&cfg, Kernels::Batched(&batcher))?);
+                let (req, disp) = batcher.counts();
+                let st = batcher.stats();
+                t.requests_per_dispatch = (disp > 0).then(|| req as f64 / disp as f64);
+                t.device_seconds = Some(
+                    st.deform.device_seconds
+                        + st.project.device_seconds
+                        + st.srvf_band.device_seconds,
+                );
+                study.push(t);
+                progress(&format!("study on the {label}, batch {b}"));
+            }
         }
     }
     Ok(BenchReport {

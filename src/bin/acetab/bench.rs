@@ -32,6 +32,24 @@ pub struct BenchArgs {
     /// their kernel requests merged (default 1,8,32,128; --quick: 1,2).
     #[arg(long, value_parser = sizes)]
     pub study_batches: Option<Sizes>,
+    /// Where the batched GPU study's SRVF DPs run: host, device, both (a row each), or auto
+    /// (both, but on a CPU adapter such as lavapipe only the host: there the device DPs take
+    /// 13-15x as long and a default bench would run for many minutes).
+    #[arg(long, value_enum, default_value_t = BenchDp::Auto)]
+    pub dp: BenchDp,
+}
+
+/// `acetab bench --dp`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BenchDp {
+    /// The DPs on the host.
+    Host,
+    /// The DPs on the device.
+    Device,
+    /// A row each.
+    Both,
+    /// Both, or the host alone on a CPU adapter.
+    Auto,
 }
 
 pub fn run(args: BenchArgs) -> Result<(), String> {
@@ -44,13 +62,22 @@ pub fn run(args: BenchArgs) -> Result<(), String> {
         dp_batches,
         threads,
         study_batches,
+        dp,
     } = args;
     let dev = GpuDevice::from_env().map_err(|e| format!("acetab bench: {e}"))?;
     let gpu = dev.engine().map_err(|e| e.to_string())?;
+    let (dp_host, dp_device) = match dp {
+        BenchDp::Host => (true, false),
+        BenchDp::Device => (false, true),
+        BenchDp::Both => (true, true),
+        BenchDp::Auto => (true, !dev.is_software()),
+    };
     let mut prm = acetab::study::bench::BenchParams {
         study_runs,
         repeats,
         threads,
+        dp_host,
+        dp_device,
         ..Default::default()
     };
     if quick {
