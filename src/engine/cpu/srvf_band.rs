@@ -194,13 +194,27 @@ impl BandBatch {
         Ok(())
     }
 
-    /// Append another batch of the same step set (its problems after this one's).
-    pub fn append(&mut self, other: &BandBatch) {
-        let (rows, cells, curve) = (
-            self.rows.len() as u32,
-            self.cells as u32,
-            self.curves.len() as u32,
-        );
+    /// Append another batch of the same step set (its problems after this one's); refused when
+    /// the step sets differ or an index would leave u32.
+    pub fn append(&mut self, other: &BandBatch) -> Result<(), BandBatchError> {
+        if other.step_set != self.step_set {
+            return Err(BandBatchError::Steps {
+                problem: self.headers.len(),
+            });
+        }
+        let fits = |n: usize| u32::try_from(n).ok();
+        let (Some(rows), Some(cells), Some(curve), Some(_), Some(_), Some(_)) = (
+            fits(self.rows.len()),
+            fits(self.cells),
+            fits(self.curves.len()),
+            fits(self.rows.len() + other.rows.len()),
+            fits(self.cells + other.cells),
+            fits(self.curves.len() + other.curves.len()),
+        ) else {
+            return Err(BandBatchError::TooLarge {
+                cells: self.cells + other.cells,
+            });
+        };
         self.headers
             .extend(other.headers.iter().map(|h| BandHeader {
                 rows: h.rows + rows,
@@ -212,6 +226,7 @@ impl BandBatch {
         self.curves.extend_from_slice(&other.curves);
         self.positions.extend_from_slice(&other.positions);
         self.cells += other.cells;
+        Ok(())
     }
 
     /// Problem k's slice of a table.
@@ -430,6 +445,44 @@ mod tests {
             let on_wrong = align_on(a, &model, kind, &prm, DpOn::Device(&wrong)).unwrap();
             assert!(!same(&host, &on_wrong), "{kind:?}: straight warps passed");
         }
+    }
+
+    #[test]
+    fn appended_batches_give_each_problem_its_own_tables() {
+        let steps = coprime_steps(3);
+        let (q1, q2) = (wavy(30, 2.0, 0.1), wavy(30, 2.5, 0.7));
+        let lo: Vec<usize> = (0..30).map(|i| usize::from(i > 0)).collect();
+        let hi: Vec<usize> = (0..30).map(|i| if i == 0 { 0 } else { 29 }).collect();
+        let p = BandProblem {
+            q1: &q1,
+            q2: &q2,
+            steps: &steps,
+            lo: &lo,
+            hi: &hi,
+            anchor: None,
+        };
+        let p2 = BandProblem {
+            q1: &q2,
+            q2: &q1,
+            ..p
+        };
+        let (one, two) = (
+            BandBatch::new(&[p]).unwrap(),
+            BandBatch::new(&[p2]).unwrap(),
+        );
+        let mut merged = one.clone();
+        merged.append(&two).unwrap();
+        assert_eq!(merged, BandBatch::new(&[p, p2]).unwrap());
+        let (_, back) = band_tables(&merged);
+        assert_eq!(merged.slice(&back, 1), band_tables(&two).1.as_slice());
+        assert_ne!(merged.slice(&back, 0), merged.slice(&back, 1));
+        // Another step set is refused.
+        let other = coprime_steps(2);
+        let p3 = BandProblem { steps: &other, ..p };
+        assert!(matches!(
+            merged.append(&BandBatch::new(&[p3]).unwrap()),
+            Err(BandBatchError::Steps { problem: 2 })
+        ));
     }
 
     #[test]

@@ -395,15 +395,18 @@ impl GpuBatcher<'_> {
                     }
                 }
                 for g in groups {
-                    let mut merged = g[0].1.clone();
-                    for (_, b) in &g[1..] {
-                        merged.append(b);
-                    }
-                    match self.count(
-                        |s| &mut s.srvf_band,
-                        g.len(),
-                        || self.gpu.srvf_band_tables(&merged),
-                    ) {
+                    let merged = g[1..]
+                        .iter()
+                        .try_fold(g[0].1.clone(), |mut m, (_, b)| m.append(b).map(|()| m))
+                        .map_err(GpuError::from);
+                    let tables = merged.and_then(|m| {
+                        self.count(
+                            |s| &mut s.srvf_band,
+                            g.len(),
+                            || self.gpu.srvf_band_tables(&m),
+                        )
+                    });
+                    match tables {
                         Ok((_, back)) => {
                             let mut at = 0;
                             for (id, b) in &g {
