@@ -8,6 +8,7 @@ use super::curve::{best_rotation, dist2, rotate, srvf};
 use super::dp::{
     coprime_steps, dp_warp_anchored_on, dp_warp_fast_on, dp_warp_near_on, Anchor, CurvePair, Warp,
 };
+use super::dp_many::{rotate_and_warp_many, Candidate};
 use crate::geom::{polyline_length, resample_closed, resample_open, ClosedPolyline};
 use nalgebra::{Point2, Vector2};
 
@@ -439,35 +440,65 @@ fn align_closed_on(
             let (ca, _) = resample_closed(&ra, tc);
             let cq1 = closed_grid(&srvf(&ca, true), 0);
             let cpa = closed_grid(&frame.map(&ca), 0);
-            let mut ranked: Vec<(f64, usize)> = order
+            // Every candidate's coarse curves, then their alignments in step (one request a
+            // round on a device).
+            let coarse: Vec<SeedGrids> = order
                 .iter()
                 .map(|&s| {
                     let (cb, _) = resample_closed(&rotate_list(&rb, s), tc);
-                    let cq2 = closed_grid(&srvf(&cb, true), 0);
-                    let cpb = closed_grid(&frame.map(&cb), 0);
-                    let anchor = Anchor {
-                        a: &cpa,
-                        b: &cpb,
-                        weight: prm.anchor,
-                    };
-                    let (_, w) = rotate_and_warp(
-                        &cq1,
-                        &cq2,
-                        energies[s].1,
-                        &coarse_prm,
-                        &steps,
-                        None,
-                        Some(anchor),
-                        on,
-                    );
-                    (w.energy, s)
+                    (
+                        closed_grid(&srvf(&cb, true), 0),
+                        closed_grid(&frame.map(&cb), 0),
+                    )
                 })
+                .collect();
+            let cands: Vec<Candidate> = order
+                .iter()
+                .zip(&coarse)
+                .map(|(&s, (cq2, cpb))| Candidate {
+                    q2: cq2,
+                    theta: energies[s].1,
+                    anchor: Some(Anchor {
+                        a: &cpa,
+                        b: cpb,
+                        weight: prm.anchor,
+                    }),
+                })
+                .collect();
+            let aligned = rotate_and_warp_many(&cq1, &cands, &coarse_prm, &steps, on);
+            let mut ranked: Vec<(f64, usize)> = aligned
+                .iter()
+                .zip(&order)
+                .map(|((_, w), &s)| (w.energy, s))
                 .collect();
             ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
             ranked.into_iter().map(|(_, s)| s).collect()
         };
-        for &s in ranked.iter().take(REFINED_SEEDS) {
-            refine(s, &mut best, false, prm);
+        // The best seeds refined at full resolution in step, then kept in rank order as one at
+        // a time would.
+        let first: Vec<usize> = ranked.iter().take(REFINED_SEEDS).copied().collect();
+        let grids: Vec<SeedGrids> = first
+            .iter()
+            .map(|&s| (closed_grid(&q2, s), closed_grid(&pb, s)))
+            .collect();
+        let cands: Vec<Candidate> = first
+            .iter()
+            .zip(&grids)
+            .map(|(&s, (q2g, pbg))| Candidate {
+                q2: q2g,
+                theta: energies[s].1,
+                anchor: Some(Anchor {
+                    a: &pag,
+                    b: pbg,
+                    weight: prm.anchor,
+                }),
+            })
+            .collect();
+        let refined = rotate_and_warp_many(&q1g, &cands, prm, &steps, on);
+        for (&s, (theta, w)) in first.iter().zip(refined) {
+            if best.as_ref().is_none_or(|b| w.energy < b.0) {
+                best = Some((w.energy, s, theta, w));
+            }
         }
         // The candidates are kept apart, so walk the seed one sample at a time while it helps.
         for dir in [1usize, t - 1] {
@@ -506,6 +537,9 @@ fn align_closed_on(
         reversed: false,
     })
 }
+
+/// A seed's grids: B's SRVF and B's positions, started at the seed.
+type SeedGrids = (Vec<Vector2<f64>>, Vec<Vector2<f64>>);
 
 /// Closed curves: seeds refined at the full sample count from the coarse ranking.
 const REFINED_SEEDS: usize = 2;

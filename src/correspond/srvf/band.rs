@@ -41,6 +41,13 @@ pub trait BandSolver: Sync {
     /// The back-pointers of `p`, one per band cell, row-major (row i from `lo[i]` to `hi[i]`),
     /// each the index of the step that reached the cell or `NO_STEP`.
     fn back_pointers(&self, p: &BandProblem) -> Option<Vec<u32>>;
+
+    /// The back-pointers of several independent problems (an alignment's seed candidates), in
+    /// order; an engine that takes batches solves them together. None: all on the host. By
+    /// default one at a time.
+    fn back_pointers_many(&self, ps: &[BandProblem]) -> Option<Vec<Vec<u32>>> {
+        ps.iter().map(|p| self.back_pointers(p)).collect()
+    }
 }
 
 /// Where an alignment's DPs run.

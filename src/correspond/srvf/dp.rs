@@ -141,7 +141,7 @@ pub(crate) fn dp_warp_anchored_on(
 /// from the end. A cell a path can use has all its predecessors that a path can use inside these
 /// bounds too, so the DP over this band gives the full grid's costs and back-pointers on every
 /// such cell, and the same optimal path (about a third fewer cells than the square).
-fn feasible_band(n: usize, steps: &[(usize, usize)]) -> Vec<(usize, usize)> {
+pub(super) fn feasible_band(n: usize, steps: &[(usize, usize)]) -> Vec<(usize, usize)> {
     let last = n.saturating_sub(1);
     let full = vec![(1usize, last); n];
     // Steepest b_s / a_s and shallowest b_f / a_f, compared as fractions.
@@ -201,7 +201,7 @@ pub(crate) fn prepare(steps: &[(usize, usize)]) -> Vec<PreparedStep> {
 /// `edge_cost` times n. The tables and the tap tables live in a per-thread scratch that the
 /// next DP on the thread reuses (thousands of DPs run per reconstruction). With `DpOn::Device`
 /// the tables are the device's (the host's DP where it cannot), traced back here.
-fn dp_in_band(
+pub(super) fn dp_in_band(
     q1: &[Vector2<f64>],
     q2: &[Vector2<f64>],
     steps: &[(usize, usize)],
@@ -258,7 +258,7 @@ fn dp_in_band_tables(
 }
 
 /// The warp along a DP's path, its energy with the position term.
-fn finish_warp(
+pub(super) fn finish_warp(
     q1: &[Vector2<f64>],
     q2: &[Vector2<f64>],
     path: Vec<(usize, usize)>,
@@ -702,7 +702,7 @@ pub const EXACT_DP_MAX: usize = 64;
 
 /// The band of +-`halfwidth` cells around a node path given on a grid `factor` times coarser
 /// (factor 1: the same grid), for a fine grid of n samples.
-fn band_around(
+pub(super) fn band_around(
     path: &[(usize, usize)],
     factor: usize,
     n: usize,

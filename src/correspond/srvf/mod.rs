@@ -5,6 +5,7 @@ mod band;
 mod batch;
 mod curve;
 mod dp;
+mod dp_many;
 
 pub use align::{
     align, align_closed, align_on, align_open, align_partial, Alignment, CurveKind, SrvfError,

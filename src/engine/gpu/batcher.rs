@@ -437,4 +437,22 @@ impl BandSolver for GpuBatcher<'_> {
         }
         back.ok()
     }
+
+    /// The problems as one request (merged with the other runs' into one dispatch).
+    fn back_pointers_many(&self, ps: &[BandProblem]) -> Option<Vec<Vec<u32>>> {
+        let batch = BandBatch::new(ps).map_err(GpuError::from);
+        let back = batch.and_then(|b| {
+            let all = self.band_back_pointers(b.clone())?;
+            Ok((0..ps.len())
+                .map(|k| b.slice(&all, k).to_vec())
+                .collect::<Vec<_>>())
+        });
+        if back.is_err() {
+            self.stats
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .srvf_band_on_host += ps.len();
+        }
+        back.ok()
+    }
 }

@@ -112,4 +112,14 @@ impl crate::correspond::srvf::BandSolver for Gpu<'_> {
         let b = BandBatch::new(std::slice::from_ref(p)).ok()?;
         self.srvf_band_tables(&b).ok().map(|(_, back)| back)
     }
+
+    /// The problems in one dispatch.
+    fn back_pointers_many(
+        &self,
+        ps: &[crate::correspond::srvf::BandProblem],
+    ) -> Option<Vec<Vec<u32>>> {
+        let b = BandBatch::new(ps).ok()?;
+        let (_, back) = self.srvf_band_tables(&b).ok()?;
+        Some((0..ps.len()).map(|k| b.slice(&back, k).to_vec()).collect())
+    }
 }

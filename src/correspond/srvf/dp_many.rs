@@ -1,0 +1,276 @@
+//! Several independent DPs at once (the seed candidates of one alignment): each level of the
+//! coarse-to-fine DP, and each rotation/warp alternation, for all of them in one request, so an
+//! engine that takes batches (the GPU, through `BandSolver::back_pointers_many`) gets them
+//! together. On the host every job runs exactly as it would alone (`dp::dp_in_band`), so the
+//! results are the same to the bit as one job at a time.
+
+use super::band::{trace_band, BandProblem, DpOn};
+use super::curve::{best_rotation, dist2, rotate};
+use super::dp::{band_around, band_rows, dp_in_band, feasible_band, finish_warp, Anchor};
+use super::dp::{Warp, EXACT_DP_MAX};
+use super::SrvfParams;
+use nalgebra::Vector2;
+
+/// One DP: q2 warped onto q1 over `band`, with the position term of `anchor`.
+struct Job<'a> {
+    q1: &'a [Vector2<f64>],
+    q2: &'a [Vector2<f64>],
+    band: Vec<(usize, usize)>,
+    anchor: Option<Anchor<'a>>,
+}
+
+/// `dp::dp_in_band` of every job; on a device, all of them in one request.
+fn in_band(jobs: &[Job], steps: &[(usize, usize)], dp: DpOn) -> Vec<Warp> {
+    let alone =
+        |j: &Job, band: &[(usize, usize)]| dp_in_band(j.q1, j.q2, steps, band, j.anchor, dp);
+    let DpOn::Device(solver) = dp else {
+        return jobs.iter().map(|j| alone(j, &j.band)).collect();
+    };
+    let rows: Vec<(Vec<usize>, Vec<usize>)> = jobs
+        .iter()
+        .map(|j| {
+            let (lo, hi, _) = band_rows(&j.band, j.q1.len());
+            (lo, hi)
+        })
+        .collect();
+    let problems: Vec<BandProblem> = jobs
+        .iter()
+        .zip(&rows)
+        .map(|(j, (lo, hi))| BandProblem {
+            q1: j.q1,
+            q2: j.q2,
+            steps,
+            lo,
+            hi,
+            anchor: j.anchor.filter(|a| a.weight > 0.0),
+        })
+        .collect();
+    match solver.back_pointers_many(&problems) {
+        Some(backs) if backs.len() == jobs.len() => jobs
+            .iter()
+            .zip(&rows)
+            .zip(&backs)
+            .map(
+                |((j, (lo, hi)), back)| match trace_band(back, lo, hi, steps) {
+                    Some(path) => finish_warp(j.q1, j.q2, path, j.anchor),
+                    // As `dp_in_band` does when the band cuts every path.
+                    None => alone(j, &feasible_band(j.q1.len(), steps)),
+                },
+            )
+            .collect(),
+        _ => jobs
+            .iter()
+            .map(|j| dp_in_band(j.q1, j.q2, steps, &j.band, j.anchor, DpOn::Host))
+            .collect(),
+    }
+}
+
+/// One warp problem of a level: the curves and the position term.
+#[derive(Clone, Copy)]
+struct Pair<'a> {
+    q1: &'a [Vector2<f64>],
+    q2: &'a [Vector2<f64>],
+    anchor: Option<Anchor<'a>>,
+}
+
+/// `dp::dp_warp_anchored_on` of every pair.
+fn anchored(pairs: &[Pair], steps: &[(usize, usize)], dp: DpOn) -> Vec<Warp> {
+    let jobs: Vec<Job> = pairs
+        .iter()
+        .map(|p| Job {
+            q1: p.q1,
+            q2: p.q2,
+            band: feasible_band(p.q1.len(), steps),
+            anchor: p.anchor,
+        })
+        .collect();
+    in_band(&jobs, steps, dp)
+}
+
+/// `dp::dp_warp_fast_on` of every pair (all with the same sample count), level by level.
+fn fast(pairs: &[Pair], steps: &[(usize, usize)], halfwidth: usize, dp: DpOn) -> Vec<Warp> {
+    let Some(n) = pairs.first().map(|p| p.q1.len()) else {
+        return Vec::new();
+    };
+    if pairs.iter().any(|p| p.q1.len() != n) {
+        return pairs
+            .iter()
+            .map(|p| super::dp::dp_warp_fast_on(p.q1, p.q2, steps, halfwidth, p.anchor, dp))
+            .collect();
+    }
+    if n <= EXACT_DP_MAX {
+        return anchored(pairs, steps, dp);
+    }
+    let m = n.div_ceil(2) + usize::from(n.is_multiple_of(2));
+    let fine = |c: usize| (2 * c).min(n - 1);
+    let every_other =
+        |q: &[Vector2<f64>]| -> Vec<Vector2<f64>> { (0..m).map(|c| q[fine(c)]).collect() };
+    // (c1, c2, and the position term's coarse curves) per pair.
+    type Coarse = (
+        Vec<Vector2<f64>>,
+        Vec<Vector2<f64>>,
+        Option<(Vec<Vector2<f64>>, Vec<Vector2<f64>>, f64)>,
+    );
+    let coarse: Vec<Coarse> = pairs
+        .iter()
+        .map(|p| {
+            (
+                every_other(p.q1),
+                every_other(p.q2),
+                p.anchor
+                    .map(|a| (every_other(a.a), every_other(a.b), a.weight)),
+            )
+        })
+        .collect();
+    let coarse_pairs: Vec<Pair> = coarse
+        .iter()
+        .map(|(c1, c2, pos)| Pair {
+            q1: c1,
+            q2: c2,
+            anchor: pos.as_ref().map(|(a, b, weight)| Anchor {
+                a,
+                b,
+                weight: *weight,
+            }),
+        })
+        .collect();
+    let paths = fast(&coarse_pairs, steps, halfwidth, dp);
+    let jobs: Vec<Job> = pairs
+        .iter()
+        .zip(&paths)
+        .map(|(p, c)| Job {
+            q1: p.q1,
+            q2: p.q2,
+            band: band_around(&c.path, 2, n, halfwidth),
+            anchor: p.anchor,
+        })
+        .collect();
+    in_band(&jobs, steps, dp)
+}
+
+/// `dp::dp_warp_near_on` of every pair, each about its own hint.
+fn near(
+    pairs: &[Pair],
+    hints: &[&[(usize, usize)]],
+    steps: &[(usize, usize)],
+    halfwidth: usize,
+    dp: DpOn,
+) -> Vec<Warp> {
+    let jobs: Vec<Job> = pairs
+        .iter()
+        .zip(hints)
+        .map(|(p, hint)| {
+            let n = p.q1.len();
+            let band = if n <= 24 || hint.len() < 2 {
+                feasible_band(n, steps)
+            } else {
+                band_around(hint, 1, n, halfwidth)
+            };
+            Job {
+                q1: p.q1,
+                q2: p.q2,
+                band,
+                anchor: p.anchor,
+            }
+        })
+        .collect();
+    in_band(&jobs, steps, dp)
+}
+
+/// One candidate of `rotate_and_warp_many`: its q2, its starting rotation and its position term.
+pub(super) struct Candidate<'a> {
+    pub(super) q2: &'a [Vector2<f64>],
+    pub(super) theta: f64,
+    pub(super) anchor: Option<Anchor<'a>>,
+}
+
+/// `align::rotate_and_warp` (no hint) of every candidate against the same q1, the candidates'
+/// alternations in step: each round's DPs in one request. Per candidate the same rotations,
+/// warps and energies as one at a time.
+pub(super) fn rotate_and_warp_many(
+    q1: &[Vector2<f64>],
+    cands: &[Candidate],
+    prm: &SrvfParams,
+    steps: &[(usize, usize)],
+    on: DpOn,
+) -> Vec<(f64, Warp)> {
+    let anchors: Vec<Option<Anchor>> = cands
+        .iter()
+        .map(|c| c.anchor.filter(|a| a.weight > 0.0))
+        .collect();
+    let solve = |qs: &[Vec<Vector2<f64>>], idx: &[usize], hints: Option<&[&[(usize, usize)]]>| {
+        let pairs: Vec<Pair> = qs
+            .iter()
+            .zip(idx)
+            .map(|(q, &k)| Pair {
+                q1,
+                q2: q,
+                anchor: anchors[k],
+            })
+            .collect();
+        if prm.band == 0 {
+            anchored(&pairs, steps, on)
+        } else if let Some(h) = hints {
+            near(&pairs, h, steps, prm.band, on)
+        } else {
+            fast(&pairs, steps, prm.band, on)
+        }
+    };
+    let mut theta: Vec<f64> = cands.iter().map(|c| prm.bounded(c.theta)).collect();
+    let all: Vec<usize> = (0..cands.len()).collect();
+    let first: Vec<Vec<Vector2<f64>>> = cands
+        .iter()
+        .zip(&theta)
+        .map(|(c, &t)| rotate(c.q2, t))
+        .collect();
+    let mut w = solve(&first, &all, None);
+    let mut energy: Vec<f64> = w.iter().map(|w| w.energy).collect();
+    let mut active = all;
+    for _ in 1..prm.max_alternations.max(1) {
+        if active.is_empty() {
+            break;
+        }
+        // (next theta, the turn d) of every candidate still alternating.
+        let turns: Vec<(f64, f64)> = active
+            .iter()
+            .map(|&k| {
+                let free = best_rotation(q1, &w[k].warped);
+                let next = prm.bounded(theta[k] + free);
+                let d = if prm.max_rotation.is_some() {
+                    next - theta[k]
+                } else {
+                    free
+                };
+                (next, d)
+            })
+            .collect();
+        let turned: Vec<Vec<Vector2<f64>>> = active
+            .iter()
+            .zip(&turns)
+            .map(|(&k, &(next, _))| rotate(cands[k].q2, next))
+            .collect();
+        let hints: Vec<&[(usize, usize)]> = active.iter().map(|&k| &w[k].path[..]).collect();
+        let w2 = solve(&turned, &active, Some(&hints));
+        let mut still = Vec::new();
+        for ((&k, &(next, d)), w2) in active.iter().zip(&turns).zip(w2) {
+            if w2.energy < energy[k] * (1.0 - prm.rel_tol) {
+                theta[k] = next;
+                energy[k] = w2.energy;
+                w[k] = w2;
+                still.push(k);
+            } else {
+                // Keep the rotation refinement alone if it helps without a new warp (the
+                // position term does not depend on the rotation).
+                let rotated = rotate(&w[k].warped, d);
+                let e = dist2(q1, &rotated) + (w[k].energy - dist2(q1, &w[k].warped));
+                if e < energy[k] {
+                    theta[k] = next;
+                    w[k].warped = rotated;
+                    w[k].energy = e;
+                }
+            }
+        }
+        active = still;
+    }
+    theta.into_iter().zip(w).collect()
+}
