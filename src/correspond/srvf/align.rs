@@ -4,10 +4,8 @@
 //! falling.
 
 use super::band::DpOn;
-use super::curve::{best_rotation, dist2, rotate, srvf};
-use super::dp::{
-    coprime_steps, dp_warp_anchored_on, dp_warp_fast_on, dp_warp_near_on, Anchor, CurvePair, Warp,
-};
+use super::curve::{best_rotation, dist2, srvf};
+use super::dp::{coprime_steps, Anchor, CurvePair, Warp};
 use super::dp_many::{rotate_and_warp_many, Candidate};
 use crate::geom::{polyline_length, resample_closed, resample_open, ClosedPolyline};
 use nalgebra::{Point2, Vector2};
@@ -194,6 +192,8 @@ fn check(curve: &'static str, p: &[Point2<f64>]) -> Result<(), SrvfError> {
 /// Optimal rotation + warp with alternation, starting from rotation `theta`. The first DP runs
 /// coarse to fine (or in a band around `hint`, the path of a neighbouring problem); each later
 /// one in a band around the previous path, since a small rotation change moves the path little.
+/// The rotation and warp of q2 onto q1 from `theta` (`dp_many::rotate_and_warp_many` of one
+/// candidate).
 #[allow(clippy::too_many_arguments)]
 fn rotate_and_warp(
     q1: &[Vector2<f64>],
@@ -205,46 +205,15 @@ fn rotate_and_warp(
     anchor: Option<Anchor>,
     on: DpOn,
 ) -> (f64, Warp) {
-    let mut theta = prm.bounded(theta);
-    let anchor = anchor.filter(|a| a.weight > 0.0);
-    let dp = |q: &[Vector2<f64>], near: Option<&[(usize, usize)]>| {
-        if prm.band == 0 {
-            dp_warp_anchored_on(q1, q, steps, anchor, on)
-        } else if let Some(path) = near {
-            dp_warp_near_on(q1, q, steps, path, prm.band, anchor, on)
-        } else {
-            dp_warp_fast_on(q1, q, steps, prm.band, anchor, on)
-        }
+    let cand = Candidate {
+        q2,
+        theta,
+        anchor,
+        hint,
     };
-    let mut w = dp(&rotate(q2, theta), hint);
-    let mut energy = w.energy;
-    for _ in 1..prm.max_alternations.max(1) {
-        let free = best_rotation(q1, &w.warped);
-        let next_theta = prm.bounded(theta + free);
-        let d = if prm.max_rotation.is_some() {
-            next_theta - theta
-        } else {
-            free
-        };
-        let w2 = dp(&rotate(q2, next_theta), Some(&w.path));
-        if w2.energy < energy * (1.0 - prm.rel_tol) {
-            theta = next_theta;
-            energy = w2.energy;
-            w = w2;
-        } else {
-            // Keep the rotation refinement alone if it helps without a new warp (the position
-            // term does not depend on the rotation).
-            let rotated = rotate(&w.warped, d);
-            let e = dist2(q1, &rotated) + (w.energy - dist2(q1, &w.warped));
-            if e < energy {
-                theta = next_theta;
-                w.warped = rotated;
-                w.energy = e;
-            }
-            break;
-        }
-    }
-    (theta, w)
+    rotate_and_warp_many(q1, std::slice::from_ref(&cand), prm, steps, on)
+        .pop()
+        .expect("one candidate gives one alignment")
 }
 
 /// Rotation-only energy of every cyclic shift of q2 against q1 and its rotation, within
@@ -463,6 +432,7 @@ fn align_closed_on(
                         b: cpb,
                         weight: prm.anchor,
                     }),
+                    hint: None,
                 })
                 .collect();
             let aligned = rotate_and_warp_many(&cq1, &cands, &coarse_prm, &steps, on);
@@ -492,6 +462,7 @@ fn align_closed_on(
                     b: pbg,
                     weight: prm.anchor,
                 }),
+                hint: None,
             })
             .collect();
         let refined = rotate_and_warp_many(&q1g, &cands, prm, &steps, on);

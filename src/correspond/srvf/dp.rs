@@ -777,32 +777,6 @@ pub(crate) fn dp_warp_fast_on(
     )
 }
 
-/// DP in a band of +-`halfwidth` cells around `hint`, a path on the same grid (the previous
-/// solution of a nearby problem: the next rotation of an alternation, a neighbouring seed),
-/// its DP run where `dp` says.
-pub(crate) fn dp_warp_near_on(
-    q1: &[Vector2<f64>],
-    q2: &[Vector2<f64>],
-    steps: &[(usize, usize)],
-    hint: &[(usize, usize)],
-    halfwidth: usize,
-    anchor: Option<Anchor>,
-    dp: DpOn,
-) -> Warp {
-    let n = q1.len();
-    if n <= 24 || hint.len() < 2 {
-        return dp_warp_anchored_on(q1, q2, steps, anchor, dp);
-    }
-    dp_in_band(
-        q1,
-        q2,
-        steps,
-        &band_around(hint, 1, n, halfwidth),
-        anchor,
-        dp,
-    )
-}
-
 /// Follow back-pointers from (n-1, n-1) to (0, 0).
 pub fn traceback(back: &[u32], n: usize, steps: &[(usize, usize)]) -> Vec<(usize, usize)> {
     let mut path = vec![(n - 1, n - 1)];

@@ -177,16 +177,21 @@ fn near(
     in_band(&jobs, steps, dp)
 }
 
-/// One candidate of `rotate_and_warp_many`: its q2, its starting rotation and its position term.
+/// One candidate of `rotate_and_warp_many`: its q2, its starting rotation, its position term,
+/// and a path of a nearby problem to search about first (a neighbouring seed's), if any.
 pub(super) struct Candidate<'a> {
     pub(super) q2: &'a [Vector2<f64>],
     pub(super) theta: f64,
     pub(super) anchor: Option<Anchor<'a>>,
+    pub(super) hint: Option<&'a [(usize, usize)]>,
 }
 
-/// `align::rotate_and_warp` (no hint) of every candidate against the same q1, the candidates'
-/// alternations in step: each round's DPs in one request. Per candidate the same rotations,
-/// warps and energies as one at a time.
+/// The rotation O and the warp of every candidate against the same q1, alternating rotation
+/// and DP until the energy stops falling (at most `prm.max_alternations` DPs; the rotation
+/// bounded by `prm.max_rotation`): the first DP in a band about the candidate's hint, or
+/// coarse-to-fine without one, later ones about the previous path. The candidates' rounds go in
+/// step, each round's DPs one request; each candidate's rotations, warps and energies are those
+/// it would get alone.
 pub(super) fn rotate_and_warp_many(
     q1: &[Vector2<f64>],
     cands: &[Candidate],
@@ -198,7 +203,8 @@ pub(super) fn rotate_and_warp_many(
         .iter()
         .map(|c| c.anchor.filter(|a| a.weight > 0.0))
         .collect();
-    let solve = |qs: &[Vec<Vector2<f64>>], idx: &[usize], hints: Option<&[&[(usize, usize)]]>| {
+    // The DPs of candidates `idx` (their turned q2 in `qs`), each about its hint if it has one.
+    let solve = |qs: &[Vec<Vector2<f64>>], idx: &[usize], hints: &[Option<&[(usize, usize)]>]| {
         let pairs: Vec<Pair> = qs
             .iter()
             .zip(idx)
@@ -209,12 +215,25 @@ pub(super) fn rotate_and_warp_many(
             })
             .collect();
         if prm.band == 0 {
-            anchored(&pairs, steps, on)
-        } else if let Some(h) = hints {
-            near(&pairs, h, steps, prm.band, on)
-        } else {
-            fast(&pairs, steps, prm.band, on)
+            return anchored(&pairs, steps, on);
         }
+        let (with, without): (Vec<usize>, Vec<usize>) =
+            (0..pairs.len()).partition(|&i| hints[i].is_some());
+        let pick = |set: &[usize]| -> Vec<Pair> { set.iter().map(|&i| pairs[i]).collect() };
+        let hinted: Vec<&[(usize, usize)]> = with.iter().filter_map(|&i| hints[i]).collect();
+        let mut out: Vec<Option<Warp>> = (0..pairs.len()).map(|_| None).collect();
+        let solved = near(&pick(&with), &hinted, steps, prm.band, on)
+            .into_iter()
+            .zip(&with)
+            .chain(
+                fast(&pick(&without), steps, prm.band, on)
+                    .into_iter()
+                    .zip(&without),
+            );
+        for (w, &i) in solved {
+            out[i] = Some(w);
+        }
+        out.into_iter().flatten().collect::<Vec<Warp>>()
     };
     let mut theta: Vec<f64> = cands.iter().map(|c| prm.bounded(c.theta)).collect();
     let all: Vec<usize> = (0..cands.len()).collect();
@@ -223,7 +242,8 @@ pub(super) fn rotate_and_warp_many(
         .zip(&theta)
         .map(|(c, &t)| rotate(c.q2, t))
         .collect();
-    let mut w = solve(&first, &all, None);
+    let first_hints: Vec<Option<&[(usize, usize)]>> = cands.iter().map(|c| c.hint).collect();
+    let mut w = solve(&first, &all, &first_hints);
     let mut energy: Vec<f64> = w.iter().map(|w| w.energy).collect();
     let mut active = all;
     for _ in 1..prm.max_alternations.max(1) {
@@ -249,8 +269,9 @@ pub(super) fn rotate_and_warp_many(
             .zip(&turns)
             .map(|(&k, &(next, _))| rotate(cands[k].q2, next))
             .collect();
-        let hints: Vec<&[(usize, usize)]> = active.iter().map(|&k| &w[k].path[..]).collect();
-        let w2 = solve(&turned, &active, Some(&hints));
+        let hints: Vec<Option<&[(usize, usize)]>> =
+            active.iter().map(|&k| Some(&w[k].path[..])).collect();
+        let w2 = solve(&turned, &active, &hints);
         let mut still = Vec::new();
         for ((&k, &(next, d)), w2) in active.iter().zip(&turns).zip(w2) {
             if w2.energy < energy[k] * (1.0 - prm.rel_tol) {
