@@ -2,9 +2,7 @@
 //! banded SRVF DPs of alignments, one problem per workgroup, rows in order; the back-pointers
 //! come back and are traced on the host (`correspond::srvf::trace_band`).
 
-use super::buffers::{
-    bind, bytes_of, compute_pipeline, fill, kernel_entries, uniform, SENTINEL_F32, SENTINEL_U32,
-};
+use super::buffers::{bytes_of, compute_pipeline, kernel_entries};
 use super::srvf_dp::{GpuStep, GpuTap};
 use super::{Gpu, GpuError};
 use crate::engine::cpu::srvf_band::BandBatch;
@@ -51,9 +49,6 @@ impl Gpu<'_> {
                 limit: max_groups as u64,
             });
         }
-        let table_bytes = (b.cells * 4) as u64;
-        self.check_size(K, "table bytes", table_bytes)?;
-        self.check_size(K, "curve bytes", (b.curves.len() * 16) as u64)?;
         let params = BandParams {
             problems,
             step_count: b.steps.len() as u32,
@@ -61,46 +56,21 @@ impl Gpu<'_> {
         };
         let steps: Vec<GpuStep> = b.steps.iter().map(GpuStep::from).collect();
         let taps: Vec<GpuTap> = b.taps.iter().map(GpuTap::from).collect();
-        let (d, q, pool) = (self.device, self.queue, &self.pool);
-        let u = uniform(d, K, bytemuck::bytes_of(&params));
-        let none = wgpu::BufferUsages::empty();
-        let ins = [
-            pool.upload(d, q, K, bytes_of(&b.headers), none),
-            pool.upload(d, q, K, bytes_of(&b.rows), none),
-            pool.upload(d, q, K, bytes_of(&b.curves), none),
-            pool.upload(d, q, K, bytes_of(&b.positions), none),
-            pool.upload(d, q, K, bytes_of(&steps), none),
-            pool.upload(d, q, K, bytes_of(&taps), none),
-        ];
-        let usage = wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_SRC
-            | wgpu::BufferUsages::COPY_DST;
-        let cost = pool.take(d, K, table_bytes, usage);
-        let back = pool.take(d, K, table_bytes, usage);
-        fill(q, &cost, b.cells, SENTINEL_F32);
-        fill(q, &back, b.cells, SENTINEL_U32);
-        let group = bind(
-            d,
-            &self.srvf_band.layout,
+        self.dp_tables_on_device(
             K,
+            (&self.srvf_band.pipeline, &self.srvf_band.layout),
+            bytemuck::bytes_of(&params),
             &[
-                &u, &ins[0], &ins[1], &ins[2], &ins[3], &ins[4], &ins[5], &cost, &back,
+                bytes_of(&b.headers),
+                bytes_of(&b.rows),
+                bytes_of(&b.curves),
+                bytes_of(&b.positions),
+                bytes_of(&steps),
+                bytes_of(&taps),
             ],
-        );
-        let read = self.dispatch_and_read(
-            K,
-            &self.srvf_band.pipeline,
-            &group,
-            (problems, 1, 1),
-            &[(&cost, table_bytes), (&back, table_bytes)],
-        );
-        pool.give(ins);
-        pool.give([cost, back]);
-        let read = read?;
-        Ok((
-            bytemuck::pod_collect_to_vec(&read[0]),
-            bytemuck::pod_collect_to_vec(&read[1]),
-        ))
+            b.cells,
+            problems,
+        )
     }
 }
 

@@ -96,8 +96,6 @@ impl Gpu<'_> {
             });
         }
         let cells = b.problems as usize * b.cells();
-        let table_bytes = (cells * 4) as u64;
-        self.check_size(K, "table bytes", table_bytes)?;
         let params = DpParams {
             samples: b.samples,
             problems: b.problems,
@@ -106,33 +104,61 @@ impl Gpu<'_> {
         };
         let steps: Vec<GpuStep> = b.steps.iter().map(GpuStep::from).collect();
         let taps: Vec<GpuTap> = b.taps.iter().map(GpuTap::from).collect();
+        self.dp_tables_on_device(
+            K,
+            (&self.srvf_dp.pipeline, &self.srvf_dp.layout),
+            bytemuck::bytes_of(&params),
+            &[
+                bytes_of(&b.q1),
+                bytes_of(&b.q2),
+                bytes_of(&steps),
+                bytes_of(&taps),
+            ],
+            cells,
+            b.problems,
+        )
+    }
+
+    /// One dispatch of a DP kernel (`kernel`'s pipeline and layout): the uniform, the input
+    /// buffers in binding order, then the cost and back-pointer tables of `cells` cells
+    /// (pre-filled with sentinels), one workgroup a problem; the two tables read back.
+    pub(super) fn dp_tables_on_device(
+        &self,
+        kernel: &'static str,
+        (pipeline, layout): (&wgpu::ComputePipeline, &wgpu::BindGroupLayout),
+        params: &[u8],
+        inputs: &[&[u8]],
+        cells: usize,
+        problems: u32,
+    ) -> Result<(Vec<f32>, Vec<u32>), GpuError> {
+        let table_bytes = (cells * 4) as u64;
+        self.check_size(kernel, "table bytes", table_bytes)?;
+        for data in inputs {
+            self.check_size(kernel, "input bytes", data.len() as u64)?;
+        }
         let (d, q, pool) = (self.device, self.queue, &self.pool);
-        let u = uniform(d, K, bytemuck::bytes_of(&params));
+        let u = uniform(d, kernel, params);
         let none = wgpu::BufferUsages::empty();
-        let ins = [
-            pool.upload(d, q, K, bytes_of(&b.q1), none),
-            pool.upload(d, q, K, bytes_of(&b.q2), none),
-            pool.upload(d, q, K, bytes_of(&steps), none),
-            pool.upload(d, q, K, bytes_of(&taps), none),
-        ];
+        let ins: Vec<wgpu::Buffer> = inputs
+            .iter()
+            .map(|data| pool.upload(d, q, kernel, data, none))
+            .collect();
         let usage = wgpu::BufferUsages::STORAGE
             | wgpu::BufferUsages::COPY_SRC
             | wgpu::BufferUsages::COPY_DST;
-        let cost = pool.take(d, K, table_bytes, usage);
-        let back = pool.take(d, K, table_bytes, usage);
+        let cost = pool.take(d, kernel, table_bytes, usage);
+        let back = pool.take(d, kernel, table_bytes, usage);
         fill(q, &cost, cells, SENTINEL_F32);
         fill(q, &back, cells, SENTINEL_U32);
-        let group = bind(
-            d,
-            &self.srvf_dp.layout,
-            K,
-            &[&u, &ins[0], &ins[1], &ins[2], &ins[3], &cost, &back],
-        );
+        let mut entries: Vec<&wgpu::Buffer> = vec![&u];
+        entries.extend(ins.iter());
+        entries.extend([&cost, &back]);
+        let group = bind(d, layout, kernel, &entries);
         let read = self.dispatch_and_read(
-            K,
-            &self.srvf_dp.pipeline,
+            kernel,
+            pipeline,
             &group,
-            (b.problems, 1, 1),
+            (problems, 1, 1),
             &[(&cost, table_bytes), (&back, table_bytes)],
         );
         pool.give(ins);
