@@ -26,6 +26,9 @@ fn in_band(jobs: &[Job], steps: &[(usize, usize)], dp: DpOn) -> Vec<Warp> {
     let DpOn::Device(solver) = dp else {
         return jobs.iter().map(|j| alone(j, &j.band)).collect();
     };
+    if jobs.is_empty() {
+        return Vec::new();
+    }
     let rows: Vec<(Vec<usize>, Vec<usize>)> = jobs
         .iter()
         .map(|j| {
