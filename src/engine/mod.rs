@@ -65,8 +65,10 @@ pub const SILHOUETTE_TEXELS: u32 = 512;
 
 impl Kernels<'_> {
     /// `f(k, &items[k])` for the independent parts of one run (views, resamples, starts), in
-    /// input order: side by side on the CPU (`geom::par_map`), one after the other on the GPU
-    /// paths, which keep one run to one thread as the study's batcher expects.
+    /// input order: side by side on the CPU (`geom::par_map`); on the batched GPU each on a
+    /// thread of its own registered with the batcher in the run's place (`GpuBatcher::parts`),
+    /// so their device requests join the same lock-step dispatches; one after the other on the
+    /// plain GPU path.
     pub fn map_parts<T: Sync, R: Send>(
         &self,
         items: &[T],
@@ -74,7 +76,8 @@ impl Kernels<'_> {
     ) -> Vec<R> {
         match self {
             Kernels::Cpu => crate::geom::par_map(items, f),
-            _ => items.iter().enumerate().map(|(k, t)| f(k, t)).collect(),
+            Kernels::Batched(b) => b.parts(items, f),
+            Kernels::Gpu(_) => items.iter().enumerate().map(|(k, t)| f(k, t)).collect(),
         }
     }
 

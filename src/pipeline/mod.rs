@@ -510,8 +510,8 @@ fn place(
         .filter(|_| start.about.is_some() && prm.placement.mirrored_start)
         .map(|axis| Placement { axis, ..s.clone() });
     // The given start and the mirrored probe are independent: on the CPU they run side by side
-    // (as `Kernels::map_parts` runs parts; the GPU paths keep one run to one thread). A failed
-    // given start is reported before the probe is looked at, as when they ran in turn.
+    // (as `Kernels::map_parts` runs parts; on the GPU paths in turn). A failed given start is
+    // reported before the probe is looked at, as when they ran in turn.
     let given = || solve(s.place(unit), s.clone(), prm.placement.rounds);
     // A few rounds tell a clearly wrong orientation from a right one; the mirrored start goes
     // on to convergence unless it is clearly worse.

@@ -191,12 +191,32 @@ impl BatcherStats {
 pub const STUDY_WAIT: Duration = Duration::from_millis(50);
 
 /// A registered run (`GpuBatcher::run`); dropping it unregisters the run.
-pub struct RunGuard<'b>(&'b Gate);
+pub struct RunGuard<'b> {
+    gate: &'b Gate,
+    /// The gate this thread was registered with before (restored on drop).
+    before: usize,
+}
 
 impl Drop for RunGuard<'_> {
     fn drop(&mut self) {
-        self.0.active.fetch_sub(1, Ordering::SeqCst);
+        self.gate.active.fetch_sub(1, Ordering::SeqCst);
+        REGISTERED.with(|r| r.set(self.before));
     }
+}
+
+/// The independent parts of a registered run on threads of their own (`GpuBatcher::parts`):
+/// the run steps aside while they go on in its place, and comes back when dropped.
+struct Aside<'b>(&'b Gate);
+
+impl Drop for Aside<'_> {
+    fn drop(&mut self) {
+        self.0.active.fetch_add(1, Ordering::SeqCst);
+    }
+}
+
+thread_local! {
+    /// The gate (by address) this thread's run is registered with, or 0.
+    static REGISTERED: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
 }
 
 /// Merges concurrent kernel requests from up to `lanes` runs.
@@ -240,7 +260,44 @@ impl<'g> GpuBatcher<'g> {
     /// lane dispatches once every one of them waits for the device.
     pub fn run(&self) -> RunGuard<'_> {
         self.gate.active.fetch_add(1, Ordering::SeqCst);
-        RunGuard(&self.gate)
+        let here = &self.gate as *const Gate as usize;
+        RunGuard {
+            gate: &self.gate,
+            before: REGISTERED.with(|r| r.replace(here)),
+        }
+    }
+
+    /// `f(k, &items[k])` for the independent parts of one run (its views, resamples, restarts),
+    /// in input order. For a run registered on this thread, each part on a thread of its own,
+    /// registered in the run's place, so that the parts' device requests go in the same
+    /// lock-step dispatches; otherwise one after the other on this thread.
+    pub fn parts<T: Sync, R: Send>(
+        &self,
+        items: &[T],
+        f: impl Fn(usize, &T) -> R + Sync + Send,
+    ) -> Vec<R> {
+        let here = &self.gate as *const Gate as usize;
+        if items.len() < 2 || REGISTERED.with(|r| r.get()) != here {
+            return items.iter().enumerate().map(|(k, t)| f(k, t)).collect();
+        }
+        self.gate.active.fetch_sub(1, Ordering::SeqCst);
+        let _back = Aside(&self.gate);
+        let f = &f;
+        std::thread::scope(|s| {
+            let hs: Vec<_> = items
+                .iter()
+                .enumerate()
+                .map(|(k, t)| {
+                    s.spawn(move || {
+                        let _run = self.run();
+                        f(k, t)
+                    })
+                })
+                .collect();
+            hs.into_iter()
+                .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+                .collect()
+        })
     }
 
     /// Whether the runs' SRVF DPs go to the device.
