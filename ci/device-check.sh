@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The real-GPU check (issue 18). On a machine with an NVIDIA GPU: the kernels against their CPU
-# twins (acetab bench) at batch sizes up to 4,096 problems and meshes up to 100,000 vertices, and
-# a study's throughput on the GPU against the CPU path on every core. Within 8 minutes; every step
-# has its own time limit, and a step that fails is reported and skipped.
+# twins (acetab bench; srvf_band is the studies' own DP) at batch sizes up to 4,096 problems and
+# meshes up to 100,000 vertices, and a study's throughput on the GPU, its SRVF DPs on the device
+# and on the host, against the CPU path on every core. Within 8 minutes; every step has its own
+# time limit, and a step that fails is reported and skipped.
 #
 # Uses target/device/acetab and target/device/lib (ci/device-prepare.sh, run beforehand where
 # the project builds), else builds with cargo if there is one. Writes to $OUT (the device tool's
