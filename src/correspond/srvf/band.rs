@@ -31,7 +31,11 @@ pub struct BandProblem<'a> {
 impl BandProblem<'_> {
     /// Cells in the band (the length of the back-pointer table).
     pub fn cells(&self) -> usize {
-        self.lo.iter().zip(self.hi).map(|(l, h)| h + 1 - l).sum()
+        self.lo
+            .iter()
+            .zip(self.hi)
+            .map(|(l, h)| (h + 1).saturating_sub(*l))
+            .sum()
     }
 }
 
@@ -61,7 +65,8 @@ pub enum DpOn<'a> {
 }
 
 /// The path from (0, 0) to (n-1, n-1) that the back-pointers of a band give (`lo`, `hi` per row,
-/// `back` row-major over the band), or None when the band cuts every path.
+/// `back` row-major over the band), or None when the band cuts every path (or the rows and the
+/// table do not fit together).
 pub fn trace_band(
     back: &[u32],
     lo: &[usize],
@@ -75,6 +80,9 @@ pub fn trace_band(
     let mut offset = Vec::with_capacity(n);
     let mut at = 0;
     for i in 0..n {
+        if hi[i] < lo[i] {
+            return None;
+        }
         offset.push(at);
         at += hi[i] + 1 - lo[i];
     }
@@ -103,4 +111,39 @@ pub fn trace_band(
     }
     path.reverse();
     Some(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn back_pointers_trace_to_their_path_and_misfits_give_none() {
+        // A 3 x 3 grid, full rows 1..2 (row 0 only the start); steps (1, 1) and (1, 2).
+        let steps = [(1, 1), (1, 2)];
+        let (lo, hi) = ([0, 1, 1], [0, 2, 2]);
+        // Cells: (0,0); (1,1) (1,2); (2,1) (2,2). (2,2) from (1,1) by (1,1); (1,1) from (0,0).
+        let back = [NO_STEP, 0, 1, NO_STEP, 0];
+        assert_eq!(
+            trace_band(&back, &lo, &hi, &steps),
+            Some(vec![(0, 0), (1, 1), (2, 2)])
+        );
+        // (2,2) pointing at a step out of the set: no path.
+        assert_eq!(
+            trace_band(&[NO_STEP, 0, 1, NO_STEP, 7], &lo, &hi, &steps),
+            None
+        );
+        // A table of the wrong length, and a row whose last column is before its first.
+        assert_eq!(trace_band(&back[..4], &lo, &hi, &steps), None);
+        assert_eq!(trace_band(&back, &[0, 2, 1], &[0, 1, 2], &steps), None);
+        let p = BandProblem {
+            q1: &[],
+            q2: &[],
+            steps: &steps,
+            lo: &[0, 2],
+            hi: &[0, 1],
+            anchor: None,
+        };
+        assert_eq!(p.cells(), 1);
+    }
 }
