@@ -229,14 +229,16 @@ impl BandBatch {
         Ok(())
     }
 
+    /// Each problem's cells in the tables, in order.
+    pub fn ranges(&self) -> Vec<std::ops::Range<usize>> {
+        let starts: Vec<usize> = self.headers.iter().map(|h| h.cells as usize).collect();
+        let ends = starts.iter().skip(1).copied().chain([self.cells]);
+        starts.iter().zip(ends).map(|(&a, b)| a..b).collect()
+    }
+
     /// Problem k's slice of a table.
     pub fn slice<'t, T>(&self, table: &'t [T], k: usize) -> &'t [T] {
-        let start = self.headers[k].cells as usize;
-        let end = self
-            .headers
-            .get(k + 1)
-            .map_or(self.cells, |h| h.cells as usize);
-        &table[start..end]
+        &table[self.ranges()[k].clone()]
     }
 }
 

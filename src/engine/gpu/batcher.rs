@@ -483,26 +483,15 @@ impl GpuBatcher<'_> {
 /// cannot take is solved on the host and counted (`BatcherStats::srvf_band_on_host`).
 impl BandSolver for GpuBatcher<'_> {
     fn back_pointers(&self, p: &BandProblem) -> Option<Vec<u32>> {
-        let back = BandBatch::new(std::slice::from_ref(p))
-            .map_err(GpuError::from)
-            .and_then(|b| self.band_back_pointers(b));
-        if back.is_err() {
-            self.stats
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .srvf_band_on_host += 1;
-        }
-        back.ok()
+        self.back_pointers_many(std::slice::from_ref(p))?.pop()
     }
 
     /// The problems as one request (merged with the other runs' into one dispatch).
     fn back_pointers_many(&self, ps: &[BandProblem]) -> Option<Vec<Vec<u32>>> {
-        let batch = BandBatch::new(ps).map_err(GpuError::from);
-        let back = batch.and_then(|b| {
-            let all = self.band_back_pointers(b.clone())?;
-            Ok((0..ps.len())
-                .map(|k| b.slice(&all, k).to_vec())
-                .collect::<Vec<_>>())
+        let back = BandBatch::new(ps).map_err(GpuError::from).and_then(|b| {
+            let ranges = b.ranges();
+            let all = self.band_back_pointers(b)?;
+            Ok(ranges.into_iter().map(|r| all[r].to_vec()).collect())
         });
         if back.is_err() {
             self.stats

@@ -79,8 +79,7 @@ impl Gpu<'_> {
 /// cannot take is left to the host.
 impl crate::correspond::srvf::BandSolver for Gpu<'_> {
     fn back_pointers(&self, p: &crate::correspond::srvf::BandProblem) -> Option<Vec<u32>> {
-        let b = BandBatch::new(std::slice::from_ref(p)).ok()?;
-        self.srvf_band_tables(&b).ok().map(|(_, back)| back)
+        self.back_pointers_many(std::slice::from_ref(p))?.pop()
     }
 
     /// The problems in one dispatch.
@@ -90,6 +89,6 @@ impl crate::correspond::srvf::BandSolver for Gpu<'_> {
     ) -> Option<Vec<Vec<u32>>> {
         let b = BandBatch::new(ps).ok()?;
         let (_, back) = self.srvf_band_tables(&b).ok()?;
-        Some((0..ps.len()).map(|k| b.slice(&back, k).to_vec()).collect())
+        Some(b.ranges().into_iter().map(|r| back[r].to_vec()).collect())
     }
 }
