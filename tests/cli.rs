@@ -656,18 +656,29 @@ fn calibrate_learns_the_model_sd_leaves_a_subject_out_and_names_bad_input() {
             .unwrap()
     };
     let one = dir.join("one.json");
-    let o = learn(&["--leave-out", "s2"], &one);
+    let o = learn(&["--leave-out", "s2", "--no-bias"], &one);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let cal = acetab::pipeline::CupCalibration::read(&one).unwrap();
+    assert_eq!(
+        (cal.bias_mm, cal.estimator.as_str()),
+        (0.0, "observed-part")
+    );
     // 69 of 100 errors (0.01 .. 0.69) within sqrt(0.04 + s^2): s^2 = 0.69^2 - 0.04.
     assert!(
         (cal.model_sd_mm - (0.69f64.powi(2) - 0.04).sqrt()).abs() < 1e-9,
         "{cal:?}"
     );
     assert_eq!(cal.runs, 100);
+    // With the bias (the default): the mean error, 0.505 mm, and the model SD of the errors
+    // less it, which spread less (companion: the SD without the bias is refused as this one).
+    let biased = dir.join("biased.json");
+    assert!(learn(&["--leave-out", "s2"], &biased).status.success());
+    let cal_b = acetab::pipeline::CupCalibration::read(&biased).unwrap();
+    assert!((cal_b.bias_mm - 0.505).abs() < 1e-9, "{cal_b:?}");
+    assert!(cal_b.model_sd_mm < cal.model_sd_mm - 0.1, "{cal_b:?}");
     // Companion: with s2 in, the model SD is another (5 mm errors are half the runs).
     let both = dir.join("both.json");
-    assert!(learn(&[], &both).status.success());
+    assert!(learn(&["--no-bias"], &both).status.success());
     let cal2 = acetab::pipeline::CupCalibration::read(&both).unwrap();
     assert!(cal2.model_sd_mm > 4.0, "{cal2:?}");
     // A study calibrated leave-one-subject-out learns without its own subject: here, a mesh of
@@ -689,7 +700,9 @@ fn calibrate_learns_the_model_sd_leaves_a_subject_out_and_names_bad_input() {
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(study.join("summary.json")).unwrap())
             .unwrap();
-    assert_eq!(s["study"]["cup_model_sd_mm"], cal.model_sd_mm, "{s}");
+    assert_eq!(s["study"]["cup_model_sd_mm"], cal_b.model_sd_mm, "{s}");
+    assert_eq!(s["study"]["cup_bias_mm"], cal_b.bias_mm, "{s}");
+    assert_eq!(s["study"]["cup_estimator"], "observed-part", "{s}");
     assert!(s["study"]["calibration"]
         .as_str()
         .unwrap()
@@ -706,6 +719,31 @@ fn calibrate_learns_the_model_sd_leaves_a_subject_out_and_names_bad_input() {
     ])
     .arg(&pop);
     fails_cleanly_with(cmd, &dir.join("both-flags"), &["--calibrate-loso"], 2);
+    // A study whose summary.json holds a bias has it put back on its cups first: s1's cups
+    // had 0.5 mm taken off, so its estimator's mean error is 1.005 mm.
+    std::fs::write(
+        pop.join("s1_lhip/summary.json"),
+        r#"{"study": {"cup_bias_mm": 0.5, "cup_estimator": "observed-part"}}"#,
+    )
+    .unwrap();
+    let again = dir.join("again.json");
+    assert!(learn(&["--leave-out", "s2"], &again).status.success());
+    let cal_a = acetab::pipeline::CupCalibration::read(&again).unwrap();
+    assert!((cal_a.bias_mm - 1.005).abs() < 1e-9, "{cal_a:?}");
+    // Studies made with different cup estimators are not learned from together.
+    std::fs::write(
+        pop.join("s2_rhip/summary.json"),
+        r#"{"study": {"cup_estimator": "prior-region"}}"#,
+    )
+    .unwrap();
+    let o = learn(&[], &dir.join("mixed.json"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("one estimator") && err.contains("prior-region"),
+        "{err}"
+    );
+    assert!(!dir.join("mixed.json").exists());
     // A study whose summary.json holds a model SD has it taken out of its cup SDs first.
     std::fs::write(
         pop.join("s2_rhip/summary.json"),
@@ -1134,6 +1172,82 @@ fn prior_build_makes_a_prior_a_study_leaves_its_subject_out_of_and_bad_input_is_
     );
     let cmd = study_with(&five_path);
     fails_cleanly(cmd, &dir.join("five-out"), &["five.json", "at least 7"]);
+    // The prior-region cup needs a prior, and a calibration learned for it (the shipped one is
+    // the observed part's); an unknown estimator is a usage error.
+    let mut cmd = bin();
+    cmd.args([
+        "simulate",
+        "--gt",
+        "phantom",
+        "--cup-estimator",
+        "prior-region",
+    ])
+    .args(ONE_RUN.split(' '));
+    fails_cleanly(
+        cmd,
+        &dir.join("region-out"),
+        &["--cup-estimator prior-region", "--prior"],
+    );
+    // The realistic protocol ships no prior-region calibration; the observed part's file is
+    // refused for it by name.
+    let mut cmd = bin();
+    cmd.args(["simulate", "--gt", "phantom", "--prior", "default"])
+        .args(["--cup-estimator", "prior-region", "--protocol", "realistic"])
+        .args(ONE_RUN.split(' '));
+    fails_cleanly(
+        cmd,
+        &dir.join("region-cal-out"),
+        &[
+            "--calibration",
+            "estimator = observed-part",
+            "not prior-region",
+        ],
+    );
+    let mut cmd = bin();
+    cmd.args(["simulate", "--gt", "phantom", "--prior", "default"])
+        .args(["--cup-estimator", "prior-region", "--calibration"])
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("calibration/ideal.json"))
+        .args(ONE_RUN.split(' '));
+    fails_cleanly(
+        cmd,
+        &dir.join("region-file-out"),
+        &["ideal.json", "estimator = observed-part"],
+    );
+    let mut cmd = bin();
+    cmd.args(["simulate", "--gt", "phantom", "--cup-estimator", "sphere"])
+        .args(ONE_RUN.split(' '));
+    fails_cleanly_with(cmd, &dir.join("bogus-out"), &["unknown cup estimator"], 2);
+    // With --calibration none it runs, and says which estimator gave its cups.
+    let s = phantom_study(
+        &[
+            "--prior",
+            "default",
+            "--cup-estimator",
+            "prior-region",
+            "--calibration",
+            "none",
+        ],
+        &dir.join("region"),
+    );
+    assert_eq!(s["study"]["cup_estimator"], "prior-region", "{s}");
+    assert_eq!(s["study"]["cup_bias_mm"], 0.0, "{s}");
+    // The shipped ideal prior-region calibration takes its bias off the same reconstruction's
+    // cup (companion: the raw cup is not the calibrated one).
+    let s2 = phantom_study(
+        &["--prior", "default", "--cup-estimator", "prior-region"],
+        &dir.join("region-shipped"),
+    );
+    let bias = acetab::pipeline::CupCalibration::shipped_ideal_prior_region().bias_mm;
+    assert_eq!(s2["study"]["cup_bias_mm"], bias, "{s2}");
+    let cup = |d: &str| {
+        acetab::study::read_csv(&dir.join(d).join("runs.csv")).unwrap()[0].cup_diameter_mm
+    };
+    let (raw, calibrated) = (cup("region"), cup("region-shipped"));
+    assert!(
+        (raw - bias - calibrated).abs() < 2e-6,
+        "{raw} {calibrated} {bias}"
+    );
+    assert!((raw - calibrated).abs() > 0.5);
 }
 
 #[test]

@@ -9,7 +9,7 @@ use acetab::correspond::srvf::{align as srvf_align, aligned_b, CurveKind, SrvfPa
 use acetab::correspond::srvf::{MAX_SAMPLES, MIN_SAMPLES};
 use acetab::correspond::Method;
 use acetab::engine::Kernels;
-use acetab::pipeline::{CupCalibration, CupParams, ReconParams, UncertaintyParams};
+use acetab::pipeline::{CupCalibration, CupEstimator, CupParams, ReconParams, UncertaintyParams};
 use acetab::report::{CupCatalogue, Provenance};
 use acetab::sim::{load_truth, Protocol, RealisticErrors};
 use acetab::study::{run_study, StudyConfig, StudyMethod};
@@ -96,14 +96,17 @@ fn method_of(name: &str) -> PyResult<Method> {
         })
 }
 
-/// A calibration argument: None for the shipped one, "none", or a file from `acetab calibrate`.
-fn model_sd(arg: &Option<String>, shipped: fn() -> CupCalibration) -> PyResult<f64> {
-    CupCalibration::model_sd_for(arg.as_deref(), shipped).map_err(|e| {
-        engine_err(format!(
-            "calibration={:?}: {e}",
-            arg.as_deref().unwrap_or_default()
-        ))
-    })
+/// A calibration argument: None for the shipped one, "none", or a file from `acetab calibrate`
+/// (learned for the observed part's sphere, the cup estimator the bindings use).
+fn calibration(arg: &Option<String>, shipped: fn() -> CupCalibration) -> PyResult<CupCalibration> {
+    CupCalibration::for_estimator(arg.as_deref(), shipped, CupEstimator::ObservedPart).map_err(
+        |e| {
+            engine_err(format!(
+                "calibration={:?}: {e}",
+                arg.as_deref().unwrap_or_default()
+            ))
+        },
+    )
 }
 
 impl ReconOptions {
@@ -125,9 +128,14 @@ impl ReconOptions {
                 self.uncertainty_samples
             )));
         }
+        let cal = calibration(&self.calibration, CupCalibration::shipped_realistic)?;
         let mut prm = ReconParams {
             method: method_of(&self.method)?,
-            cup: CupParams { catalogue },
+            cup: CupParams {
+                catalogue,
+                bias_mm: cal.bias_mm,
+                ..Default::default()
+            },
             contour_source,
             pose: self.refine_poses.then(acetab::solve::PoseParams::default),
             ..Default::default()
@@ -137,7 +145,7 @@ impl ReconOptions {
             samples: self.uncertainty_samples as usize,
             seed: self.seed,
             noise_px: None,
-            model_sd_mm: model_sd(&self.calibration, CupCalibration::shipped_realistic)?,
+            model_sd_mm: cal.model_sd_mm,
         };
         Ok((prm, up))
     }
@@ -386,7 +394,8 @@ fn simulate_json(py: Python<'_>, options_json: &str) -> PyResult<String> {
         Some(t) => t,
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
-    let model_sd_mm = model_sd(&o.calibration, shipped)?;
+    let cal = calibration(&o.calibration, shipped)?;
+    let model_sd_mm = cal.model_sd_mm;
     let cfg = StudyConfig {
         protocol,
         levels: o.levels.clone(),
@@ -398,6 +407,10 @@ fn simulate_json(py: Python<'_>, options_json: &str) -> PyResult<String> {
             pose: o.refine_poses.then(acetab::solve::PoseParams::default),
             deformation: acetab::pipeline::DeformationParams {
                 shape_prior: shape_prior(&o.prior)?,
+                ..Default::default()
+            },
+            cup: CupParams {
+                bias_mm: cal.bias_mm,
                 ..Default::default()
             },
             ..Default::default()

@@ -6,6 +6,7 @@
 //! acetabula whose cup is known: a model-error SD added in quadrature, chosen so that 68 % of
 //! the training runs' errors lie within the total SD (`learn_model_sd`).
 
+use super::params::CupEstimator;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -16,7 +17,16 @@ pub const NOMINAL_COVERAGE: f64 = 0.6827;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CupCalibration {
-    /// Model-error SD of the cup diameter, mm, added in quadrature to the resampled SD.
+    /// The cup estimator it was learned for (`CupEstimator::name`; files without the field were
+    /// learned for the observed part's sphere).
+    #[serde(default = "observed_part")]
+    pub estimator: String,
+    /// The estimator's bias, mm: the training runs' mean cup error (estimate - truth), subtracted
+    /// from every cup (`CupParams::bias_mm`); 0 in files without the field.
+    #[serde(default)]
+    pub bias_mm: f64,
+    /// Model-error SD of the cup diameter, mm, added in quadrature to the resampled SD (learned
+    /// on the errors less the bias).
     pub model_sd_mm: f64,
     /// What it was learned from (the studies' protocol, runs, meshes); free text for people.
     pub learned_from: String,
@@ -58,6 +68,16 @@ pub enum CalibrationError {
         /// What it must be.
         expected: &'static str,
     },
+    /// The calibration was learned for another cup estimator than the one used.
+    #[error("{path}: estimator = {learned_for}: learned for that cup estimator, not {used}; learn one for {used} (acetab calibrate on studies made with it) or use --calibration none")]
+    Estimator {
+        /// The file.
+        path: PathBuf,
+        /// What it was learned for.
+        learned_for: String,
+        /// The estimator used.
+        used: &'static str,
+    },
     /// Too few runs to learn from.
     #[error("{runs} runs with a cup SD to learn from; at least {min} are needed")]
     TooFewRuns {
@@ -68,6 +88,10 @@ pub enum CalibrationError {
     },
 }
 
+fn observed_part() -> String {
+    CupEstimator::ObservedPart.name().to_string()
+}
+
 /// Fewest training runs a calibration is learned from.
 pub const MIN_TRAINING_RUNS: usize = 20;
 
@@ -75,6 +99,10 @@ pub const MIN_TRAINING_RUNS: usize = 20;
 /// levels 1, 3, 5 x 3 runs, srvf, seed 7; see docs/population.md and the data's attribution in
 /// README.md), shipped with the program: `acetab simulate` uses it for the ideal protocol.
 pub const IDEAL_JSON: &str = include_str!("../../calibration/ideal.json");
+/// The same for the prior-region cup estimator (`CupEstimator::PriorRegion`; its bias and
+/// model SD, learned from the same study made with the shipped prior, leave-one-subject-out):
+/// `acetab simulate --prior default --cup-estimator prior-region` uses it for the ideal protocol.
+pub const IDEAL_PRIOR_REGION_JSON: &str = include_str!("../../calibration/ideal-prior-region.json");
 /// The same for the realistic protocol: `acetab simulate --protocol realistic` and `acetab
 /// reconstruct` (a patient's X-rays) use it.
 pub const REALISTIC_JSON: &str = include_str!("../../calibration/realistic.json");
@@ -86,23 +114,59 @@ impl CupCalibration {
             .expect("the shipped calibration is valid (tested)")
     }
 
+    /// The shipped calibration for studies under the ideal protocol with the prior-region cup.
+    pub fn shipped_ideal_prior_region() -> CupCalibration {
+        Self::parse(
+            IDEAL_PRIOR_REGION_JSON,
+            Path::new("calibration/ideal-prior-region.json"),
+        )
+        .expect("the shipped calibration is valid (tested)")
+    }
+
     /// The shipped calibration for the realistic protocol and patients' X-rays.
     pub fn shipped_realistic() -> CupCalibration {
         Self::parse(REALISTIC_JSON, Path::new("calibration/realistic.json"))
             .expect("the shipped calibration is valid (tested)")
     }
 
-    /// The model-error SD a run uses for a calibration choice: None, the `shipped` one;
-    /// "none", no model error (0); anything else, the file at that path (`read`).
-    pub fn model_sd_for(
+    /// No calibration: no model error, no bias, for `estimator`.
+    pub fn none(estimator: CupEstimator) -> CupCalibration {
+        CupCalibration {
+            estimator: estimator.name().to_string(),
+            bias_mm: 0.0,
+            model_sd_mm: 0.0,
+            learned_from: "none".into(),
+            runs: 0,
+            training_coverage: 0.0,
+        }
+    }
+
+    /// The estimator it was learned for.
+    pub fn cup_estimator(&self) -> Option<CupEstimator> {
+        CupEstimator::parse(&self.estimator)
+    }
+
+    /// The calibration a run uses for a calibration choice and cup estimator: None, the
+    /// `shipped` one; "none", no model error and no bias; anything else, the file at that path
+    /// (`read`). A calibration learned for another estimator is refused (`path` names it).
+    pub fn for_estimator(
         choice: Option<&str>,
         shipped: fn() -> CupCalibration,
-    ) -> Result<f64, CalibrationError> {
-        match choice {
-            None => Ok(shipped().model_sd_mm),
-            Some("none") => Ok(0.0),
-            Some(path) => Ok(Self::read(Path::new(path))?.model_sd_mm),
+        estimator: CupEstimator,
+    ) -> Result<CupCalibration, CalibrationError> {
+        let (c, path) = match choice {
+            None => (shipped(), PathBuf::from("the shipped calibration")),
+            Some("none") => return Ok(Self::none(estimator)),
+            Some(path) => (Self::read(Path::new(path))?, PathBuf::from(path)),
+        };
+        if c.cup_estimator() != Some(estimator) {
+            return Err(CalibrationError::Estimator {
+                path,
+                learned_for: c.estimator,
+                used: estimator.name(),
+            });
         }
+        Ok(c)
     }
 
     /// Read and check a calibration file.
@@ -127,6 +191,17 @@ impl CupCalibration {
             value: value.to_string(),
             expected,
         };
+        if c.cup_estimator().is_none() {
+            return Err(CalibrationError::Field {
+                path: path.to_path_buf(),
+                field: "estimator",
+                value: c.estimator.clone(),
+                expected: "a cup estimator (observed-part or prior-region)",
+            });
+        }
+        if !(c.bias_mm.is_finite() && c.bias_mm.abs() <= 10.0) {
+            return Err(field("bias_mm", c.bias_mm, "finite, within +-10 mm"));
+        }
         if !(c.model_sd_mm.is_finite() && (0.0..=20.0).contains(&c.model_sd_mm)) {
             return Err(field("model_sd_mm", c.model_sd_mm, "finite, 0 to 20 mm"));
         }
@@ -140,10 +215,17 @@ impl CupCalibration {
         Ok(c)
     }
 
-    /// Learn the model-error SD from training runs (cup error, resampled SD) pairs: the
-    /// smallest s >= 0 with at least `NOMINAL_COVERAGE` of the runs' |error| <= sqrt(sd^2 +
-    /// s^2). Pairs with a non-finite member are skipped.
-    pub fn learn(pairs: &[(f64, f64)], learned_from: String) -> Result<Self, CalibrationError> {
+    /// Learn the calibration of `estimator` from training runs' (cup error, resampled SD) pairs,
+    /// the errors those of the estimator without a bias: with `bias`, the bias is their mean
+    /// (else 0), and the model-error SD is the smallest s >= 0 with at least
+    /// `NOMINAL_COVERAGE` of the runs' |error - bias| <= sqrt(sd^2 + s^2). Pairs with a
+    /// non-finite member are skipped.
+    pub fn learn(
+        pairs: &[(f64, f64)],
+        estimator: CupEstimator,
+        bias: bool,
+        learned_from: String,
+    ) -> Result<Self, CalibrationError> {
         let pairs: Vec<(f64, f64)> = pairs
             .iter()
             .copied()
@@ -155,6 +237,12 @@ impl CupCalibration {
                 min: MIN_TRAINING_RUNS,
             });
         }
+        let bias_mm = if bias {
+            pairs.iter().map(|(e, _)| e).sum::<f64>() / pairs.len() as f64
+        } else {
+            0.0
+        };
+        let pairs: Vec<(f64, f64)> = pairs.iter().map(|(e, sd)| (e - bias_mm, *sd)).collect();
         // Each run is covered once s^2 >= e^2 - sd^2: the answer is that quantile.
         let mut need: Vec<f64> = pairs
             .iter()
@@ -168,6 +256,8 @@ impl CupCalibration {
             .filter(|(e, sd)| e.abs() <= (sd * sd + s * s).sqrt() + 1e-12)
             .count();
         Ok(CupCalibration {
+            estimator: estimator.name().to_string(),
+            bias_mm,
             model_sd_mm: s,
             learned_from,
             runs: pairs.len(),
@@ -190,9 +280,14 @@ mod tests {
         for c in [
             CupCalibration::shipped_ideal(),
             CupCalibration::shipped_realistic(),
+            CupCalibration::shipped_ideal_prior_region(),
         ] {
             assert!(c.model_sd_mm > 0.0 && c.runs >= MIN_TRAINING_RUNS, "{c:?}");
         }
+        assert_eq!(
+            CupCalibration::shipped_ideal_prior_region().cup_estimator(),
+            Some(CupEstimator::PriorRegion)
+        );
     }
 
     #[test]
@@ -209,7 +304,8 @@ mod tests {
             let z = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
             pairs.push((1.2 * z, 0.2));
         }
-        let c = CupCalibration::learn(&pairs, "test".into()).unwrap();
+        let c = CupCalibration::learn(&pairs, CupEstimator::ObservedPart, false, "test".into())
+            .unwrap();
         let total = (c.model_sd_mm.powi(2) + 0.04).sqrt();
         assert!((total - 1.2).abs() < 0.08, "total SD {total}");
         assert!((c.training_coverage - NOMINAL_COVERAGE).abs() < 0.01);
@@ -218,11 +314,78 @@ mod tests {
         assert!((alone - NOMINAL_COVERAGE).abs() > 0.3, "{alone}");
         // Too few runs, or none finite, are refused.
         assert!(matches!(
-            CupCalibration::learn(&pairs[..5], String::new()),
+            CupCalibration::learn(&pairs[..5], CupEstimator::ObservedPart, true, String::new()),
             Err(CalibrationError::TooFewRuns { runs: 5, .. })
         ));
         let nan = vec![(f64::NAN, 0.2); 50];
-        assert!(CupCalibration::learn(&nan, String::new()).is_err());
+        assert!(
+            CupCalibration::learn(&nan, CupEstimator::ObservedPart, true, String::new()).is_err()
+        );
+        // With the bias: errors shifted by +0.8 mm give the same model SD and a bias of 0.8
+        // (the sample's own mean); without it the shift inflates the SD (the companion).
+        let mean = pairs.iter().map(|(e, _)| e).sum::<f64>() / pairs.len() as f64;
+        let shifted: Vec<(f64, f64)> = pairs.iter().map(|(e, sd)| (e + 0.8, *sd)).collect();
+        let b = CupCalibration::learn(&shifted, CupEstimator::PriorRegion, true, String::new())
+            .unwrap();
+        assert!((b.bias_mm - (mean + 0.8)).abs() < 1e-9, "{b:?}");
+        assert_eq!(b.cup_estimator(), Some(CupEstimator::PriorRegion));
+        let centred: Vec<(f64, f64)> = pairs.iter().map(|(e, sd)| (e - mean, *sd)).collect();
+        let c0 = CupCalibration::learn(&centred, CupEstimator::ObservedPart, false, String::new())
+            .unwrap();
+        assert!((b.model_sd_mm - c0.model_sd_mm).abs() < 1e-9);
+        let nb = CupCalibration::learn(&shifted, CupEstimator::PriorRegion, false, String::new())
+            .unwrap();
+        assert!(nb.model_sd_mm > b.model_sd_mm + 0.2, "{nb:?} {b:?}");
+    }
+
+    #[test]
+    fn a_calibration_is_used_only_for_the_estimator_it_was_learned_for() {
+        // A file from before the bias reads as the observed part's, without a bias.
+        let old =
+            r#"{"model_sd_mm": 1.0, "learned_from": "x", "runs": 50, "training_coverage": 0.7}"#;
+        let c = CupCalibration::parse(old, Path::new("old.json")).unwrap();
+        assert_eq!(
+            (c.bias_mm, c.cup_estimator()),
+            (0.0, Some(CupEstimator::ObservedPart))
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("old.json");
+        std::fs::write(&path, old).unwrap();
+        let arg = path.to_str();
+        let ok = CupCalibration::for_estimator(
+            arg,
+            CupCalibration::shipped_ideal,
+            CupEstimator::ObservedPart,
+        );
+        assert_eq!(ok.unwrap().model_sd_mm, 1.0);
+        let e = CupCalibration::for_estimator(
+            arg,
+            CupCalibration::shipped_ideal,
+            CupEstimator::PriorRegion,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("old.json") && e.contains("estimator = observed-part"),
+            "{e}"
+        );
+        // "none": no model error, no bias, for whichever estimator.
+        let none = CupCalibration::for_estimator(
+            Some("none"),
+            CupCalibration::shipped_ideal,
+            CupEstimator::PriorRegion,
+        )
+        .unwrap();
+        assert_eq!((none.model_sd_mm, none.bias_mm), (0.0, 0.0));
+        // A bad estimator name or bias is named.
+        for (field, value) in [("estimator", "\"sphere\""), ("bias_mm", "40")] {
+            let mut v: serde_json::Value = serde_json::from_str(old).unwrap();
+            v[field] = serde_json::from_str(value).unwrap();
+            let e = CupCalibration::parse(&v.to_string(), Path::new("c.json"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(field) && e.contains("c.json"), "{e}");
+        }
     }
 
     #[test]

@@ -15,9 +15,12 @@ mod restart;
 mod uncertainty;
 
 pub use calibration::{CalibrationError, CupCalibration, MIN_TRAINING_RUNS, NOMINAL_COVERAGE};
-pub use cup::{cup_spheres, observed_part_sphere, CupSpheres};
+pub use cup::{
+    cup_spheres, observed_part_sphere, prior_region_sphere, CupSpheres, PriorRegion,
+    REGION_MIN_COVERAGE,
+};
 pub use guards::{first_failure, folded_share, GuardFailure, GuardParams};
-pub use params::{CupParams, DeformationParams, PlacementParams, ReconParams};
+pub use params::{CupEstimator, CupParams, DeformationParams, PlacementParams, ReconParams};
 pub use restart::outline_distance_px;
 pub use uncertainty::{cup_report, CupReport, SizeProbability, UncertaintyParams};
 
@@ -154,6 +157,14 @@ pub struct SolveLog {
 }
 
 impl SolveLog {
+    /// The population prior's region for the cup estimator: the prior of `prm` and the sphere
+    /// prior's centre at the end of the solve; None without a prior.
+    pub fn prior_region<'a>(&self, prm: &'a ReconParams) -> Option<cup::PriorRegion<'a>> {
+        let prior = prm.deformation.shape_prior.as_deref()?;
+        let [x, y, z, _] = self.prior_sphere?;
+        Some((prior, Point3::new(x, y, z)))
+    }
+
     /// A line for the user when the run restarted: how far the given start's result left the
     /// outlines and which start gave the result; None when it did not restart.
     pub fn restart_note(&self) -> Option<String> {
@@ -676,7 +687,7 @@ fn finish(
     log.converged = converged;
     log.reprojection_rms_px = rms_px(&mesh, &poses.cams_now, &obs);
     log.correspondences = obs.len();
-    let spheres = cup_spheres(&mesh, &obs)?;
+    let spheres = cup_spheres(&mesh, &obs, &ctx.prm.cup, log.prior_region(ctx.prm))?;
     let (sphere, surface_sphere) = (spheres.cup, spheres.surface);
     let cup = ctx.prm.cup.catalogue.nearest(sphere.diameter());
     let initial = input.init.place(input.template.mesh());

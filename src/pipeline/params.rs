@@ -163,6 +163,40 @@ impl Default for DeformationParams {
 pub struct CupParams {
     /// The catalogue the nearest size is chosen from (default 40-70 mm in 2 mm steps).
     pub catalogue: CupCatalogue,
+    /// Which part of the result the cup sphere is fitted to (default: the observed part).
+    pub estimator: CupEstimator,
+    /// The estimator's bias, mm: subtracted from the fitted diameter (default 0). Learned with
+    /// the calibration from studies on acetabula whose cup is known (`CupCalibration::bias_mm`).
+    pub bias_mm: f64,
+}
+
+/// Which part of the reconstructed surface the cup sphere is fitted to.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CupEstimator {
+    /// The vertices the last correspondences tie to the outlines (`observed_part_sphere`).
+    #[default]
+    ObservedPart,
+    /// The vertices in the region most of the population prior's training acetabula cover
+    /// (`prior_region_sphere`); needs `deformation.shape_prior`.
+    PriorRegion,
+}
+
+impl CupEstimator {
+    /// Every estimator, in the order the command line lists them.
+    pub const ALL: [CupEstimator; 2] = [CupEstimator::ObservedPart, CupEstimator::PriorRegion];
+
+    /// Its name on the command line and in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            CupEstimator::ObservedPart => "observed-part",
+            CupEstimator::PriorRegion => "prior-region",
+        }
+    }
+
+    /// The estimator of a name (`name`), None when there is none.
+    pub fn parse(name: &str) -> Option<CupEstimator> {
+        Self::ALL.into_iter().find(|e| e.name() == name)
+    }
 }
 
 impl Default for ReconParams {
@@ -233,6 +267,22 @@ impl ReconParams {
         }
         if let Some((field, v)) = self.pose.as_ref().and_then(PoseParams::invalid) {
             return Err(bad(field, v, "finite and > 0"));
+        }
+        if !(self.cup.bias_mm.is_finite() && self.cup.bias_mm.abs() <= 10.0) {
+            return Err(bad(
+                "cup.bias_mm",
+                self.cup.bias_mm,
+                "finite, within +-10 mm",
+            ));
+        }
+        if self.cup.estimator == CupEstimator::PriorRegion
+            && (self.deformation.shape_prior.is_none() || self.deformation.sphere_prior <= 0.0)
+        {
+            return Err(bad(
+                "cup.estimator",
+                self.cup.estimator.name(),
+                "observed-part unless a shape prior is used (deformation.shape_prior and sphere_prior > 0)",
+            ));
         }
         let restart = &self.placement;
         if !(restart.restart_above_px > 0.0) {
@@ -313,6 +363,12 @@ mod tests {
                 Box::new(|p| p.deformation.sphere_prior = -0.1),
             ),
             ("lm.lambda0", Box::new(|p| p.lm.lambda0 = 0.0)),
+            ("cup.bias_mm", Box::new(|p| p.cup.bias_mm = f64::NAN)),
+            ("cup.bias_mm", Box::new(|p| p.cup.bias_mm = 12.0)),
+            (
+                "cup.estimator",
+                Box::new(|p| p.cup.estimator = CupEstimator::PriorRegion),
+            ),
             (
                 "correspond.normal_angle_deg",
                 Box::new(|p| p.correspond.normal_angle_deg = 0.0),

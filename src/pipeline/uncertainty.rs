@@ -238,7 +238,10 @@ pub fn cup_report(
         kernels,
     };
     // The same estimator as the reported cup (`Reconstruction::sphere`).
-    let cup = |m: &crate::geom::Mesh, o: &[Observation]| Ok(cup_spheres(m, o)?.cup.diameter());
+    let region = rec.log.prior_region(&used);
+    let cup = |m: &crate::geom::Mesh, o: &[Observation]| {
+        Ok(cup_spheres(m, o, &used.cup, region)?.cup.diameter())
+    };
     let (diam, noise_px) = resampled_diameters(rec, &ctx, up, &cup)?;
     if !(up.model_sd_mm.is_finite() && up.model_sd_mm >= 0.0) {
         return Err(ReconError::Param {
@@ -439,7 +442,11 @@ mod tests {
             prm: &used,
             kernels: Kernels::Cpu,
         };
-        let cup = |m: &crate::geom::Mesh, o: &[Observation]| Ok(cup_spheres(m, o)?.cup.diameter());
+        let cup = |m: &crate::geom::Mesh, o: &[Observation]| {
+            Ok(cup_spheres(m, o, &used.cup, rec.log.prior_region(&used))?
+                .cup
+                .diameter())
+        };
         let (same, _) = resampled_diameters(&rec, &ctx, &up, &cup).unwrap();
         assert_eq!(same, report.resampled_mm);
         let whole = |m: &crate::geom::Mesh, _: &[Observation]| {

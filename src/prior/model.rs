@@ -22,7 +22,9 @@ pub struct ShapePrior {
     pub modes: Vec<Vec<f64>>,
     /// SD of each mode's coefficient over the training meshes.
     pub mode_sd: Vec<f64>,
-    /// Lookup table: (mean, modes...) per (polar, azimuth) cell corner.
+    /// Share of the training meshes that reach each grid direction (0 to 1).
+    pub coverage: Vec<f64>,
+    /// Lookup table: (mean, modes..., coverage) per (polar, azimuth) cell corner.
     table: Vec<f64>,
 }
 
@@ -100,6 +102,11 @@ impl ShapePrior {
                 });
             }
         }
+        let coverage: Vec<f64> = (0..GRID_POINTS)
+            .map(|g| {
+                fields.iter().filter(|(_, f)| f[g].is_some()).count() as f64 / fields.len() as f64
+            })
+            .collect();
         let mean: Vec<f64> = (0..GRID_POINTS)
             .map(|g| {
                 let (s, n) = fields
@@ -151,6 +158,7 @@ impl ShapePrior {
             mean,
             modes,
             mode_sd,
+            coverage,
             table: Vec::new(),
         };
         prior.table = prior.build_table();
@@ -174,10 +182,16 @@ impl ShapePrior {
         Vector3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
     }
 
-    /// The kernel-smoothed (mean, modes...) at every table corner.
+    /// Entries per table corner: the mean, the modes, the coverage.
+    fn per_corner(&self) -> usize {
+        2 + self.modes.len()
+    }
+
+    /// The kernel-smoothed (mean, modes..., coverage) at every table corner.
     fn build_table(&self) -> Vec<f64> {
         let (np, na) = Self::table_dims();
-        let per = 1 + self.modes.len();
+        let per = self.per_corner();
+        let last = per - 1;
         let g = grid(GRID_POINTS);
         let sigma = KERNEL_DEG.to_radians();
         let reach = kernel_reach(sigma);
@@ -195,9 +209,10 @@ impl ShapePrior {
                     let kw = kernel(cos, sigma);
                     w += kw;
                     acc[0] += kw * self.mean[k];
-                    for (a, m) in acc[1..].iter_mut().zip(&self.modes) {
+                    for (a, m) in acc[1..last].iter_mut().zip(&self.modes) {
                         *a += kw * m[k];
                     }
+                    acc[last] += kw * self.coverage[k];
                 }
                 let at = (i * na + j) * per;
                 if w >= MIN_WEIGHT {
@@ -213,8 +228,24 @@ impl ShapePrior {
     /// The mean deviation and the modes' values at unit direction `u` (prior frame), written to
     /// `modes` (its first `mode_count()` entries): bilinear in the lookup table.
     pub fn at(&self, u: &Vector3<f64>, modes: &mut [f64; MAX_MODES]) -> f64 {
+        let value = self.lookup(u);
+        for (c, m) in modes.iter_mut().enumerate().take(self.modes.len()) {
+            *m = value(1 + c);
+        }
+        value(0)
+    }
+
+    /// The share of the training meshes whose surface reaches unit direction `u` (prior frame),
+    /// kernel-smoothed: about 1 inside the region every training acetabulum covers, 0 beyond
+    /// any of them.
+    pub fn coverage_at(&self, u: &Vector3<f64>) -> f64 {
+        self.lookup(u)(self.per_corner() - 1)
+    }
+
+    /// Bilinear interpolation of the table's corners around `u`, one entry at a time.
+    fn lookup(&self, u: &Vector3<f64>) -> impl Fn(usize) -> f64 + '_ {
         let (np, na) = Self::table_dims();
-        let per = 1 + self.modes.len();
+        let per = self.per_corner();
         let polar = u.z.clamp(-1.0, 1.0).acos().to_degrees() / TABLE_DEG;
         let az = u.y.atan2(u.x).to_degrees().rem_euclid(360.0) / TABLE_DEG;
         let i0 = (polar.floor() as usize).min(np - 2);
@@ -222,15 +253,11 @@ impl ShapePrior {
         let j0 = (az.floor() as usize) % na;
         let fj = (az - az.floor()).clamp(0.0, 1.0);
         let j1 = (j0 + 1) % na;
-        let corner = |i: usize, j: usize, c: usize| self.table[(i * na + j) * per + c];
-        let value = |c: usize| {
+        let corner = move |i: usize, j: usize, c: usize| self.table[(i * na + j) * per + c];
+        move |c: usize| {
             (1.0 - fi) * ((1.0 - fj) * corner(i0, j0, c) + fj * corner(i0, j1, c))
                 + fi * ((1.0 - fj) * corner(i0 + 1, j0, c) + fj * corner(i0 + 1, j1, c))
-        };
-        for (c, m) in modes.iter_mut().enumerate().take(self.modes.len()) {
-            *m = value(1 + c);
         }
-        value(0)
     }
 }
 
@@ -306,6 +333,41 @@ mod tests {
         assert!(e.contains("m1") && e.contains("NaN"), "{e}");
         bad[1].1.pop();
         assert!(ShapePrior::learn(&bad, 1).is_err());
+    }
+
+    #[test]
+    fn coverage_is_the_share_of_training_meshes_reaching_a_direction() {
+        // Three of field_of's caps (in the prior's frame they reach the +x half) and one
+        // turned to reach the +z half: a direction in both halves is reached by all four, one
+        // in the caps' half only by three, one in neither by none.
+        let cap = field_of(0.0);
+        let turned: Vec<Point3<f64>> = hemisphere(25.0, 1500)
+            .vertices
+            .iter()
+            .map(|p| Point3::new(p.x, p.y, -p.z))
+            .collect();
+        let other = deviation_field(&turned, &fit_sphere(&turned).unwrap()).0;
+        let set = vec![
+            ("a".to_string(), cap.clone()),
+            ("b".to_string(), cap.clone()),
+            ("c".to_string(), cap),
+            ("d".to_string(), other),
+        ];
+        let p = ShapePrior::learn(&set, 0).unwrap();
+        let caps_only = Vector3::new(1.0, 0.0, -0.5).normalize();
+        let both = Vector3::new(1.0, 0.0, 1.0).normalize();
+        let neither = Vector3::new(-1.0, 0.0, -0.5).normalize();
+        let at = |p: &ShapePrior, u| p.coverage_at(u);
+        assert!(
+            (at(&p, &caps_only) - 0.75).abs() < 0.02,
+            "{}",
+            at(&p, &caps_only)
+        );
+        assert!((at(&p, &both) - 1.0).abs() < 0.02, "{}", at(&p, &both));
+        assert!(at(&p, &neither) < 0.02, "{}", at(&p, &neither));
+        // Companion: the turned cap's own prior covers other directions.
+        let q = ShapePrior::learn(&set[3..], 0).unwrap();
+        assert!(at(&q, &caps_only) < 0.02 && at(&q, &both) > 0.98);
     }
 
     #[test]

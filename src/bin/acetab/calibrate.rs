@@ -1,8 +1,8 @@
-//! `acetab calibrate`: learn the cup uncertainty's model-error SD from studies whose truths are
-//! known (see `acetab::pipeline::CupCalibration`).
+//! `acetab calibrate`: learn the cup estimator's bias and the cup uncertainty's model-error SD
+//! from studies whose truths are known (see `acetab::pipeline::CupCalibration`).
 
 use acetab::io::write_atomic;
-use acetab::pipeline::CupCalibration;
+use acetab::pipeline::{CupCalibration, CupEstimator};
 use acetab::study::{read_csv, StudyMethod};
 use std::path::{Path, PathBuf};
 
@@ -19,6 +19,10 @@ pub struct CalibrateArgs {
     /// The method whose runs are learned from.
     #[arg(long, default_value = "srvf", value_parser = crate::common::method)]
     pub method: StudyMethod,
+    /// Learn no bias (bias_mm 0): only the model-error SD, as calibrations made before the
+    /// bias were.
+    #[arg(long)]
+    pub no_bias: bool,
     /// A note on what the studies were (protocol, data, commit), kept in the file's
     /// `learned_from`.
     #[arg(long)]
@@ -67,56 +71,104 @@ fn study_dirs(dirs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
     Ok(out)
 }
 
-/// The model-error SD a study's cup SDs already hold (summary.json's study.cup_model_sd_mm; 0
-/// when absent: a study made before calibrations, or run without one).
-fn model_sd_of(dir: &Path) -> Result<f64, String> {
+/// What a study's cups already hold: the model-error SD in its cup SDs
+/// (summary.json's study.cup_model_sd_mm), the bias taken off its cups (study.cup_bias_mm) and
+/// its cup estimator (study.cup_estimator); 0, 0 and the observed part when absent (a study
+/// made before calibrations or the bias, or run without them).
+struct Applied {
+    model_sd: f64,
+    bias: f64,
+    estimator: CupEstimator,
+}
+
+fn applied_in(dir: &Path) -> Result<Applied, String> {
+    let mut a = Applied {
+        model_sd: 0.0,
+        bias: 0.0,
+        estimator: CupEstimator::ObservedPart,
+    };
     let p = dir.join("summary.json");
     let Ok(text) = std::fs::read_to_string(&p) else {
-        return Ok(0.0);
+        return Ok(a);
     };
     let v: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))?;
-    match v.pointer("/study/cup_model_sd_mm") {
+    let number = |field: &str, ok: fn(f64) -> bool, expected: &str| match v
+        .pointer(&format!("/study/{field}"))
+    {
         None | Some(serde_json::Value::Null) => Ok(0.0),
         Some(x) => x
             .as_f64()
-            .filter(|s| s.is_finite() && *s >= 0.0)
-            .ok_or_else(|| {
-                format!(
-                    "{}: study.cup_model_sd_mm = {x}: must be a finite SD >= 0",
-                    p.display()
-                )
-            }),
+            .filter(|s| ok(*s))
+            .ok_or_else(|| format!("{}: study.{field} = {x}: must be {expected}", p.display())),
+    };
+    a.model_sd = number(
+        "cup_model_sd_mm",
+        |s| s.is_finite() && s >= 0.0,
+        "a finite SD >= 0",
+    )?;
+    a.bias = number(
+        "cup_bias_mm",
+        |s| s.is_finite() && s.abs() <= 10.0,
+        "finite, within +-10 mm",
+    )?;
+    if let Some(x) = v.pointer("/study/cup_estimator") {
+        a.estimator = x.as_str().and_then(CupEstimator::parse).ok_or_else(|| {
+            format!(
+                "{}: study.cup_estimator = {x}: must be observed-part or prior-region",
+                p.display()
+            )
+        })?;
     }
+    Ok(a)
 }
 
 /// Learn a calibration from the `method` runs of the studies under `study`, leaving out the
-/// subjects `leave_out`; `note` is appended to `learned_from`.
+/// subjects `leave_out` (with the bias unless `no_bias`); `note` is appended to
+/// `learned_from`. The studies must share one cup estimator, which the calibration is for.
 pub fn learn(
     study: &[PathBuf],
     leave_out: &[String],
     method: StudyMethod,
+    no_bias: bool,
     note: Option<&str>,
 ) -> Result<CupCalibration, String> {
     let dirs = study_dirs(study)?;
     let mut pairs = Vec::new();
     let mut used = 0;
+    let mut estimator: Option<(CupEstimator, &Path)> = None;
     for d in &dirs {
         if leave_out.contains(&subject_of(d)) {
             continue;
         }
         used += 1;
-        let model = model_sd_of(d)?;
+        let applied = applied_in(d)?;
+        match estimator {
+            None => estimator = Some((applied.estimator, d)),
+            Some((e, first)) if e != applied.estimator => {
+                return Err(format!(
+                    "{}: cup_estimator {} differs from {}'s {}: a calibration is learned for one estimator",
+                    d.display(),
+                    applied.estimator.name(),
+                    first.display(),
+                    e.name()
+                ))
+            }
+            Some(_) => {}
+        }
+        let model = applied.model_sd;
         let rows = read_csv(&d.join("runs.csv")).map_err(|e| e.to_string())?;
         for r in rows
             .iter()
             .filter(|r| r.method == method && r.error.is_empty())
         {
-            // The resampled SD alone: the study's SD without the model error it already held.
+            // The resampled SD alone: the study's SD without the model error it already held;
+            // the error of the estimator itself, without the bias the study took off.
             let resample = (r.cup_sd_mm * r.cup_sd_mm - model * model).max(0.0).sqrt();
-            pairs.push((r.cup_error_mm(), resample));
+            pairs.push((r.cup_error_mm() + applied.bias, resample));
         }
     }
+    let estimator = estimator.map_or(CupEstimator::ObservedPart, |(e, _)| e);
     let mut from = format!("{} {} runs in {used} studies", pairs.len(), method.name());
     if !leave_out.is_empty() {
         from += &format!(" (left out: {})", leave_out.join(", "));
@@ -124,7 +176,7 @@ pub fn learn(
     if let Some(n) = note {
         from += &format!(": {n}");
     }
-    CupCalibration::learn(&pairs, from).map_err(|e| e.to_string())
+    CupCalibration::learn(&pairs, estimator, !no_bias, from).map_err(|e| e.to_string())
 }
 
 pub fn run(args: CalibrateArgs) -> Result<(), String> {
@@ -132,12 +184,15 @@ pub fn run(args: CalibrateArgs) -> Result<(), String> {
         &args.study,
         &args.leave_out,
         args.method,
+        args.no_bias,
         args.note.as_deref(),
     )?;
     write_atomic(&args.out, cal.to_json().as_bytes())
         .map_err(|e| format!("--out {}: {e}", args.out.display()))?;
     println!(
-        "model-error SD {:.3} mm from {} runs (training coverage {:.1} %); written to {}",
+        "{} cup: bias {:+.3} mm, model-error SD {:.3} mm from {} runs (training coverage {:.1} %); written to {}",
+        cal.estimator,
+        cal.bias_mm,
         cal.model_sd_mm,
         cal.runs,
         100.0 * cal.training_coverage,

@@ -293,20 +293,32 @@ pub fn method(s: &str) -> Result<acetab::study::StudyMethod, String> {
     })
 }
 
-/// `--calibration`: the cup calibration file, "none" (the resamples alone), or None for the
-/// shipped one `shipped` gives. Returns the model-error SD and where it came from.
+/// `--calibration`: the cup calibration file, "none" (the resamples alone, no bias), or None
+/// for the shipped one `shipped` gives; it must have been learned for `estimator`. Returns the
+/// calibration and where it came from.
 pub fn calibration(
     arg: &Option<String>,
     shipped: fn() -> acetab::pipeline::CupCalibration,
     shipped_name: &str,
-) -> Result<(f64, String), String> {
-    let sd = acetab::pipeline::CupCalibration::model_sd_for(arg.as_deref(), shipped)
+    estimator: acetab::pipeline::CupEstimator,
+) -> Result<(acetab::pipeline::CupCalibration, String), String> {
+    let cal = acetab::pipeline::CupCalibration::for_estimator(arg.as_deref(), shipped, estimator)
         .map_err(|e| format!("--calibration {e}"))?;
     let source = match arg.as_deref() {
         None => format!("shipped {shipped_name}"),
         Some(choice) => choice.to_string(),
     };
-    Ok((sd, source))
+    Ok((cal, source))
+}
+
+/// `--cup-estimator` (clap value parser).
+pub fn cup_estimator(s: &str) -> Result<acetab::pipeline::CupEstimator, String> {
+    acetab::pipeline::CupEstimator::parse(s.trim()).ok_or_else(|| {
+        let names = acetab::pipeline::CupEstimator::ALL
+            .map(|e| e.name())
+            .join(", ");
+        format!("unknown cup estimator {s:?}; expected one of {names}")
+    })
 }
 
 /// `--shard I/N`, 0 <= I < N (clap value parser).

@@ -47,6 +47,11 @@ pub struct ReconstructArgs {
     /// build`. The case's frame must be body axes (z the long axis, y antero-posterior).
     #[arg(long, default_value = "none")]
     pub prior: String,
+    /// The cup estimator: "observed-part" (the sphere of the part the outlines hold) or, with a
+    /// --prior, "prior-region" (the sphere of the part most of the prior's training acetabula
+    /// cover). The calibration must have been learned for it (its bias is subtracted).
+    #[arg(long, default_value = "observed-part", value_parser = crate::common::cup_estimator)]
+    pub cup_estimator: acetab::pipeline::CupEstimator,
     /// Seed of the resampling draws.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -74,20 +79,30 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         uncertainty_samples,
         calibration,
         prior,
+        cup_estimator,
         seed,
         json,
     } = args;
     let (shape_prior, _) = crate::prior::choose(&prior, None)?;
-    let (model_sd_mm, _) = crate::common::calibration(
+    if cup_estimator == acetab::pipeline::CupEstimator::PriorRegion && shape_prior.is_none() {
+        return Err("--cup-estimator prior-region: the region is the prior's; give a --prior (default or a file)".into());
+    }
+    let (cal, _) = crate::common::calibration(
         &calibration,
         acetab::pipeline::CupCalibration::shipped_realistic,
         "realistic",
+        cup_estimator,
     )?;
+    let model_sd_mm = cal.model_sd_mm;
     crate::common::check_out(&out, force)?;
     let catalogue = CupCatalogue::parse(&catalogue).map_err(|e| format!("--catalogue: {e}"))?;
     let mut prm = ReconParams {
         method,
-        cup: CupParams { catalogue },
+        cup: CupParams {
+            catalogue,
+            estimator: cup_estimator,
+            bias_mm: cal.bias_mm,
+        },
         contour_source: contours,
         pose: refine_poses.then(acetab::solve::PoseParams::default),
         ..Default::default()

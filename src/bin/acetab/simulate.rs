@@ -114,9 +114,11 @@ pub struct SimulateArgs {
     /// turns it off.
     #[arg(long, default_value_t = 16, value_parser = crate::common::study_samples)]
     pub uncertainty_samples: u64,
-    /// Cup calibration (JSON from `acetab calibrate`: the model-error SD added to the
-    /// resamples' spread), or "none" (the resamples alone). Default: the shipped calibration
-    /// of the protocol (calibration/ideal.json or realistic.json).
+    /// Cup calibration (JSON from `acetab calibrate`: the cup estimator's bias and the
+    /// model-error SD added to the resamples' spread), or "none" (the resamples alone, no
+    /// bias). Default: the shipped calibration of the protocol (calibration/ideal.json or
+    /// realistic.json; with the prior-region cup, ideal-prior-region.json, and none shipped
+    /// for the realistic protocol).
     #[arg(long)]
     pub calibration: Option<String>,
     /// Leave-one-subject-out calibration: each mesh's study uses a calibration learned (as
@@ -130,6 +132,11 @@ pub struct SimulateArgs {
     /// build`.
     #[arg(long, default_value = "none")]
     pub prior: String,
+    /// The cup estimator: "observed-part" (the sphere of the part the outlines hold) or, with a
+    /// --prior, "prior-region" (the sphere of the part most of the prior's training acetabula
+    /// cover). The calibration must have been learned for it (its bias is subtracted).
+    #[arg(long, default_value = "observed-part", value_parser = crate::common::cup_estimator)]
+    pub cup_estimator: acetab::pipeline::CupEstimator,
     /// Leave-one-subject-out prior: each mesh's study uses the --prior learned without the
     /// meshes of its subject (its file name up to the first '_').
     #[arg(long)]
@@ -173,6 +180,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         calibration,
         calibrate_loso,
         prior,
+        cup_estimator,
         prior_leave_out,
         out,
         force,
@@ -181,21 +189,43 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
     // The prior is checked before any run (with --prior-leave-out, each mesh's own is made
     // when its study starts).
     let (shape_prior, prior_from) = crate::prior::choose(&prior, None)?;
+    if cup_estimator == acetab::pipeline::CupEstimator::PriorRegion && shape_prior.is_none() {
+        return Err("--cup-estimator prior-region: the region is the prior's; give a --prior (default or a file)".into());
+    }
     if prior_leave_out && shape_prior.is_none() {
         return Err("--prior-leave-out needs a prior (--prior default or a file)".into());
     }
-    let (model_sd_mm, calibration) = match protocol {
-        ProtocolArg::Ideal => crate::common::calibration(
-            &calibration,
-            acetab::pipeline::CupCalibration::shipped_ideal,
-            "ideal",
-        ),
-        ProtocolArg::Realistic => crate::common::calibration(
-            &calibration,
-            acetab::pipeline::CupCalibration::shipped_realistic,
-            "realistic",
-        ),
-    }?;
+    let (cal, calibration) = if calibrate_loso.is_some() {
+        // Each mesh's own is learned when its study starts.
+        (
+            acetab::pipeline::CupCalibration::none(cup_estimator),
+            String::new(),
+        )
+    } else {
+        match protocol {
+            ProtocolArg::Ideal if cup_estimator == acetab::pipeline::CupEstimator::PriorRegion => {
+                crate::common::calibration(
+                    &calibration,
+                    acetab::pipeline::CupCalibration::shipped_ideal_prior_region,
+                    "ideal prior-region",
+                    cup_estimator,
+                )
+            }
+            ProtocolArg::Ideal => crate::common::calibration(
+                &calibration,
+                acetab::pipeline::CupCalibration::shipped_ideal,
+                "ideal",
+                cup_estimator,
+            ),
+            ProtocolArg::Realistic => crate::common::calibration(
+                &calibration,
+                acetab::pipeline::CupCalibration::shipped_realistic,
+                "realistic",
+                cup_estimator,
+            ),
+        }?
+    };
+    let model_sd_mm = cal.model_sd_mm;
     if realistic.is_some() && protocol != ProtocolArg::Realistic {
         return Err(
             "--realistic sets the realistic protocol's errors: add --protocol realistic".into(),
@@ -244,6 +274,11 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
                 }
             },
             pose: refine_poses.then(acetab::solve::PoseParams::default),
+            cup: acetab::pipeline::CupParams {
+                estimator: cup_estimator,
+                bias_mm: cal.bias_mm,
+                ..Default::default()
+            },
             ..Default::default()
         },
         geometry: XrayGeometry {
@@ -470,16 +505,29 @@ impl Study<'_> {
         // Leave-one-subject-out: this mesh's calibration, learned without its subject.
         let mut own = cfg.clone();
         let mut calibration = calibration.clone();
-        if let (Some(train), Some(up)) = (loso, own.uncertainty.as_mut()) {
+        if let Some(train) = loso {
             let subject = crate::calibrate::subject_of(Path::new(gt));
             let cal = crate::calibrate::learn(
                 std::slice::from_ref(train),
                 std::slice::from_ref(&subject),
                 acetab::study::StudyMethod::Srvf,
+                false,
                 None,
             )
             .map_err(|e| format!("--calibrate-loso: {e}"))?;
-            up.model_sd_mm = cal.model_sd_mm;
+            let used = own.params.cup.estimator;
+            if cal.cup_estimator() != Some(used) {
+                return Err(format!(
+                    "--calibrate-loso {}: its studies used the {} cup estimator, this one {}",
+                    train.display(),
+                    cal.estimator,
+                    used.name()
+                ));
+            }
+            own.params.cup.bias_mm = cal.bias_mm;
+            if let Some(up) = own.uncertainty.as_mut() {
+                up.model_sd_mm = cal.model_sd_mm;
+            }
             calibration = format!(
                 "leave-one-subject-out: {} without subject {subject}: {}",
                 train.display(),
@@ -549,6 +597,8 @@ impl Study<'_> {
             "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
             "w_obs": cfg.params.weights.obs, "refine_poses": cfg.params.pose.is_some(),
             "cup_model_sd_mm": cfg.uncertainty.as_ref().map(|u| u.model_sd_mm),
+            "cup_estimator": cfg.params.cup.estimator.name(),
+            "cup_bias_mm": cfg.params.cup.bias_mm,
             "calibration": calibration,
             "prior": prior_from,
             "provenance": Provenance::here(kernels.name(), adapter.clone(), cfg.threads, seed),
