@@ -48,6 +48,7 @@ _RECON_OPTIONS = (
     "seed",
     "contours",
     "prior",
+    "cup_estimator",
 )
 
 
@@ -88,7 +89,9 @@ def reconstruct_case(
     ``uncertainty_samples`` (2-1000, default 16), ``calibration`` (None: the shipped realistic
     one; "none"; or a file from ``acetab calibrate``), ``seed`` (default 1), ``contours``
     ("alpha-shape" or "silhouette"), ``prior`` (the population shape prior: "none", the
-    default; "default", the shipped one; or a file from ``acetab prior build``).
+    default; "default", the shipped one; or a file from ``acetab prior build``),
+    ``cup_estimator`` ("observed-part", the default, or with a prior "prior-region"; the
+    calibration must have been learned for it, and its bias is taken off the cup).
 
     Raises AcetabError when the case is refused or the reconstruction fails.
     """
@@ -222,6 +225,7 @@ def simulate(
     uncertainty_samples: int = 0,
     calibration: Optional[PathLike] = None,
     prior: PathLike = "none",
+    cup_estimator: str = "observed-part",
 ) -> List[Dict[str, Any]]:
     """Run a simulation study on the ground truth ``gt`` ("phantom" or a mesh file, mm).
 
@@ -229,8 +233,8 @@ def simulate(
     paper's variants) simulates the X-rays, reconstructs and measures. ``protocol``: "ideal" or
     "realistic" (pose and magnification errors, partial outlines, annotation drift).
     ``uncertainty_samples`` > 1 adds each run's cup uncertainty (``calibration`` as in
-    ``reconstruct_case``; None: the protocol's shipped one); ``prior`` as in
-    ``reconstruct_case``. Seeded: the same arguments give the
+    ``reconstruct_case``; None: the protocol's shipped one); ``prior`` and ``cup_estimator`` as
+    in ``reconstruct_case``. Seeded: the same arguments give the
     same runs, whatever ``threads``.
 
     Returns the runs (runs.csv's rows) as dicts: ``level``, ``run``, ``method``, ``seed``,
@@ -249,5 +253,6 @@ def simulate(
         "uncertainty_samples": int(uncertainty_samples),
         "calibration": None if calibration is None else os.fspath(calibration),
         "prior": os.fspath(prior),
+        "cup_estimator": str(cup_estimator),
     }
     return json.loads(_acetab.simulate_json(json.dumps(opts)))

@@ -54,6 +54,27 @@ struct ReconOptions {
     contours: String,
     #[serde(default = "none")]
     prior: String,
+    #[serde(default = "observed_part")]
+    cup_estimator: String,
+}
+
+fn observed_part() -> String {
+    "observed-part".into()
+}
+
+/// A cup estimator argument ("observed-part" or "prior-region"; the latter needs a prior).
+fn cup_estimator(name: &str, prior: &str) -> PyResult<CupEstimator> {
+    let e = CupEstimator::parse(name).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "cup_estimator={name:?}: must be \"observed-part\" or \"prior-region\""
+        ))
+    })?;
+    if e == CupEstimator::PriorRegion && prior == "none" {
+        return Err(PyValueError::new_err(
+            "cup_estimator=\"prior-region\": the region is the prior's; give prior=\"default\" or a file",
+        ));
+    }
+    Ok(e)
 }
 
 fn srvf() -> String {
@@ -97,16 +118,18 @@ fn method_of(name: &str) -> PyResult<Method> {
 }
 
 /// A calibration argument: None for the shipped one, "none", or a file from `acetab calibrate`
-/// (learned for the observed part's sphere, the cup estimator the bindings use).
-fn calibration(arg: &Option<String>, shipped: fn() -> CupCalibration) -> PyResult<CupCalibration> {
-    CupCalibration::for_estimator(arg.as_deref(), shipped, CupEstimator::ObservedPart).map_err(
-        |e| {
-            engine_err(format!(
-                "calibration={:?}: {e}",
-                arg.as_deref().unwrap_or_default()
-            ))
-        },
-    )
+/// (learned for the cup estimator `estimator`).
+fn calibration(
+    arg: &Option<String>,
+    shipped: fn() -> CupCalibration,
+    estimator: CupEstimator,
+) -> PyResult<CupCalibration> {
+    CupCalibration::for_estimator(arg.as_deref(), shipped, estimator).map_err(|e| {
+        engine_err(format!(
+            "calibration={:?}: {e}",
+            arg.as_deref().unwrap_or_default()
+        ))
+    })
 }
 
 impl ReconOptions {
@@ -128,13 +151,18 @@ impl ReconOptions {
                 self.uncertainty_samples
             )));
         }
-        let cal = calibration(&self.calibration, CupCalibration::shipped_realistic)?;
+        let estimator = cup_estimator(&self.cup_estimator, &self.prior)?;
+        let cal = calibration(
+            &self.calibration,
+            CupCalibration::shipped_realistic,
+            estimator,
+        )?;
         let mut prm = ReconParams {
             method: method_of(&self.method)?,
             cup: CupParams {
                 catalogue,
+                estimator,
                 bias_mm: cal.bias_mm,
-                ..Default::default()
             },
             contour_source,
             pose: self.refine_poses.then(acetab::solve::PoseParams::default),
@@ -342,6 +370,8 @@ struct StudyOptions {
     calibration: Option<String>,
     #[serde(default = "none")]
     prior: String,
+    #[serde(default = "observed_part")]
+    cup_estimator: String,
 }
 
 fn ideal() -> String {
@@ -365,7 +395,11 @@ fn simulate_json(py: Python<'_>, options_json: &str) -> PyResult<String> {
             })
         })
         .collect::<PyResult<Vec<_>>>()?;
+    let estimator = cup_estimator(&o.cup_estimator, &o.prior)?;
     let (protocol, shipped): (Protocol, fn() -> CupCalibration) = match o.protocol.as_str() {
+        "ideal" if estimator == CupEstimator::PriorRegion => {
+            (Protocol::Ideal, CupCalibration::shipped_ideal_prior_region)
+        }
         "ideal" => (Protocol::Ideal, CupCalibration::shipped_ideal),
         "realistic" => (
             Protocol::Realistic(RealisticErrors::default()),
@@ -394,7 +428,7 @@ fn simulate_json(py: Python<'_>, options_json: &str) -> PyResult<String> {
         Some(t) => t,
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
-    let cal = calibration(&o.calibration, shipped)?;
+    let cal = calibration(&o.calibration, shipped, estimator)?;
     let model_sd_mm = cal.model_sd_mm;
     let cfg = StudyConfig {
         protocol,
@@ -410,6 +444,7 @@ fn simulate_json(py: Python<'_>, options_json: &str) -> PyResult<String> {
                 ..Default::default()
             },
             cup: CupParams {
+                estimator,
                 bias_mm: cal.bias_mm,
                 ..Default::default()
             },

@@ -132,6 +132,25 @@ def test_the_shipped_prior_reaches_the_engine_as_on_the_command_line(tmp_path):
         acetab.reconstruct_case(CASE, prior=tmp_path / "no_such_prior.json")
 
 
+def test_the_prior_region_cup_takes_its_calibrations_bias_off():
+    # The shipped ideal prior-region calibration's bias, taken off the same runs' raw cups
+    # (calibration "none"); the companion: the raw cups are not the calibrated ones.
+    kw = dict(levels=[1], runs=1, prior="default", cup_estimator="prior-region")
+    raw = acetab.simulate("phantom", calibration="none", **kw)
+    shipped = acetab.simulate("phantom", **kw)
+    bias = json.loads((ROOT / "calibration" / "ideal-prior-region.json").read_text())["bias_mm"]
+    # (runs.csv keeps six decimals)
+    assert abs(raw[0]["cup_diameter_mm"] - bias - shipped[0]["cup_diameter_mm"]) < 2e-6
+    assert abs(raw[0]["cup_diameter_mm"] - shipped[0]["cup_diameter_mm"]) > 0.5
+    with pytest.raises(ValueError, match="prior-region.*prior"):
+        acetab.simulate("phantom", levels=[1], runs=1, cup_estimator="prior-region")
+    with pytest.raises(ValueError, match="cup_estimator"):
+        acetab.reconstruct_case(CASE, cup_estimator="sphere")
+    # The realistic calibration shipped for reconstruct_case is the observed part's: refused.
+    with pytest.raises(acetab.AcetabError, match="estimator = observed-part"):
+        acetab.reconstruct_case(CASE, prior="default", cup_estimator="prior-region")
+
+
 def test_reconstruct_case_errors_carry_the_engine_message(tmp_path):
     bad = json.loads(CASE.read_text())
     for v in bad["views"]:
