@@ -1172,8 +1172,8 @@ fn prior_build_makes_a_prior_a_study_leaves_its_subject_out_of_and_bad_input_is_
     );
     let cmd = study_with(&five_path);
     fails_cleanly(cmd, &dir.join("five-out"), &["five.json", "at least 7"]);
-    // The prior-region cup needs a prior, and a calibration learned for it (the shipped one is
-    // the observed part's); an unknown estimator is a usage error.
+    // The prior-region cup needs a prior, and a calibration learned for it; an unknown
+    // estimator is a usage error.
     let mut cmd = bin();
     cmd.args([
         "simulate",
@@ -1188,21 +1188,7 @@ fn prior_build_makes_a_prior_a_study_leaves_its_subject_out_of_and_bad_input_is_
         &dir.join("region-out"),
         &["--cup-estimator prior-region", "--prior"],
     );
-    // The realistic protocol ships no prior-region calibration; the observed part's file is
-    // refused for it by name.
-    let mut cmd = bin();
-    cmd.args(["simulate", "--gt", "phantom", "--prior", "default"])
-        .args(["--cup-estimator", "prior-region", "--protocol", "realistic"])
-        .args(ONE_RUN.split(' '));
-    fails_cleanly(
-        cmd,
-        &dir.join("region-cal-out"),
-        &[
-            "--calibration",
-            "estimator = observed-part",
-            "not prior-region",
-        ],
-    );
+    // A calibration file learned for the observed part is refused for it by name.
     let mut cmd = bin();
     cmd.args(["simulate", "--gt", "phantom", "--prior", "default"])
         .args(["--cup-estimator", "prior-region", "--calibration"])

@@ -146,9 +146,14 @@ def test_the_prior_region_cup_takes_its_calibrations_bias_off():
         acetab.simulate("phantom", levels=[1], runs=1, cup_estimator="prior-region")
     with pytest.raises(ValueError, match="cup_estimator"):
         acetab.reconstruct_case(CASE, cup_estimator="sphere")
-    # The realistic calibration shipped for reconstruct_case is the observed part's: refused.
+    # A calibration learned for the observed part is refused for it.
     with pytest.raises(acetab.AcetabError, match="estimator = observed-part"):
-        acetab.reconstruct_case(CASE, prior="default", cup_estimator="prior-region")
+        acetab.reconstruct_case(
+            CASE,
+            prior="default",
+            cup_estimator="prior-region",
+            calibration=ROOT / "calibration" / "realistic.json",
+        )
 
 
 def test_reconstruct_case_errors_carry_the_engine_message(tmp_path):

@@ -103,6 +103,10 @@ pub const IDEAL_JSON: &str = include_str!("../../calibration/ideal.json");
 /// model SD, learned from the same study made with the shipped prior, leave-one-subject-out):
 /// `acetab simulate --prior default --cup-estimator prior-region` uses it for the ideal protocol.
 pub const IDEAL_PRIOR_REGION_JSON: &str = include_str!("../../calibration/ideal-prior-region.json");
+/// The same for the realistic protocol with the prior-region cup: `acetab reconstruct --prior
+/// default --cup-estimator prior-region` and realistic studies use it.
+pub const REALISTIC_PRIOR_REGION_JSON: &str =
+    include_str!("../../calibration/realistic-prior-region.json");
 /// The same for the realistic protocol: `acetab simulate --protocol realistic` and `acetab
 /// reconstruct` (a patient's X-rays) use it.
 pub const REALISTIC_JSON: &str = include_str!("../../calibration/realistic.json");
@@ -119,6 +123,16 @@ impl CupCalibration {
         Self::parse(
             IDEAL_PRIOR_REGION_JSON,
             Path::new("calibration/ideal-prior-region.json"),
+        )
+        .expect("the shipped calibration is valid (tested)")
+    }
+
+    /// The shipped calibration for the realistic protocol and patients' X-rays with the
+    /// prior-region cup.
+    pub fn shipped_realistic_prior_region() -> CupCalibration {
+        Self::parse(
+            REALISTIC_PRIOR_REGION_JSON,
+            Path::new("calibration/realistic-prior-region.json"),
         )
         .expect("the shipped calibration is valid (tested)")
     }
@@ -144,6 +158,17 @@ impl CupCalibration {
     /// The estimator it was learned for.
     pub fn cup_estimator(&self) -> Option<CupEstimator> {
         CupEstimator::parse(&self.estimator)
+    }
+
+    /// The shipped calibration of a protocol (`realistic` or ideal) for the cup estimator
+    /// `estimator`.
+    pub fn shipped(realistic: bool, estimator: CupEstimator) -> fn() -> CupCalibration {
+        match (realistic, estimator) {
+            (false, CupEstimator::ObservedPart) => Self::shipped_ideal,
+            (false, CupEstimator::PriorRegion) => Self::shipped_ideal_prior_region,
+            (true, CupEstimator::ObservedPart) => Self::shipped_realistic,
+            (true, CupEstimator::PriorRegion) => Self::shipped_realistic_prior_region,
+        }
     }
 
     /// The calibration a run uses for a calibration choice and cup estimator: None, the
@@ -281,13 +306,16 @@ mod tests {
             CupCalibration::shipped_ideal(),
             CupCalibration::shipped_realistic(),
             CupCalibration::shipped_ideal_prior_region(),
+            CupCalibration::shipped_realistic_prior_region(),
         ] {
             assert!(c.model_sd_mm > 0.0 && c.runs >= MIN_TRAINING_RUNS, "{c:?}");
         }
-        assert_eq!(
-            CupCalibration::shipped_ideal_prior_region().cup_estimator(),
-            Some(CupEstimator::PriorRegion)
-        );
+        for c in [
+            CupCalibration::shipped_ideal_prior_region(),
+            CupCalibration::shipped_realistic_prior_region(),
+        ] {
+            assert_eq!(c.cup_estimator(), Some(CupEstimator::PriorRegion));
+        }
     }
 
     #[test]

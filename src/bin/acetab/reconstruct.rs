@@ -89,7 +89,7 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
     }
     let (cal, _) = crate::common::calibration(
         &calibration,
-        acetab::pipeline::CupCalibration::shipped_realistic,
+        acetab::pipeline::CupCalibration::shipped(true, cup_estimator),
         "realistic",
         cup_estimator,
     )?;

@@ -116,9 +116,9 @@ pub struct SimulateArgs {
     pub uncertainty_samples: u64,
     /// Cup calibration (JSON from `acetab calibrate`: the cup estimator's bias and the
     /// model-error SD added to the resamples' spread), or "none" (the resamples alone, no
-    /// bias). Default: the shipped calibration of the protocol (calibration/ideal.json or
-    /// realistic.json; with the prior-region cup, ideal-prior-region.json, and none shipped
-    /// for the realistic protocol).
+    /// bias). Default: the shipped calibration of the protocol and cup estimator
+    /// (calibration/ideal.json, realistic.json, ideal-prior-region.json or
+    /// realistic-prior-region.json).
     #[arg(long)]
     pub calibration: Option<String>,
     /// Leave-one-subject-out calibration: each mesh's study uses a calibration learned (as
@@ -202,28 +202,20 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
             String::new(),
         )
     } else {
-        match protocol {
-            ProtocolArg::Ideal if cup_estimator == acetab::pipeline::CupEstimator::PriorRegion => {
-                crate::common::calibration(
-                    &calibration,
-                    acetab::pipeline::CupCalibration::shipped_ideal_prior_region,
-                    "ideal prior-region",
-                    cup_estimator,
-                )
-            }
-            ProtocolArg::Ideal => crate::common::calibration(
-                &calibration,
-                acetab::pipeline::CupCalibration::shipped_ideal,
-                "ideal",
-                cup_estimator,
+        let realistic = protocol == ProtocolArg::Realistic;
+        crate::common::calibration(
+            &calibration,
+            acetab::pipeline::CupCalibration::shipped(realistic, cup_estimator),
+            &format!(
+                "{}{}",
+                if realistic { "realistic" } else { "ideal" },
+                match cup_estimator {
+                    acetab::pipeline::CupEstimator::ObservedPart => "",
+                    acetab::pipeline::CupEstimator::PriorRegion => " prior-region",
+                }
             ),
-            ProtocolArg::Realistic => crate::common::calibration(
-                &calibration,
-                acetab::pipeline::CupCalibration::shipped_realistic,
-                "realistic",
-                cup_estimator,
-            ),
-        }?
+            cup_estimator,
+        )?
     };
     let model_sd_mm = cal.model_sd_mm;
     if realistic.is_some() && protocol != ProtocolArg::Realistic {
