@@ -143,6 +143,33 @@ fn a_case_file_reconstructs_through_the_cli() {
     ] {
         assert!(out.join(f).is_file(), "{f}");
     }
+    assert_eq!(v["cup"]["estimator"], "observed-part");
+    assert_eq!(v["cup"]["bias_mm"], 0.0);
+    // The prior-region cup says so, with the shipped realistic calibration's bias; its cup is
+    // another number (the companion).
+    let o = bin()
+        .arg("reconstruct")
+        .arg(&case)
+        .args([
+            "--prior",
+            "default",
+            "--cup-estimator",
+            "prior-region",
+            "--json",
+        ])
+        .args(["--uncertainty-samples", "2", "--out"])
+        .arg(dir.join("region"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(r["cup"]["estimator"], "prior-region");
+    let bias = acetab::pipeline::CupCalibration::shipped_realistic_prior_region().bias_mm;
+    assert_eq!(r["cup"]["bias_mm"], bias);
+    assert!(
+        (r["cup"]["diameter_mm"].as_f64().unwrap() - d).abs() > 1e-3,
+        "{r}"
+    );
     // A catalogue that cannot hold the cup is refused, naming its range; nothing is written.
     let mut cmd = bin();
     cmd.arg("reconstruct")

@@ -55,8 +55,13 @@ pub struct SizeProbability {
 /// The cup report.
 #[derive(Clone, Debug, Serialize)]
 pub struct CupReport {
-    /// Diameter of the sphere fitted to the reconstruction.
+    /// Diameter of the sphere fitted to the reconstruction, less the estimator's bias.
     pub diameter_mm: f64,
+    /// The cup estimator (`CupEstimator::name`): which part of the result the sphere is
+    /// fitted to.
+    pub estimator: &'static str,
+    /// The estimator's bias taken off the diameter, mm (the calibration's; 0 without one).
+    pub bias_mm: f64,
     /// The cup's centre (the fitted sphere's, the hip's centre of rotation), mm, in the case's
     /// frame.
     pub center_mm: [f64; 3],
@@ -265,6 +270,8 @@ pub fn cup_report(
         };
     Ok(CupReport {
         diameter_mm: diameter,
+        estimator: used.cup.estimator.name(),
+        bias_mm: used.cup.bias_mm,
         center_mm: rec.sphere.center,
         orientation,
         orientation_note,
@@ -335,6 +342,8 @@ mod tests {
     fn report_with(probabilities: &[(f64, f64)]) -> CupReport {
         CupReport {
             diameter_mm: 51.0,
+            estimator: "observed-part",
+            bias_mm: 0.0,
             center_mm: [0.0; 3],
             orientation: None,
             orientation_note: None,
