@@ -18,9 +18,11 @@ DICOM_CASE = ROOT / "examples" / "case-dicom" / "case.json"
 
 
 def cli_reconstruct(case, out, *args):
-    """`acetab reconstruct CASE --json` through cargo (built already by the Rust tests)."""
-    cmd = ["cargo", "run", "--release", "-q", "--bin", "acetab", "--", "reconstruct",
-           str(case), "--out", str(out), "--json", *args]
+    """`acetab reconstruct CASE --json`: the binary $ACETAB_CLI names (CI keeps the one the Rust
+    tests built), else through cargo."""
+    cli = os.environ.get("ACETAB_CLI")
+    head = [cli] if cli else ["cargo", "run", "--release", "-q", "--bin", "acetab", "--"]
+    cmd = [*head, "reconstruct", str(case), "--out", str(out), "--json", *args]
     done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout)
