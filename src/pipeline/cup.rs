@@ -129,8 +129,8 @@ mod tests {
         ShapePrior::learn(&fields, 0).unwrap()
     }
 
-    /// A hemisphere of radius 25 (dome at -z) whose band beyond 60 degrees from the dome flares out to a
-    /// lip 20 % wider: the acetabulum's margin that a whole-surface fit follows.
+    /// A hemisphere of radius 25 (dome at -z) whose band beyond 60 degrees from the dome flares
+    /// out to a lip 20 % wider: the acetabulum's margin that a whole-surface fit follows.
     fn flared() -> Mesh {
         let mut m = hemisphere(25.0, 2500);
         for v in m.vertices.iter_mut() {
