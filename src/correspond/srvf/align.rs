@@ -421,20 +421,7 @@ fn align_closed_on(
                     )
                 })
                 .collect();
-            let cands: Vec<Candidate> = order
-                .iter()
-                .zip(&coarse)
-                .map(|(&s, (cq2, cpb))| Candidate {
-                    q2: cq2,
-                    theta: energies[s].1,
-                    anchor: Some(Anchor {
-                        a: &cpa,
-                        b: cpb,
-                        weight: prm.anchor,
-                    }),
-                    hint: None,
-                })
-                .collect();
+            let cands = seed_candidates(&order, &coarse, &energies, &cpa, prm.anchor);
             let aligned = rotate_and_warp_many(&cq1, &cands, &coarse_prm, &steps, on);
             let mut ranked: Vec<(f64, usize)> = aligned
                 .iter()
@@ -451,20 +438,7 @@ fn align_closed_on(
             .iter()
             .map(|&s| (closed_grid(&q2, s), closed_grid(&pb, s)))
             .collect();
-        let cands: Vec<Candidate> = first
-            .iter()
-            .zip(&grids)
-            .map(|(&s, (q2g, pbg))| Candidate {
-                q2: q2g,
-                theta: energies[s].1,
-                anchor: Some(Anchor {
-                    a: &pag,
-                    b: pbg,
-                    weight: prm.anchor,
-                }),
-                hint: None,
-            })
-            .collect();
+        let cands = seed_candidates(&first, &grids, &energies, &pag, prm.anchor);
         let refined = rotate_and_warp_many(&q1g, &cands, prm, &steps, on);
         for (&s, (theta, w)) in first.iter().zip(refined) {
             if best.as_ref().is_none_or(|b| w.energy < b.0) {
@@ -511,6 +485,31 @@ fn align_closed_on(
 
 /// A seed's grids: B's SRVF and B's positions, started at the seed.
 type SeedGrids = (Vec<Vector2<f64>>, Vec<Vector2<f64>>);
+
+/// The alignment candidates of `seeds` (their grids in `grids`, in the same order): each from
+/// its seed's rotation in `energies`, with the position term of A's positions `pa`.
+fn seed_candidates<'a>(
+    seeds: &[usize],
+    grids: &'a [SeedGrids],
+    energies: &[(f64, f64)],
+    pa: &'a [Vector2<f64>],
+    weight: f64,
+) -> Vec<Candidate<'a>> {
+    seeds
+        .iter()
+        .zip(grids)
+        .map(|(&s, (q2, pb))| Candidate {
+            q2,
+            theta: energies[s].1,
+            anchor: Some(Anchor {
+                a: pa,
+                b: pb,
+                weight,
+            }),
+            hint: None,
+        })
+        .collect()
+}
 
 /// Closed curves: seeds refined at the full sample count from the coarse ranking.
 const REFINED_SEEDS: usize = 2;

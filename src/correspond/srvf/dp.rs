@@ -697,7 +697,7 @@ fn tap_table<T>(
         .collect()
 }
 
-/// Grids up to this size are solved exactly by `dp_warp_fast`.
+/// Grids up to this size are solved exactly by the coarse-to-fine DP (`dp_many::warp_fast`).
 pub const EXACT_DP_MAX: usize = 64;
 
 /// The band of +-`halfwidth` cells around a node path given on a grid `factor` times coarser
@@ -726,55 +726,6 @@ pub(super) fn band_around(
     }
     band[n - 1].1 = n - 1;
     band
-}
-
-/// Coarse-to-fine DP: solve on every other sample (recursively), then the full grid only in a
-/// band of +-`halfwidth` cells around the coarse path. O(n * band) instead of O(n^2); the exact
-/// `dp_warp` is its test oracle.
-#[cfg(test)]
-pub fn dp_warp_fast(
-    q1: &[Vector2<f64>],
-    q2: &[Vector2<f64>],
-    steps: &[(usize, usize)],
-    halfwidth: usize,
-    anchor: Option<Anchor>,
-) -> Warp {
-    dp_warp_fast_on(q1, q2, steps, halfwidth, anchor, DpOn::Host)
-}
-
-/// `dp_warp_fast` with its DPs run where `dp` says.
-pub(crate) fn dp_warp_fast_on(
-    q1: &[Vector2<f64>],
-    q2: &[Vector2<f64>],
-    steps: &[(usize, usize)],
-    halfwidth: usize,
-    anchor: Option<Anchor>,
-    dp: DpOn,
-) -> Warp {
-    let n = q1.len();
-    if n <= EXACT_DP_MAX {
-        return dp_warp_anchored_on(q1, q2, steps, anchor, dp);
-    }
-    let m = n.div_ceil(2) + usize::from(n.is_multiple_of(2));
-    let fine = |c: usize| (2 * c).min(n - 1);
-    let every_other =
-        |q: &[Vector2<f64>]| -> Vec<Vector2<f64>> { (0..m).map(|c| q[fine(c)]).collect() };
-    let (c1, c2) = (every_other(q1), every_other(q2));
-    let coarse_pos = anchor.map(|a| (every_other(a.a), every_other(a.b), a.weight));
-    let coarse_anchor = coarse_pos.as_ref().map(|(a, b, weight)| Anchor {
-        a,
-        b,
-        weight: *weight,
-    });
-    let coarse = dp_warp_fast_on(&c1, &c2, steps, halfwidth, coarse_anchor, dp);
-    dp_in_band(
-        q1,
-        q2,
-        steps,
-        &band_around(&coarse.path, 2, n, halfwidth),
-        anchor,
-        dp,
-    )
 }
 
 /// Follow back-pointers from (n-1, n-1) to (0, 0).
@@ -1084,7 +1035,7 @@ mod tests {
             let (q1, q2) = (curve(f1, 0.0), curve(f2, 0.4));
             let steps = coprime_steps(5);
             let exact = dp_warp(&q1, &q2, &steps);
-            let fast = dp_warp_fast(&q1, &q2, &steps, 6, None);
+            let fast = super::super::dp_many::warp_fast(&q1, &q2, &steps, 6, None, DpOn::Host);
             assert!(
                 fast.energy <= exact.energy * 1.01 + 1e-9,
                 "fast {} exact {}",

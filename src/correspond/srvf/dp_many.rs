@@ -90,7 +90,25 @@ fn anchored(pairs: &[Pair], steps: &[(usize, usize)], dp: DpOn) -> Vec<Warp> {
     in_band(&jobs, steps, dp)
 }
 
-/// `dp::dp_warp_fast_on` of every pair (all with the same sample count), level by level.
+/// Coarse-to-fine DP of one pair: solve on every other sample (recursively), then the full
+/// grid only in a band of +-`halfwidth` cells around the coarse path. O(n * band) instead of
+/// O(n^2); the exact `dp::dp_warp` is its test oracle.
+#[cfg(test)]
+pub(super) fn warp_fast(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    steps: &[(usize, usize)],
+    halfwidth: usize,
+    anchor: Option<Anchor>,
+    dp: DpOn,
+) -> Warp {
+    let pair = Pair { q1, q2, anchor };
+    fast(&[pair], steps, halfwidth, dp)
+        .pop()
+        .expect("one pair gives one warp")
+}
+
+/// `warp_fast` of every pair, level by level (pairs of different sample counts one by one).
 fn fast(pairs: &[Pair], steps: &[(usize, usize)], halfwidth: usize, dp: DpOn) -> Vec<Warp> {
     let Some(n) = pairs.first().map(|p| p.q1.len()) else {
         return Vec::new();
@@ -98,7 +116,7 @@ fn fast(pairs: &[Pair], steps: &[(usize, usize)], halfwidth: usize, dp: DpOn) ->
     if pairs.iter().any(|p| p.q1.len() != n) {
         return pairs
             .iter()
-            .map(|p| super::dp::dp_warp_fast_on(p.q1, p.q2, steps, halfwidth, p.anchor, dp))
+            .flat_map(|p| fast(std::slice::from_ref(p), steps, halfwidth, dp))
             .collect();
     }
     if n <= EXACT_DP_MAX {
@@ -151,7 +169,9 @@ fn fast(pairs: &[Pair], steps: &[(usize, usize)], halfwidth: usize, dp: DpOn) ->
     in_band(&jobs, steps, dp)
 }
 
-/// `dp::dp_warp_near_on` of every pair, each about its own hint.
+/// The DP of every pair in a band of +-`halfwidth` cells about its own hint (a path of a nearby
+/// problem on the same grid: the previous rotation's, a neighbouring seed's); short curves and
+/// missing hints over the whole feasible band.
 fn near(
     pairs: &[Pair],
     hints: &[&[(usize, usize)]],

@@ -229,16 +229,24 @@ impl BandBatch {
         Ok(())
     }
 
+    /// Problem k's cells in the tables.
+    pub fn range(&self, k: usize) -> std::ops::Range<usize> {
+        let start = self.headers[k].cells as usize;
+        let end = self
+            .headers
+            .get(k + 1)
+            .map_or(self.cells, |h| h.cells as usize);
+        start..end
+    }
+
     /// Each problem's cells in the tables, in order.
     pub fn ranges(&self) -> Vec<std::ops::Range<usize>> {
-        let starts: Vec<usize> = self.headers.iter().map(|h| h.cells as usize).collect();
-        let ends = starts.iter().skip(1).copied().chain([self.cells]);
-        starts.iter().zip(ends).map(|(&a, b)| a..b).collect()
+        (0..self.headers.len()).map(|k| self.range(k)).collect()
     }
 
     /// Problem k's slice of a table.
     pub fn slice<'t, T>(&self, table: &'t [T], k: usize) -> &'t [T] {
-        &table[self.ranges()[k].clone()]
+        &table[self.range(k)]
     }
 }
 

@@ -219,6 +219,39 @@ thread_local! {
     static REGISTERED: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
 }
 
+/// The requests `jobs` in groups that `same` says can share a dispatch, in arrival order.
+fn grouped<T>(jobs: Vec<(u64, T)>, same: impl Fn(&T, &T) -> bool) -> Vec<Vec<(u64, T)>> {
+    let mut groups: Vec<Vec<(u64, T)>> = Vec::new();
+    for j in jobs {
+        match groups.iter_mut().find(|g| same(&g[0].1, &j.1)) {
+            Some(g) => g.push(j),
+            None => groups.push(vec![j]),
+        }
+    }
+    groups
+}
+
+/// Each request of group `g` its part of the merged dispatch's output `all` (`len` entries
+/// each, in order), or the dispatch's error.
+fn hand_out<T, V: Clone>(
+    g: &[(u64, T)],
+    all: Result<Vec<V>, GpuError>,
+    len: impl Fn(&T) -> usize,
+    out: &mut Vec<(u64, Result<Vec<V>, GpuError>)>,
+) {
+    match all {
+        Ok(all) => {
+            let mut at = 0;
+            for (id, t) in g {
+                let n = len(t);
+                out.push((*id, Ok(all[at..at + n].to_vec())));
+                at += n;
+            }
+        }
+        Err(e) => out.extend(g.iter().map(|(id, _)| (*id, Err(e.clone())))),
+    }
+}
+
 /// Merges concurrent kernel requests from up to `lanes` runs.
 pub struct GpuBatcher<'g> {
     gpu: &'g Gpu<'g>,
@@ -351,16 +384,9 @@ impl<'g> GpuBatcher<'g> {
     pub fn deform(&self, b: DeformBatch) -> Out {
         self.deform
             .submit(b, self.lanes, self.wait, &self.gate, |jobs| {
+                let key = |b: &DeformBatch| (b.vertex_count, b.node_count, b.neighbours);
                 let mut out = Vec::new();
-                let mut groups: Vec<Vec<(u64, DeformBatch)>> = Vec::new();
-                for j in jobs {
-                    let key = |b: &DeformBatch| (b.vertex_count, b.node_count, b.neighbours);
-                    match groups.iter_mut().find(|g| key(&g[0].1) == key(&j.1)) {
-                        Some(g) => g.push(j),
-                        None => groups.push(vec![j]),
-                    }
-                }
-                for g in groups {
+                for g in grouped(jobs, |x, y| key(x) == key(y)) {
                     let mut merged = g[0].1.clone();
                     for (_, b) in &g[1..] {
                         merged.mesh_count += b.mesh_count;
@@ -370,17 +396,8 @@ impl<'g> GpuBatcher<'g> {
                         merged.node_index.extend_from_slice(&b.node_index);
                         merged.weight.extend_from_slice(&b.weight);
                     }
-                    match self.count(|s| &mut s.deform, g.len(), || self.gpu.deform(&merged)) {
-                        Ok(all) => {
-                            let mut at = 0;
-                            for (id, b) in &g {
-                                let n = b.rest.len();
-                                out.push((*id, Ok(all[at..at + n].to_vec())));
-                                at += n;
-                            }
-                        }
-                        Err(e) => out.extend(g.iter().map(|(id, _)| (*id, Err(e.clone())))),
-                    }
+                    let all = self.count(|s| &mut s.deform, g.len(), || self.gpu.deform(&merged));
+                    hand_out(&g, all, |b| b.rest.len(), &mut out);
                 }
                 out
             })
@@ -400,36 +417,18 @@ impl<'g> GpuBatcher<'g> {
             &self.gate,
             |jobs| {
                 let mut out = Vec::new();
-                let mut groups: Vec<Vec<(u64, ProjectJob)>> = Vec::new();
-                for j in jobs {
-                    match groups
-                        .iter_mut()
-                        .find(|g| g[0].1 .1 == j.1 .1 && g[0].1 .2 == j.1 .2)
-                    {
-                        Some(g) => g.push(j),
-                        None => groups.push(vec![j]),
-                    }
-                }
-                for g in groups {
+                let same = |x: &ProjectJob, y: &ProjectJob| x.1 == y.1 && x.2 == y.2;
+                for g in grouped(jobs, same) {
                     let (vc, views) = (g[0].1 .1, g[0].1 .2.clone());
                     let verts: Vec<[f32; 4]> =
                         g.iter().flat_map(|(_, j)| j.0.iter().copied()).collect();
-                    match self.count(
+                    let all = self.count(
                         |s| &mut s.project,
                         g.len(),
                         || self.gpu.project(&verts, vc, &views),
-                    ) {
-                        Ok(all) => {
-                            let mut at = 0;
-                            for (id, j) in &g {
-                                // Mesh b's outputs are contiguous: (b * C + view) * V + vertex.
-                                let n = j.0.len() * views.len();
-                                out.push((*id, Ok(all[at..at + n].to_vec())));
-                                at += n;
-                            }
-                        }
-                        Err(e) => out.extend(g.iter().map(|(id, _)| (*id, Err(e.clone())))),
-                    }
+                    );
+                    // Mesh b's outputs are contiguous: (b * C + view) * V + vertex.
+                    hand_out(&g, all, |j| j.0.len() * views.len(), &mut out);
                 }
                 out
             },
@@ -444,35 +443,19 @@ impl GpuBatcher<'_> {
         self.band
             .submit(b, self.lanes, self.wait, &self.gate, |jobs| {
                 let mut out = Vec::new();
-                let mut groups: Vec<Vec<(u64, BandBatch)>> = Vec::new();
-                for j in jobs {
-                    match groups.iter_mut().find(|g| g[0].1.step_set == j.1.step_set) {
-                        Some(g) => g.push(j),
-                        None => groups.push(vec![j]),
-                    }
-                }
-                for g in groups {
+                for g in grouped(jobs, |x, y| x.step_set == y.step_set) {
                     let merged = g[1..]
                         .iter()
                         .try_fold(g[0].1.clone(), |mut m, (_, b)| m.append(b).map(|()| m))
                         .map_err(GpuError::from);
-                    let tables = merged.and_then(|m| {
+                    let back = merged.and_then(|m| {
                         self.count(
                             |s| &mut s.srvf_band,
                             g.len(),
                             || self.gpu.srvf_band_tables(&m),
                         )
                     });
-                    match tables {
-                        Ok((_, back)) => {
-                            let mut at = 0;
-                            for (id, b) in &g {
-                                out.push((*id, Ok(back[at..at + b.cells].to_vec())));
-                                at += b.cells;
-                            }
-                        }
-                        Err(e) => out.extend(g.iter().map(|(id, _)| (*id, Err(e.clone())))),
-                    }
+                    hand_out(&g, back.map(|(_, back)| back), |b| b.cells, &mut out);
                 }
                 out
             })
