@@ -367,16 +367,22 @@ fn study_runs_batched_on_the_gpu_match_the_cpu() {
     });
 }
 
+/// One deform batch per test graph, and each one's output dispatched alone.
+#[allow(clippy::type_complexity)]
+fn deform_one_by_one(gpu: &Gpu) -> (Vec<cdeform::DeformBatch>, Vec<Vec<[f32; 4]>>) {
+    let batches: Vec<cdeform::DeformBatch> = graphs()
+        .iter()
+        .map(|(g, x)| cdeform::DeformBatch::from_graphs(&[(g, &x[..])]).unwrap())
+        .collect();
+    let alone = batches.iter().map(|b| gpu.deform(b).unwrap()).collect();
+    (batches, alone)
+}
+
 #[test]
 fn the_batcher_merges_concurrent_requests_into_one_dispatch_with_exact_results() {
     with_gpu(|gpu| {
         use acetab::engine::gpu::GpuBatcher;
-        let gs = graphs();
-        let batches: Vec<cdeform::DeformBatch> = gs
-            .iter()
-            .map(|(g, x)| cdeform::DeformBatch::from_graphs(&[(g, &x[..])]).unwrap())
-            .collect();
-        let alone: Vec<Vec<[f32; 4]>> = batches.iter().map(|b| gpu.deform(b).unwrap()).collect();
+        let (batches, alone) = deform_one_by_one(gpu);
         let batcher = GpuBatcher::new(gpu, batches.len(), std::time::Duration::from_secs(5));
         let barrier = std::sync::Barrier::new(batches.len());
         let merged: Vec<Vec<[f32; 4]>> = std::thread::scope(|s| {
@@ -721,12 +727,7 @@ fn registered_runs_go_to_the_device_in_lock_step() {
     with_gpu(|gpu| {
         use acetab::engine::gpu::GpuBatcher;
         use std::time::{Duration, Instant};
-        let gs = graphs();
-        let batches: Vec<cdeform::DeformBatch> = gs
-            .iter()
-            .map(|(g, x)| cdeform::DeformBatch::from_graphs(&[(g, &x[..])]).unwrap())
-            .collect();
-        let alone: Vec<Vec<[f32; 4]>> = batches.iter().map(|b| gpu.deform(b).unwrap()).collect();
+        let (batches, alone) = deform_one_by_one(gpu);
         // Three runs reach the device 0, 30 and 60 ms apart (host work of different lengths);
         // `lanes` above their number and a 5 s wait, so only the lock-step rule can send them.
         let staggered = |batcher: &GpuBatcher, register: bool| {
