@@ -294,18 +294,34 @@ pub fn method(s: &str) -> Result<acetab::study::StudyMethod, String> {
 }
 
 /// `--calibration`: the cup calibration file, "none" (the resamples alone, no bias), or None
-/// for the shipped one `shipped` gives; it must have been learned for `estimator`. Returns the
-/// calibration and where it came from.
+/// for the one shipped for the protocol (`realistic` or ideal) and `estimator`; it must have been
+/// learned for `estimator`, which needs a prior (`has_prior`) when it is the prior's region.
+/// Returns the calibration and where it came from.
 pub fn calibration(
     arg: &Option<String>,
-    shipped: fn() -> acetab::pipeline::CupCalibration,
-    shipped_name: &str,
+    realistic: bool,
     estimator: acetab::pipeline::CupEstimator,
+    has_prior: bool,
 ) -> Result<(acetab::pipeline::CupCalibration, String), String> {
-    let cal = acetab::pipeline::CupCalibration::for_estimator(arg.as_deref(), shipped, estimator)
+    use acetab::pipeline::{CupCalibration, CupEstimator};
+    if estimator == CupEstimator::PriorRegion && !has_prior {
+        return Err(
+            "--cup-estimator prior-region: the region is the prior's; give a --prior (default or a file)"
+                .into(),
+        );
+    }
+    let shipped = CupCalibration::shipped(realistic, estimator);
+    let cal = CupCalibration::for_estimator(arg.as_deref(), shipped, estimator)
         .map_err(|e| format!("--calibration {e}"))?;
     let source = match arg.as_deref() {
-        None => format!("shipped {shipped_name}"),
+        None => format!(
+            "shipped {}{}",
+            if realistic { "realistic" } else { "ideal" },
+            match estimator {
+                CupEstimator::ObservedPart => "",
+                CupEstimator::PriorRegion => " prior-region",
+            }
+        ),
         Some(choice) => choice.to_string(),
     };
     Ok((cal, source))

@@ -84,15 +84,8 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         json,
     } = args;
     let (shape_prior, _) = crate::prior::choose(&prior, None)?;
-    if cup_estimator == acetab::pipeline::CupEstimator::PriorRegion && shape_prior.is_none() {
-        return Err("--cup-estimator prior-region: the region is the prior's; give a --prior (default or a file)".into());
-    }
-    let (cal, _) = crate::common::calibration(
-        &calibration,
-        acetab::pipeline::CupCalibration::shipped(true, cup_estimator),
-        "realistic",
-        cup_estimator,
-    )?;
+    let (cal, _) =
+        crate::common::calibration(&calibration, true, cup_estimator, shape_prior.is_some())?;
     let model_sd_mm = cal.model_sd_mm;
     crate::common::check_out(&out, force)?;
     let catalogue = CupCatalogue::parse(&catalogue).map_err(|e| format!("--catalogue: {e}"))?;

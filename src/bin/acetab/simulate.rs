@@ -189,33 +189,21 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
     // The prior is checked before any run (with --prior-leave-out, each mesh's own is made
     // when its study starts).
     let (shape_prior, prior_from) = crate::prior::choose(&prior, None)?;
-    if cup_estimator == acetab::pipeline::CupEstimator::PriorRegion && shape_prior.is_none() {
-        return Err("--cup-estimator prior-region: the region is the prior's; give a --prior (default or a file)".into());
-    }
     if prior_leave_out && shape_prior.is_none() {
         return Err("--prior-leave-out needs a prior (--prior default or a file)".into());
     }
-    let (cal, calibration) = if calibrate_loso.is_some() {
-        // Each mesh's own is learned when its study starts.
-        (
-            acetab::pipeline::CupCalibration::none(cup_estimator),
-            String::new(),
-        )
+    let realistic_protocol = protocol == ProtocolArg::Realistic;
+    let (shipped_or_file, calibration) = crate::common::calibration(
+        &calibration,
+        realistic_protocol,
+        cup_estimator,
+        shape_prior.is_some(),
+    )?;
+    // With --calibrate-loso each mesh's own is learned when its study starts.
+    let cal = if calibrate_loso.is_some() {
+        acetab::pipeline::CupCalibration::none(cup_estimator)
     } else {
-        let realistic = protocol == ProtocolArg::Realistic;
-        crate::common::calibration(
-            &calibration,
-            acetab::pipeline::CupCalibration::shipped(realistic, cup_estimator),
-            &format!(
-                "{}{}",
-                if realistic { "realistic" } else { "ideal" },
-                match cup_estimator {
-                    acetab::pipeline::CupEstimator::ObservedPart => "",
-                    acetab::pipeline::CupEstimator::PriorRegion => " prior-region",
-                }
-            ),
-            cup_estimator,
-        )?
+        shipped_or_file
     };
     let model_sd_mm = cal.model_sd_mm;
     if realistic.is_some() && protocol != ProtocolArg::Realistic {
