@@ -615,6 +615,9 @@ fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
         serde_json::from_str(&std::fs::read_to_string(out.join("population.json")).unwrap())
             .unwrap();
     assert_eq!(json["meshes"], 2);
+    // One method, no baseline: the comparisons are there, and empty.
+    assert_eq!(json["comparison_tolerance"], 1.05);
+    assert_eq!(json["comparisons"].as_array().map(|a| a.len()), Some(0));
     assert!(out.join("population.png").is_file());
     // Resumed: nothing is run again.
     let o = run();

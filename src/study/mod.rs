@@ -4,6 +4,7 @@
 //! run can be repeated alone, and results do not depend on thread count or sharding.
 
 pub mod bench;
+pub mod compare;
 mod method;
 mod outputs;
 pub mod population;

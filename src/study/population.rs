@@ -1,9 +1,11 @@
 //! The population table: one study per acetabulum (a sweep), summarised per mesh and overall,
 //! per method and level: mean MAE, runs that failed or fell back, catastrophic runs (MAE over
 //! 3 mm, the cup more than 5 mm off, or no result), the cup within 1 mm and at the exact
-//! catalogue size; the worst mesh per method. Written as population.csv, population.json and
-//! (with the `plots` feature) population.png.
+//! catalogue size; the worst mesh per method; and srvf against its better baseline per mesh and
+//! level, paired run by run (`compare`). Written as population.csv, population.json and (with
+//! the `plots` feature) population.png.
 
+use super::compare::{compare, Comparison, TOLERANCE};
 use super::method::StudyMethod;
 use super::table::{Row, StudyError};
 use crate::io::write_atomic;
@@ -141,8 +143,17 @@ pub fn worst_meshes(rows: &[PopulationRow]) -> Vec<(StudyMethod, String, f64)> {
         .collect()
 }
 
-/// Write population.csv, population.json and then (with `plots`) population.png into `dir`: the
-/// rows, and the warning when the picture could not be drawn (the tables are written anyway).
+/// Every mesh's comparisons of srvf (and srvf-paper) with its better baseline, mesh by mesh.
+pub fn comparisons(meshes: &[(String, Vec<Row>)]) -> Vec<Comparison> {
+    meshes
+        .iter()
+        .flat_map(|(name, rows)| compare(name, rows))
+        .collect()
+}
+
+/// Write population.csv, population.json (with the comparisons) and then (with `plots`)
+/// population.png into `dir`: the rows, and the warning when the picture could not be drawn (the
+/// tables are written anyway).
 pub fn write_population(
     dir: &Path,
     meshes: &[(String, Vec<Row>)],
@@ -165,8 +176,10 @@ pub fn write_population(
         .map(|(m, n, v)| serde_json::json!({"method": m, "mesh": n, "mae_mean": v}))
         .collect();
     let p = dir.join("population.json");
-    let json =
-        serde_json::json!({"study": meta, "meshes": meshes.len(), "rows": rows, "worst": worst});
+    let json = serde_json::json!({
+        "study": meta, "meshes": meshes.len(), "rows": rows, "worst": worst,
+        "comparison_tolerance": TOLERANCE, "comparisons": comparisons(meshes),
+    });
     let text = serde_json::to_string_pretty(&json).map_err(|e| werr(&p, e.to_string()))?;
     write_atomic(&p, text.as_bytes()).map_err(|e| werr(&p, e.to_string()))?;
     #[allow(unused_mut)]
@@ -215,6 +228,38 @@ mod tests {
             error: String::new(),
             ..Row::failed(&t, "")
         }
+    }
+
+    #[test]
+    fn the_comparisons_are_every_meshs_own_and_skip_a_mesh_without_a_baseline() {
+        let at = |method, run, mae| Row {
+            run,
+            ..row(method, 5, mae, 50.0)
+        };
+        let a: Vec<Row> = (0..3)
+            .flat_map(|k| {
+                [
+                    at(StudyMethod::Srvf, k, 0.9 + 0.01 * k as f64),
+                    at(StudyMethod::IcpNormvec, k, 0.5 + 0.01 * k as f64),
+                ]
+            })
+            .collect();
+        let b: Vec<Row> = (0..3).map(|k| at(StudyMethod::Srvf, k, 0.4)).collect();
+        let c = comparisons(&[("a".into(), a), ("b".into(), b)]);
+        assert_eq!(c.len(), 1);
+        assert_eq!((c[0].mesh.as_str(), c[0].level, c[0].pairs), ("a", 5, 3));
+        assert_eq!(c[0].verdict, crate::study::compare::Verdict::Worse);
+        // Companion: the same runs with the roles swapped are not worse.
+        let swapped: Vec<Row> = (0..3)
+            .flat_map(|k| {
+                [
+                    at(StudyMethod::IcpNormvec, k, 0.9 + 0.01 * k as f64),
+                    at(StudyMethod::Srvf, k, 0.5 + 0.01 * k as f64),
+                ]
+            })
+            .collect();
+        let c = comparisons(&[("a".into(), swapped)]);
+        assert_eq!(c[0].verdict, crate::study::compare::Verdict::NotWorse);
     }
 
     #[test]

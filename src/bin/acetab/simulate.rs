@@ -11,7 +11,8 @@ use acetab::io::fill_dir_atomically;
 use acetab::pipeline::{DeformationParams, ReconParams, UncertaintyParams};
 use acetab::report::Provenance;
 use acetab::sim::{Protocol, RealisticErrors, SimSetup, XrayGeometry};
-use acetab::study::population::{worst_meshes, write_population};
+use acetab::study::compare::{Comparison, Verdict, TOLERANCE};
+use acetab::study::population::{comparisons, worst_meshes, write_population};
 use acetab::study::{read_csv, run_study, tasks, write_examples, write_tables, StudyConfig};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -448,6 +449,7 @@ fn sweep(
     for (m, mesh, mae) in worst_meshes(&rows) {
         println!("worst mesh for {}: {mesh} (mean MAE {mae:.3} mm)", m.name());
     }
+    print_comparisons(&comparisons(&tables));
     eprintln!(
         "{} meshes in {:.1} s; population table in {}",
         tables.len(),
@@ -642,4 +644,32 @@ pub enum DpChoice {
     Device,
     /// The device unless the adapter is a CPU.
     Auto,
+}
+
+/// Per method and level, how many meshes the paired comparison with the better baseline finds
+/// worse than the tolerance beyond the runs' spread (named), within it, and undecided.
+fn print_comparisons(all: &[Comparison]) {
+    let mut keys: Vec<_> = all.iter().map(|c| (c.method, c.level)).collect();
+    keys.sort();
+    keys.dedup();
+    for (method, level) in keys {
+        let here: Vec<&Comparison> = all
+            .iter()
+            .filter(|c| c.method == method && c.level == level)
+            .collect();
+        let count = |v| here.iter().filter(|c| c.verdict == v).count();
+        let worse: Vec<String> = here
+            .iter()
+            .filter(|c| c.verdict == Verdict::Worse)
+            .map(|c| format!("{} {:.2}x", c.mesh, c.ratio))
+            .collect();
+        println!(
+            "{} against the better baseline, level {level} (paired runs, {TOLERANCE}x): worse {}{}, not worse {}, undecided {}",
+            method.name(),
+            worse.len(),
+            if worse.is_empty() { String::new() } else { format!(" ({})", worse.join(", ")) },
+            count(Verdict::NotWorse),
+            count(Verdict::Undecided),
+        );
+    }
 }
