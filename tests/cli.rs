@@ -1295,3 +1295,55 @@ fn a_study_records_its_correspondence_schedule_and_runs_it() {
     // The companion: the five-round study is told apart from the default by the same column.
     assert!(!r5.is_empty() && r5.iter().all(|&r| r == 5), "{r5:?}");
 }
+
+/// A single study with srvf and a baseline compares them run by run in summary.json and on
+/// stdout; a study of srvf alone has nothing to compare.
+#[test]
+fn a_study_compares_srvf_with_its_baseline_run_by_run() {
+    let dir = tmp("compare");
+    let study = |methods: &str, out: &str| {
+        bin()
+            .args([
+                "simulate", "--gt", "phantom", "--levels", "1", "--runs", "2",
+            ])
+            .args(["--methods", methods, "--threads", "1"])
+            .args(["--uncertainty-samples", "0", "--out"])
+            .arg(dir.join(out))
+            .output()
+            .unwrap()
+    };
+    let o = study("srvf,icp-normvec", "both");
+    let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("both/summary.json")).unwrap())
+            .unwrap();
+    let c = &json["comparisons"];
+    assert_eq!(c.as_array().map(|a| a.len()), Some(1), "{c}");
+    assert_eq!(
+        (&c[0]["mesh"], &c[0]["baseline"], &c[0]["pairs"]),
+        (
+            &serde_json::json!("phantom"),
+            &serde_json::json!("icp-normvec"),
+            &serde_json::json!(2)
+        ),
+        "{c}"
+    );
+    let ratio = c[0]["method_mae"].as_f64().unwrap() / c[0]["baseline_mae"].as_f64().unwrap();
+    assert!(
+        (c[0]["ratio"].as_f64().unwrap() - ratio).abs() < 1e-12,
+        "{c}"
+    );
+    assert!(
+        stdout.contains("srvf against icp-normvec, level 1 (2 paired runs)"),
+        "{stdout}"
+    );
+    // Companion: srvf alone is compared with nothing.
+    let o = study("srvf", "alone");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!String::from_utf8_lossy(&o.stdout).contains(" against "));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("alone/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["comparisons"].as_array().map(|a| a.len()), Some(0));
+}

@@ -1,6 +1,8 @@
-//! Writing a study's folder: runs.csv, summary.json, errors.png, and one example run per method
-//! (the reconstruction coloured by error and one overlay per view).
+//! Writing a study's folder: runs.csv, summary.json (with srvf's paired comparison against its
+//! better baseline), errors.png, and one example run per method (the reconstruction coloured by
+//! error and one overlay per view).
 
+use super::compare::{compare, TOLERANCE};
 use super::runner::ExampleRun;
 use super::table::{summarize, write_csv, Row, StudyError};
 use crate::geom::Mesh;
@@ -24,7 +26,17 @@ pub fn write_tables(
     };
     write_csv(rows, &dir.join("runs.csv"))?;
     let summary = summarize(rows);
-    let json = serde_json::json!({ "study": meta, "summary": summary });
+    // The study's mesh as the comparisons name it: the ground truth's file stem.
+    let mesh = meta["gt"].as_str().map_or("", |g| {
+        Path::new(g)
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or(g)
+    });
+    let json = serde_json::json!({
+        "study": meta, "summary": summary,
+        "comparison_tolerance": TOLERANCE, "comparisons": compare(mesh, rows),
+    });
     let p = dir.join("summary.json");
     let text = serde_json::to_string_pretty(&json).map_err(|e| werr(&p, e.to_string()))?;
     write_atomic(&p, text.as_bytes()).map_err(|source| StudyError::Write {

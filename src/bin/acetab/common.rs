@@ -362,8 +362,36 @@ pub fn print_summary_as(rows: &[acetab::study::Row], json: bool) -> Result<(), S
     Ok(())
 }
 
-/// The study's summary as a table on stdout.
+/// The study's summary as a table on stdout, then srvf against its better baseline per level.
 pub fn print_summary(rows: &[acetab::study::Row]) {
+    print_table(rows);
+    for c in acetab::study::compare::compare("", rows) {
+        let [lo, hi] = c.difference_ci95_mm;
+        println!(
+            "{} against {}, level {} ({} paired runs): {:.2}x, difference {:+.3} mm (95 %: {:+.3} to {:+.3}): {}",
+            c.method.name(),
+            c.baseline.name(),
+            c.level,
+            c.pairs,
+            c.ratio,
+            c.difference_mm,
+            lo,
+            hi,
+            match c.verdict {
+                acetab::study::compare::Verdict::Worse => {
+                    format!("worse than {}x the baseline", acetab::study::compare::TOLERANCE)
+                }
+                acetab::study::compare::Verdict::NotWorse => {
+                    format!("within {}x the baseline", acetab::study::compare::TOLERANCE)
+                }
+                acetab::study::compare::Verdict::Undecided => "undecided with these runs".into(),
+            }
+        );
+    }
+}
+
+/// The summary table alone.
+fn print_table(rows: &[acetab::study::Row]) {
     println!(
         "{:<17} {:>5} {:>5} {:>6} {:>9} {:>8} {:>9} {:>9} {:>11} {:>9} {:>9} {:>9} {:>9} {:>9} {:>6}",
         "method",
