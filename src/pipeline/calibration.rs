@@ -114,33 +114,34 @@ pub const REALISTIC_JSON: &str = include_str!("../../calibration/realistic.json"
 impl CupCalibration {
     /// The shipped calibration for studies under the ideal protocol.
     pub fn shipped_ideal() -> CupCalibration {
-        Self::parse(IDEAL_JSON, Path::new("calibration/ideal.json"))
-            .expect("the shipped calibration is valid (tested)")
+        Self::embedded(IDEAL_JSON, "calibration/ideal.json")
     }
 
     /// The shipped calibration for studies under the ideal protocol with the prior-region cup.
     pub fn shipped_ideal_prior_region() -> CupCalibration {
-        Self::parse(
+        Self::embedded(
             IDEAL_PRIOR_REGION_JSON,
-            Path::new("calibration/ideal-prior-region.json"),
+            "calibration/ideal-prior-region.json",
         )
-        .expect("the shipped calibration is valid (tested)")
     }
 
     /// The shipped calibration for the realistic protocol and patients' X-rays with the
     /// prior-region cup.
     pub fn shipped_realistic_prior_region() -> CupCalibration {
-        Self::parse(
+        Self::embedded(
             REALISTIC_PRIOR_REGION_JSON,
-            Path::new("calibration/realistic-prior-region.json"),
+            "calibration/realistic-prior-region.json",
         )
-        .expect("the shipped calibration is valid (tested)")
     }
 
     /// The shipped calibration for the realistic protocol and patients' X-rays.
     pub fn shipped_realistic() -> CupCalibration {
-        Self::parse(REALISTIC_JSON, Path::new("calibration/realistic.json"))
-            .expect("the shipped calibration is valid (tested)")
+        Self::embedded(REALISTIC_JSON, "calibration/realistic.json")
+    }
+
+    /// A calibration built into the program (`json`, the repository's file `path`).
+    fn embedded(json: &str, path: &str) -> CupCalibration {
+        Self::parse(json, Path::new(path)).expect("the shipped calibration is valid (tested)")
     }
 
     /// No calibration: no model error, no bias, for `estimator`.

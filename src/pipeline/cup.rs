@@ -68,13 +68,17 @@ pub fn observed_part_sphere(mesh: &Mesh, obs: &[Observation]) -> Option<Sphere> 
         .collect();
     ids.sort_unstable();
     ids.dedup();
-    if ids.len() < MIN_SPHERE_VERTICES {
+    let pts: Vec<Point3<f64>> = ids.iter().map(|&v| mesh.vertices[v as usize]).collect();
+    part_sphere(&pts)
+}
+
+/// The robust sphere of a part's vertices `pts`; None when fewer than `MIN_SPHERE_VERTICES` or
+/// the fit fails.
+fn part_sphere(pts: &[Point3<f64>]) -> Option<Sphere> {
+    if pts.len() < MIN_SPHERE_VERTICES {
         return None;
     }
-    let pts: Vec<Point3<f64>> = ids.iter().map(|&v| mesh.vertices[v as usize]).collect();
-    fit_sphere_robust(&pts)
-        .ok()
-        .filter(|s| s.radius.is_finite())
+    fit_sphere_robust(pts).ok().filter(|s| s.radius.is_finite())
 }
 
 /// Share of the training acetabula that must reach a direction for `prior_region_sphere` to
@@ -102,12 +106,7 @@ pub fn prior_region_sphere(
         })
         .copied()
         .collect();
-    if pts.len() < MIN_SPHERE_VERTICES {
-        return None;
-    }
-    fit_sphere_robust(&pts)
-        .ok()
-        .filter(|s| s.radius.is_finite())
+    part_sphere(&pts)
 }
 
 #[cfg(test)]

@@ -24,6 +24,17 @@ pub enum Verdict {
     Undecided,
 }
 
+impl Verdict {
+    /// In words, for a line about one comparison.
+    pub fn describe(self) -> String {
+        match self {
+            Verdict::Worse => format!("worse than {TOLERANCE}x the baseline"),
+            Verdict::NotWorse => format!("within {TOLERANCE}x the baseline"),
+            Verdict::Undecided => "undecided with these runs".into(),
+        }
+    }
+}
+
 /// One mesh and level: a method against its better baseline over the runs both finished.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Comparison {

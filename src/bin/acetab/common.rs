@@ -377,15 +377,7 @@ pub fn print_summary(rows: &[acetab::study::Row]) {
             c.difference_mm,
             lo,
             hi,
-            match c.verdict {
-                acetab::study::compare::Verdict::Worse => {
-                    format!("worse than {}x the baseline", acetab::study::compare::TOLERANCE)
-                }
-                acetab::study::compare::Verdict::NotWorse => {
-                    format!("within {}x the baseline", acetab::study::compare::TOLERANCE)
-                }
-                acetab::study::compare::Verdict::Undecided => "undecided with these runs".into(),
-            }
+            c.verdict.describe()
         );
     }
 }
