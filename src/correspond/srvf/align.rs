@@ -120,8 +120,11 @@ pub enum SrvfError {
         /// Its points.
         count: usize,
     },
-    /// A curve whose points all coincide.
-    #[error("curve {curve} has zero length (all points coincide)")]
+    /// A curve whose points all coincide, or lie within 1e-12 units of each other.
+    #[error(
+        "curve {curve} has zero length: its points coincide or lie within 1e-12 units of each other \
+         (rescale the coordinates)"
+    )]
     ZeroLength {
         /// Which curve.
         curve: &'static str,

@@ -387,5 +387,21 @@ mod tests {
             .collect();
         let al = align_closed(&big, &square, &p, false).unwrap();
         assert!(al.distance < 0.05, "{}", al.distance);
+        // Distinct points all within 1e-12 units of each other have no measurable length, and
+        // the error says so instead of calling them one point.
+        let speck: Vec<_> = huge
+            .iter()
+            .map(|q| Point2::from(q.coords * 1e-322))
+            .collect();
+        assert!(speck.windows(2).all(|w| w[0] != w[1]));
+        let e = align_closed(&ok, &speck, &p, false).unwrap_err();
+        assert_eq!(e, SrvfError::ZeroLength { curve: "B" });
+        assert!(e.to_string().contains("within 1e-12"), "{e}");
+        // Companion: the same square at 1e-3 units is measured.
+        let small: Vec<_> = huge
+            .iter()
+            .map(|q| Point2::from(q.coords * 1e-311))
+            .collect();
+        assert!(align_closed(&small, &square, &p, false).is_ok());
     }
 }
