@@ -86,12 +86,11 @@ pub fn t975(dof: usize) -> f64 {
 /// Mean and 95 % half-width (paired t) of `d`; the half-width NaN with fewer than two values.
 fn mean_ci(d: &[f64]) -> (f64, f64) {
     let n = d.len();
-    let mean = crate::geom::mean(d);
+    let (mean, sd) = crate::geom::mean_sd(d, true);
     if n < 2 {
         return (mean, f64::NAN);
     }
-    let var = d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
-    (mean, t975(n - 1) * (var / n as f64).sqrt())
+    (mean, t975(n - 1) * sd / (n as f64).sqrt())
 }
 
 /// The baselines a method is held against: the nearest-point methods of the same protocol.
@@ -133,20 +132,20 @@ pub fn compare(mesh: &str, rows: &[Row]) -> Vec<Comparison> {
             continue;
         };
         for &level in &levels {
+            // Each baseline with its pairs and its mean MAE over them; the lower mean is held.
             let best = bases
                 .into_iter()
                 .map(|b| (b, paired(rows, method, b, level)))
                 .filter(|(_, p)| !p.is_empty())
-                .min_by(|x, y| {
-                    let mean =
-                        |p: &[(f64, f64)]| p.iter().map(|q| q.1).sum::<f64>() / p.len() as f64;
-                    mean(&x.1).total_cmp(&mean(&y.1))
-                });
-            let Some((baseline, pairs)) = best else {
+                .map(|(b, p)| {
+                    let bm = crate::geom::mean(&p.iter().map(|q| q.1).collect::<Vec<f64>>());
+                    (b, p, bm)
+                })
+                .min_by(|x, y| x.2.total_cmp(&y.2));
+            let Some((baseline, pairs, bm)) = best else {
                 continue;
             };
             let m: Vec<f64> = pairs.iter().map(|p| p.0).collect();
-            let b: Vec<f64> = pairs.iter().map(|p| p.1).collect();
             let diff: Vec<f64> = pairs.iter().map(|p| p.0 - p.1).collect();
             let over: Vec<f64> = pairs.iter().map(|p| p.0 - TOLERANCE * p.1).collect();
             let (d, half) = mean_ci(&diff);
@@ -160,7 +159,7 @@ pub fn compare(mesh: &str, rows: &[Row]) -> Vec<Comparison> {
             } else {
                 Verdict::Undecided
             };
-            let (mm, bm) = (crate::geom::mean(&m), crate::geom::mean(&b));
+            let mm = crate::geom::mean(&m);
             out.push(Comparison {
                 mesh: mesh.to_string(),
                 level,

@@ -3,6 +3,7 @@
 //! error and one overlay per view).
 
 use super::compare::{compare, TOLERANCE};
+use super::population::mesh_name;
 use super::runner::ExampleRun;
 use super::table::{summarize, write_csv, Row, StudyError};
 use crate::geom::Mesh;
@@ -26,16 +27,14 @@ pub fn write_tables(
     };
     write_csv(rows, &dir.join("runs.csv"))?;
     let summary = summarize(rows);
-    // The study's mesh as the comparisons name it: the ground truth's file stem.
-    let mesh = meta["gt"].as_str().map_or("", |g| {
-        Path::new(g)
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .unwrap_or(g)
-    });
+    // The study's mesh as a sweep names it.
+    let mesh = meta["gt"]
+        .as_str()
+        .map(|g| mesh_name(Path::new(g)))
+        .unwrap_or_default();
     let json = serde_json::json!({
         "study": meta, "summary": summary,
-        "comparison_tolerance": TOLERANCE, "comparisons": compare(mesh, rows),
+        "comparison_tolerance": TOLERANCE, "comparisons": compare(&mesh, rows),
     });
     let p = dir.join("summary.json");
     let text = serde_json::to_string_pretty(&json).map_err(|e| werr(&p, e.to_string()))?;

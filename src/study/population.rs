@@ -143,6 +143,18 @@ pub fn worst_meshes(rows: &[PopulationRow]) -> Vec<(StudyMethod, String, f64)> {
         .collect()
 }
 
+/// A mesh's name in a sweep, its comparisons and its folder: the file name without the
+/// extension and the LibHip "_ac_wo_gap" suffix.
+pub fn mesh_name(path: &Path) -> String {
+    path.file_stem()
+        .map(|s| {
+            s.to_string_lossy()
+                .trim_end_matches("_ac_wo_gap")
+                .to_string()
+        })
+        .unwrap_or_default()
+}
+
 /// Every mesh's comparisons of srvf (and srvf-paper) with its better baseline, mesh by mesh.
 pub fn comparisons(meshes: &[(String, Vec<Row>)]) -> Vec<Comparison> {
     meshes
@@ -228,6 +240,15 @@ mod tests {
             error: String::new(),
             ..Row::failed(&t, "")
         }
+    }
+
+    #[test]
+    fn a_mesh_is_named_by_its_file_without_the_libhip_suffix() {
+        assert_eq!(mesh_name(Path::new("d/m1_lhip_ac_wo_gap.stl")), "m1_lhip");
+        assert_eq!(mesh_name(Path::new("d/a02_lhip.stl")), "a02_lhip");
+        assert_eq!(mesh_name(Path::new("phantom")), "phantom");
+        // Companion: the suffix only counts at the end of the name.
+        assert_eq!(mesh_name(Path::new("x_ac_wo_gap_y.stl")), "x_ac_wo_gap_y");
     }
 
     #[test]

@@ -126,17 +126,6 @@ pub fn mesh_files<P: AsRef<Path>>(
     Ok(out)
 }
 
-/// A mesh's name: its file name without the extension and the LibHip "_ac_wo_gap" suffix.
-pub fn mesh_name(path: &Path) -> String {
-    path.file_stem()
-        .map(|s| {
-            s.to_string_lossy()
-                .trim_end_matches("_ac_wo_gap")
-                .to_string()
-        })
-        .unwrap_or_default()
-}
-
 /// `--threads` if given (clap checks 1 to `MAX_THREADS`), or every core.
 pub fn threads_or_all(threads: Option<usize>) -> usize {
     threads.unwrap_or_else(|| {

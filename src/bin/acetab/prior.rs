@@ -1,9 +1,10 @@
 //! `acetab prior build`: learn the population shape prior from acetabula whose surfaces are
 //! known (see `acetab::prior`); `--prior` on demo, simulate and reconstruct uses it.
 
-use crate::common::{io_msg, load_truth, mesh_files, mesh_name};
+use crate::common::{io_msg, load_truth, mesh_files};
 use acetab::io::write_atomic;
 use acetab::prior::{PriorFile, PriorMesh, DEFAULT_MODES, MAX_MODES};
+use acetab::study::population::mesh_name;
 use std::path::PathBuf;
 use std::sync::Arc;
 

@@ -1,7 +1,7 @@
 //! `acetab simulate`: the simulation study, levels x runs x methods on a ground-truth surface.
 
 use crate::common::{
-    count_in, engine_on, io_msg, levels, load_truth, mesh_files, mesh_name, methods, open_device,
+    count_in, engine_on, io_msg, levels, load_truth, mesh_files, methods, open_device,
     print_summary_as, shard, threads_or_all, views, Levels, Methods, Views, MAX_RUNS, MAX_THREADS,
 };
 use acetab::contours::ContourSource;
@@ -12,7 +12,7 @@ use acetab::pipeline::{DeformationParams, ReconParams, UncertaintyParams};
 use acetab::report::Provenance;
 use acetab::sim::{Protocol, RealisticErrors, SimSetup, XrayGeometry};
 use acetab::study::compare::{Comparison, Verdict, TOLERANCE};
-use acetab::study::population::{comparisons, worst_meshes, write_population};
+use acetab::study::population::{comparisons, mesh_name, worst_meshes, write_population};
 use acetab::study::{read_csv, run_study, tasks, write_examples, write_tables, StudyConfig};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
