@@ -210,6 +210,10 @@ fn field_err(
 /// Largest coordinate magnitude accepted anywhere (mm or px): beyond it the input is absurd.
 const ABSURD: f64 = 1e7;
 
+/// The least angle, degrees, between the viewing directions of some two views of a case: below
+/// it the views see the same outline and the depth of the cap is not determined.
+const MIN_VIEW_SPREAD_DEG: f64 = 2.0;
+
 /// A view's image as the case names it: where it is, its size, and its DICOM geometry.
 struct ViewImage {
     path: PathBuf,
@@ -511,6 +515,20 @@ impl CaseFile {
                     format!("the template centre is not in front of the source: {e}"),
                 ));
             }
+            // The whole template sphere must lie in front of the source, or some of its
+            // vertices cannot be projected.
+            let depth = cam.to_camera(&case.init.center).z;
+            if depth <= 1.5 * case.init.radius {
+                return Err(field_err(
+                    path,
+                    f("t"),
+                    format!("{:?}", v.t),
+                    format!(
+                        "the template (radius {:.1} mm) reaches to or behind the source: its centre is {depth:.1} mm in front of it",
+                        case.init.radius
+                    ),
+                ));
+            }
             if v.contours.is_empty() {
                 return Err(field_err(
                     path,
@@ -615,6 +633,29 @@ impl CaseFile {
             case.observed.push(curves);
             case.images.push(image.map(|i| i.path));
             case.names.push(name);
+        }
+        // Depth comes from views that look along different directions: views that all look
+        // the same way give the same outline, and the cap's distance along the ray is free.
+        let directions: Vec<Vector3<f64>> = case
+            .cameras
+            .iter()
+            .map(|c| c.r.inverse() * Vector3::z())
+            .collect();
+        let widest = directions
+            .iter()
+            .enumerate()
+            .flat_map(|(i, a)| directions[i + 1..].iter().map(move |b| a.angle(b)))
+            .fold(0.0_f64, f64::max)
+            .to_degrees();
+        if widest < MIN_VIEW_SPREAD_DEG {
+            return Err(field_err(
+                path,
+                "views[*].r".to_string(),
+                format!("{} views, at most {widest:.2} degrees apart", case.cameras.len()),
+                format!(
+                    "the views look along the same direction (at least two must differ by {MIN_VIEW_SPREAD_DEG} degrees or more; the paper's differ by 20)"
+                ),
+            ));
         }
         Ok(case)
     }

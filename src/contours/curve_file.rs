@@ -28,13 +28,24 @@ pub enum CurveFileError {
         text: String,
     },
     /// Fewer than three points.
-    #[error("{path}: {count} points; a curve needs at least 3")]
+    #[error("{path}: {count} points; a curve needs at least 3{}", skipped_note(*.skipped))]
     TooFew {
         /// The file.
         path: PathBuf,
         /// Its points.
         count: usize,
+        /// Lines before the first point read as a header (no field a number).
+        skipped: usize,
     },
+}
+
+/// How many leading lines were taken for a header, when any were.
+fn skipped_note(skipped: usize) -> String {
+    match skipped {
+        0 => String::new(),
+        1 => " (its first line has no number and was read as a header)".into(),
+        n => format!(" ({n} lines without a number were read as a header)"),
+    }
 }
 
 /// Read x,y points. The first line may be a header (any line whose fields are not numbers).
@@ -44,6 +55,7 @@ pub fn read_curve_csv(path: &Path) -> Result<Vec<Point2<f64>>, CurveFileError> {
         source,
     })?;
     let mut pts = Vec::new();
+    let mut skipped = 0;
     for (i, line) in text.lines().enumerate() {
         let t = line.trim();
         if t.is_empty() {
@@ -62,7 +74,8 @@ pub fn read_curve_csv(path: &Path) -> Result<Vec<Point2<f64>>, CurveFileError> {
         let nums: Result<Vec<f64>, _> = f.iter().map(|x| x.parse::<f64>()).collect();
         match nums {
             Err(_) if i == 0 || pts.is_empty() && f.iter().all(|x| x.parse::<f64>().is_err()) => {
-                continue
+                skipped += 1;
+                continue;
             } // header
             Err(_) => return Err(err("not a number")),
             Ok(v) if v.len() != 2 => return Err(err("expected two values x,y")),
@@ -74,6 +87,7 @@ pub fn read_curve_csv(path: &Path) -> Result<Vec<Point2<f64>>, CurveFileError> {
         return Err(CurveFileError::TooFew {
             path: path.to_path_buf(),
             count: pts.len(),
+            skipped,
         });
     }
     Ok(pts)
@@ -110,5 +124,12 @@ mod tests {
             read_curve_csv(&p),
             Err(CurveFileError::TooFew { count: 1, .. })
         ));
+        // Lines of words only: said to have been read as a header, not silently empty.
+        std::fs::write(&p, "a,b\nc,d\n").unwrap();
+        let e = read_curve_csv(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("0 points") && e.contains("2 lines without a number"),
+            "{e}"
+        );
     }
 }

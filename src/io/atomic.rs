@@ -42,9 +42,36 @@ pub fn out_in_use(out: &Path) -> bool {
     }
 }
 
+/// Whether an output folder `out` can be made and written, asked before the work that fills it
+/// (so that a long run does not end in "cannot write"): the nearest folder above it that exists
+/// (or `out` itself) must be a folder this process can make a file in. Nothing is left behind.
+pub fn check_writable(out: &Path) -> std::io::Result<()> {
+    let mut at = out;
+    let existing = loop {
+        if at.exists() {
+            break at;
+        }
+        match at.parent().filter(|p| !p.as_os_str().is_empty()) {
+            Some(up) => at = up,
+            None => break Path::new("."),
+        }
+    };
+    if !existing.is_dir() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::NotADirectory,
+            format!("{} is not a folder", existing.display()),
+        ));
+    }
+    tempfile::Builder::new()
+        .prefix(".acetab-write-check-")
+        .tempfile_in(existing)
+        .map(drop)
+}
+
 /// Fill an output folder all at once: `fill` writes into a staging folder beside `out`
 /// (tempfile, removed whatever happens); only when it succeeds are its entries moved into `out`
-/// (created if needed, same-named entries replaced). On failure `out` is left as it was.
+/// (created if needed, with the folders above it, same-named entries replaced). On failure `out`
+/// is left as it was (folders made above it stay).
 pub fn fill_dir_atomically<E>(
     out: &Path,
     fill: impl FnOnce(&Path) -> Result<(), E>,
@@ -55,6 +82,7 @@ pub fn fill_dir_atomically<E>(
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "out".into());
+    std::fs::create_dir_all(parent).map_err(|e| io_err(parent, e))?;
     let stage = tempfile::Builder::new()
         .prefix(&format!(".{name}.partial-"))
         .tempdir_in(parent)
@@ -116,6 +144,30 @@ mod tests {
             1,
             "only out remains"
         );
+    }
+
+    #[test]
+    fn an_output_below_missing_folders_is_made_and_one_below_a_file_is_refused_early() {
+        let tmp = tempfile::tempdir().unwrap();
+        let root = tmp.path();
+        let out = root.join("a/b/out");
+        check_writable(&out).unwrap();
+        assert_eq!(
+            std::fs::read_dir(root).unwrap().count(),
+            0,
+            "the check leaves nothing"
+        );
+        let r: Result<(), String> = fill_dir_atomically(
+            &out,
+            |d| std::fs::write(d.join("x.csv"), b"x").map_err(|e| e.to_string()),
+            |p, e| format!("{}: {e}", p.display()),
+        );
+        r.unwrap();
+        assert!(out.join("x.csv").is_file());
+        // The companion: below a file nothing can be made, and the check says so.
+        std::fs::write(root.join("file"), b"f").unwrap();
+        let e = check_writable(&root.join("file/out")).unwrap_err();
+        assert!(e.to_string().contains("is not a folder"), "{e}");
     }
 
     #[test]

@@ -151,7 +151,15 @@ fn read_ply(path: &Path) -> Result<RawMesh, MeshIoError> {
     })?;
     let mut r = std::io::BufReader::new(f);
     let parser = ply_rs::parser::Parser::<ply_rs::ply::DefaultElement>::new();
-    let ply = parser.read_ply(&mut r).map_err(|e| parse(e.to_string()))?;
+    // ply-rs's messages run over several lines; an error is one line.
+    let ply = parser.read_ply(&mut r).map_err(|e| {
+        parse(
+            e.to_string()
+                .split_whitespace()
+                .collect::<Vec<_>>()
+                .join(" "),
+        )
+    })?;
     let scalar = |p: Option<&Property>, name: &str, i: usize| -> Result<f64, MeshIoError> {
         match p {
             Some(Property::Float(v)) => Ok(*v as f64),
@@ -425,6 +433,16 @@ mod tests {
         .unwrap();
         let e = read_mesh(&p).unwrap_err().to_string();
         assert!(e.contains("broken.ply"), "{e}");
+        // A truncated element list: ply-rs's several-line message comes out on one line.
+        let p = d.join("short.ply");
+        std::fs::write(
+            &p,
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+             property float z\nend_header\n0 0 0\n1 0 0\n",
+        )
+        .unwrap();
+        let e = read_mesh(&p).unwrap_err().to_string();
+        assert!(e.contains("short.ply") && !e.contains('\n'), "{e:?}");
         let e = read_mesh(&d.join("nothing.stl")).unwrap_err().to_string();
         assert!(e.contains("nothing.stl"), "{e}");
         let e = read_mesh(&d.join("x.xyz")).unwrap_err().to_string();

@@ -5,7 +5,7 @@ mod atomic;
 mod dicom;
 mod mesh_file;
 
-pub use atomic::{fill_dir_atomically, out_in_use, write_atomic};
+pub use atomic::{check_writable, fill_dir_atomically, out_in_use, write_atomic};
 pub use dicom::{
     is_dicom, read_dicom_geometry, read_dicom_image, write_dicom_xray, DicomError, DicomGeometry,
     DicomXray, SpacingTag,

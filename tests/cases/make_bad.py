@@ -64,6 +64,8 @@ case("negative_focal_length.json", "views[2].k.fy", setv(["views", 2, "k", "fy"]
 case("non_orthonormal_rotation.json", "not orthonormal", lambda d: d["views"][1].__setitem__("r", [[1.1 * x for x in row] for row in d["views"][1]["r"]]))
 case("reflecting_rotation.json", "reflection", lambda d: d["views"][0].__setitem__("r", [[-x for x in row] for row in d["views"][0]["r"]]))
 case("model_behind_camera.json", "not in front of the source", setv(["views", 0, "t", 2], -5000))
+case("source_inside_template.json", "reaches to or behind the source", setv(["views", 0, "t", 2], 20))
+case("views_all_alike.json", "look along the same direction", lambda d: d.__setitem__("views", [copy.deepcopy(d["views"][0]) for _ in range(3)]))
 case("contour_outside_image.json", "outside the 2048x2048 image", setv(["views", 1, "contours", 0, "points", 3], [90000, 90000]))
 case("no_contours.json", "at least one contour", setv(["views", 2, "contours"], []))
 case("one_point_contour.json", "at least 4 distinct points", setv(["views", 0, "contours", 0, "points"], [[1000, 1000]]))
@@ -95,8 +97,10 @@ open(os.path.join(out, "degenerate.obj"), "w").write("v 0 0 0\nv 1 1 1\nv 2 2 2\
 open(os.path.join(out, "nan_vertex.obj"), "w").write("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n")
 open(os.path.join(out, "no_faces.obj"), "w").write("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
 open(os.path.join(out, "truncated.ply"), "w").write("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n")
+open(os.path.join(out, "short_vertex_list.ply"), "w").write("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n")
 for name in ["empty.stl", "degenerate.obj", "nan_vertex.obj", "no_faces.obj", "truncated.ply"]:
     rows.append((name, "simulate", ""))
+rows.append(("short_vertex_list.ply", "simulate", "not a valid PLY file"))
 # Valid meshes no study can use: a flat grid (no sphere fits it) and a tetrahedron with corners
 # 1e38 mm out (its sphere is no acetabulum's: units?). Refused up front, before any run.
 grid = [f"v {i} {j} 0" for i in range(6) for j in range(6)]

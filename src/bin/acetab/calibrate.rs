@@ -1,7 +1,6 @@
 //! `acetab calibrate`: learn the cup estimator's bias and the cup uncertainty's model-error SD
 //! from studies whose truths are known (see `acetab::pipeline::CupCalibration`).
 
-use acetab::io::write_atomic;
 use acetab::pipeline::{CupCalibration, CupEstimator};
 use acetab::study::{read_csv, StudyMethod};
 use std::path::{Path, PathBuf};
@@ -180,6 +179,7 @@ pub fn learn(
 }
 
 pub fn run(args: CalibrateArgs) -> Result<(), String> {
+    crate::common::check_out_file(&args.out)?;
     let cal = learn(
         &args.study,
         &args.leave_out,
@@ -187,8 +187,7 @@ pub fn run(args: CalibrateArgs) -> Result<(), String> {
         args.no_bias,
         args.note.as_deref(),
     )?;
-    write_atomic(&args.out, cal.to_json().as_bytes())
-        .map_err(|e| format!("--out {}: {e}", args.out.display()))?;
+    crate::common::write_out_file(&args.out, cal.to_json().as_bytes())?;
     println!(
         "{} cup: bias {:+.3} mm, model-error SD {:.3} mm from {} runs (training coverage {:.1} %); written to {}",
         cal.estimator,

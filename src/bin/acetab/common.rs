@@ -24,9 +24,12 @@ pub fn open_device(choice: BackendChoice) -> Result<Option<GpuDevice>, String> {
     }
 }
 
-/// `--out` must be new or empty: a reused folder would mix an earlier result's files with this
-/// one's. `force` lets it be reused (same-named files are replaced, others stay).
+/// `--out` must be writable (checked before the work) and new or empty: a reused folder would
+/// mix an earlier result's files with this one's. `force` lets it be reused (same-named files
+/// are replaced, others stay).
 pub fn check_out(out: &Path, force: bool) -> Result<(), String> {
+    acetab::io::check_writable(out)
+        .map_err(|e| format!("--out {}: cannot be written: {e}", out.display()))?;
     if force {
         return Ok(());
     }
@@ -38,6 +41,25 @@ pub fn check_out(out: &Path, force: bool) -> Result<(), String> {
         ));
     }
     Ok(())
+}
+
+/// A one-file `--out` (a prior, a calibration): the folder it goes in must be one this process
+/// can make (checked before the work, so that a long build does not end in "cannot write").
+pub fn check_out_file(out: &Path) -> Result<(), String> {
+    let folder = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    acetab::io::check_writable(folder)
+        .map_err(|e| format!("--out {}: cannot be written: {e}", out.display()))
+}
+
+/// Write a one-file `--out` atomically, making the folders above it that are missing.
+pub fn write_out_file(out: &Path, bytes: &[u8]) -> Result<(), String> {
+    if let Some(folder) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(folder).map_err(|e| io_msg(folder, e))?;
+    }
+    acetab::io::write_atomic(out, bytes).map_err(|e| io_msg(out, e))
 }
 
 /// `msg` with the hidden staging folder of `out` (`fill_dir_atomically`'s `.NAME.partial-XXXX`

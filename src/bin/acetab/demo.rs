@@ -51,6 +51,8 @@ pub fn run(args: DemoArgs) -> Result<(), String> {
         out,
         prior,
     } = args;
+    acetab::io::check_writable(&out)
+        .map_err(|e| format!("--out {}: cannot be written: {e}", out.display()))?;
     let (shape_prior, _) = crate::prior::choose(&prior, None)?;
     let mut prm = ReconParams {
         method,

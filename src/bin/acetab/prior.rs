@@ -1,8 +1,7 @@
 //! `acetab prior build`: learn the population shape prior from acetabula whose surfaces are
 //! known (see `acetab::prior`); `--prior` on demo, simulate and reconstruct uses it.
 
-use crate::common::{io_msg, load_truth, mesh_files};
-use acetab::io::write_atomic;
+use crate::common::mesh_files;
 use acetab::prior::{PriorFile, PriorMesh, DEFAULT_MODES, MAX_MODES};
 use acetab::study::population::mesh_name;
 use std::path::PathBuf;
@@ -45,10 +44,18 @@ pub fn run(args: PriorArgs) -> Result<(), String> {
 }
 
 fn build(args: BuildArgs) -> Result<(), String> {
+    crate::common::check_out_file(&args.out)?;
     let files = mesh_files(&args.meshes, "")?;
     let mut meshes = Vec::new();
     for f in &files {
-        let truth = load_truth(&f.to_string_lossy())?;
+        // The mesh's own name before the reason (this command has no --gt).
+        let truth = acetab::sim::load_truth(&f.to_string_lossy()).map_err(|e| {
+            if e.reason.contains(&e.gt) {
+                e.reason
+            } else {
+                format!("{}: {}", e.gt, e.reason)
+            }
+        })?;
         let name = mesh_name(f);
         if meshes.iter().any(|m: &PriorMesh| m.name == name) {
             return Err(format!("{}: two meshes are named {name:?}", f.display()));
@@ -65,7 +72,7 @@ fn build(args: BuildArgs) -> Result<(), String> {
     let prior = file
         .prior()
         .map_err(|e| format!("--out {}: {e}", args.out.display()))?;
-    write_atomic(&args.out, file.to_json().as_bytes()).map_err(|e| io_msg(&args.out, e))?;
+    crate::common::write_out_file(&args.out, file.to_json().as_bytes())?;
     println!(
         "prior of {} meshes ({} subjects), {} mode(s) (SD {}) -> {}",
         file.meshes.len(),
