@@ -209,6 +209,16 @@ fn a_bad_case_fails_cleanly_and_writes_nothing() {
     v["template"].as_object_mut().unwrap().remove("radius");
     cases.push(("radius", v.to_string()));
     cases.push(("invalid JSON", good.to_string()[..200].to_string()));
+    // Three copies of one view: no depth to recover.
+    let mut v = good.clone();
+    let first = v["views"][0].clone();
+    v["views"] = serde_json::json!([first, first, first]);
+    cases.push(("the views look along the same direction", v.to_string()));
+    // The source inside the template: part of it cannot be projected.
+    let mut v = good.clone();
+    let t = v["views"][0]["t"][2].as_f64().unwrap();
+    v["views"][0]["t"][2] = serde_json::json!(t - 880.0);
+    cases.push(("reaches to or behind the source", v.to_string()));
     for (needle, text) in cases {
         let path = dir.join("bad.json");
         std::fs::write(&path, text).unwrap();
@@ -217,6 +227,26 @@ fn a_bad_case_fails_cleanly_and_writes_nothing() {
         cmd.arg("reconstruct").arg(&path);
         fails_cleanly(cmd, &out, &[needle, "bad.json"]);
     }
+}
+
+#[test]
+fn an_out_that_cannot_be_made_is_refused_before_the_work() {
+    let dir = tmp("unwritable");
+    let case = phantom_case(&dir);
+    std::fs::write(dir.join("a-file"), b"x").unwrap();
+    let mut cmd = bin();
+    cmd.arg("reconstruct").arg(&case);
+    fails_cleanly(cmd, &dir.join("a-file/out"), &["--out", "is not a folder"]);
+    // The companion: missing folders above --out are made.
+    let o = bin()
+        .arg("reconstruct")
+        .arg(&case)
+        .args(["--uncertainty-samples", "2", "--out"])
+        .arg(dir.join("new/deeper/out"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(dir.join("new/deeper/out/report.json").is_file());
 }
 
 /// `cmd --out out` exits with 1, its error holds every needle, and `out` is not written.
