@@ -249,6 +249,60 @@ fn an_out_that_cannot_be_made_is_refused_before_the_work() {
     assert!(dir.join("new/deeper/out/report.json").is_file());
 }
 
+#[test]
+fn a_view_whose_outline_disagrees_with_the_others_is_named_in_a_warning() {
+    let dir = tmp("disagree");
+    let case = phantom_case(&dir);
+    let run = |case: &Path, out: &str| {
+        let o = bin()
+            .arg("reconstruct")
+            .arg(case)
+            .args(["--uncertainty-samples", "2", "--out"])
+            .arg(dir.join(out))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let report: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.join(out).join("report.json")).unwrap(),
+        )
+        .unwrap();
+        (String::from_utf8_lossy(&o.stderr).to_string(), report)
+    };
+    // As simulated, the views agree: no warning, and each view's outline distance is reported.
+    let (err, report) = run(&case, "agree");
+    assert!(!err.contains("do not agree"), "{err}");
+    assert_eq!(
+        report["log"]["outline_px_per_view"]
+            .as_array()
+            .unwrap()
+            .len(),
+        3
+    );
+    // View 1's annotation moved 40 px down: the views cannot meet one shape there.
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&case).unwrap()).unwrap();
+    for p in v["views"][1]["contours"][0]["points"]
+        .as_array_mut()
+        .unwrap()
+    {
+        p[1] = serde_json::json!(p[1].as_f64().unwrap() + 40.0);
+    }
+    let moved = dir.join("moved.json");
+    std::fs::write(&moved, v.to_string()).unwrap();
+    let (err, report) = run(&moved, "moved");
+    assert!(
+        err.contains("warning: view 1") && err.contains("do not agree"),
+        "{err}"
+    );
+    assert!(
+        report["warnings"][0]
+            .as_str()
+            .unwrap()
+            .starts_with("view 1"),
+        "{report}"
+    );
+}
+
 /// `cmd --out out` exits with 1, its error holds every needle, and `out` is not written.
 fn fails_cleanly(cmd: Command, out: &Path, needles: &[&str]) {
     fails_cleanly_with(cmd, out, needles, 1)

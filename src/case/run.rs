@@ -131,6 +131,7 @@ pub fn run_case_with(
             let mut files = vec!["reconstruction.ply".to_string()];
             #[allow(unused_mut)]
             let mut warnings = case.warnings.clone();
+            warnings.extend(rec.log.view_note(&case.names));
             write_ply(&rec.mesh, None, &stage.join("reconstruction.ply"))?;
             #[cfg(feature = "plots")]
             for (k, cam) in case.cameras.iter().enumerate() {

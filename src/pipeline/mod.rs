@@ -116,6 +116,11 @@ pub enum ReconError {
     },
 }
 
+/// `SolveLog::view_note`: a view is named when its outline distance is above this (pixels) ...
+pub const VIEW_NOTE_MIN_PX: f64 = 3.0;
+/// ... and this many times the worst of the other views'.
+pub const VIEW_NOTE_RATIO: f64 = 2.0;
+
 /// What the solver did.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct SolveLog {
@@ -131,6 +136,10 @@ pub struct SolveLog {
     pub reprojection_rms_px: f64,
     /// Correspondences of the last round.
     pub correspondences: usize,
+    /// Per view, the result's model outline against the observed one: RMS distance, pixels,
+    /// both ways for a closed outline (`restart::outline_distance_px` of that view alone). A
+    /// view far worse than the others has a wrong pose or annotation (`view_note`).
+    pub outline_px_per_view: Vec<f64>,
     /// Per view, the size of the pose correction found (degrees, mm); empty without refinement.
     pub pose_corrections: Vec<[f64; 2]>,
     /// The sphere fitted to the outlines' limbs (centre x, y, z and radius, mm), when used.
@@ -163,6 +172,35 @@ impl SolveLog {
         let prior = prm.deformation.shape_prior.as_deref()?;
         let [x, y, z, _] = self.prior_sphere?;
         Some((prior, Point3::new(x, y, z)))
+    }
+
+    /// A line for the user when one view's outline is met much worse than the others' (more
+    /// than `VIEW_NOTE_MIN_PX` and `VIEW_NOTE_RATIO` times the worst of the rest): the views do
+    /// not agree on one shape, and the usual cause is that view's pose (try `--refine-poses`)
+    /// or its annotation. `names` are the views' names. None when the views agree.
+    pub fn view_note(&self, names: &[String]) -> Option<String> {
+        let d = &self.outline_px_per_view;
+        if d.len() < 2 || d.iter().any(|x| !x.is_finite()) {
+            return None;
+        }
+        let (worst, &px) = d.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
+        let rest = d
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| k != worst)
+            .map(|(_, &x)| x)
+            .fold(0.0_f64, f64::max);
+        if px <= VIEW_NOTE_MIN_PX || px <= VIEW_NOTE_RATIO * rest {
+            return None;
+        }
+        let name = names
+            .get(worst)
+            .map_or(String::new(), |n| format!(" ({n})"));
+        Some(format!(
+            "view {worst}{name} is {px:.1} px from its outline, the others at most {rest:.1} px: \
+             the views do not agree on one shape; check that view's pose (--refine-poses \
+             corrects small errors) and its annotation"
+        ))
     }
 
     /// A line for the user when the run restarted: how far the given start's result left the
@@ -691,9 +729,11 @@ fn finish(
     let (sphere, surface_sphere) = (spheres.cup, spheres.surface);
     let cup = ctx.prm.cup.catalogue.nearest(sphere.diameter());
     let initial = input.init.place(input.template.mesh());
+    let final_contours = ctx.contours(&mesh, &poses.cams_now)?;
+    log.outline_px_per_view = restart::outline_distance_px_per_view(&final_contours, ctx.observed);
     Ok(Reconstruction {
         initial_contours: ctx.contours(&initial, ctx.cams)?,
-        final_contours: ctx.contours(&mesh, &poses.cams_now)?,
+        final_contours,
         mesh,
         initial,
         sphere,
@@ -708,6 +748,28 @@ fn finish(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_view_far_worse_than_the_others_is_named_and_agreeing_views_are_not() {
+        let names: Vec<String> = ["AP", "oblique +20", "oblique -20"]
+            .map(String::from)
+            .to_vec();
+        let note = |d: &[f64]| {
+            SolveLog {
+                outline_px_per_view: d.to_vec(),
+                ..Default::default()
+            }
+            .view_note(&names)
+        };
+        let n = note(&[5.46, 13.61, 2.11]).expect("view 1 is named");
+        assert!(n.starts_with("view 1 (oblique +20) is 13.6 px"), "{n}");
+        assert!(n.contains("at most 5.5 px"), "{n}");
+        // The companions: views that share the misfit, a misfit under the floor, no outlines.
+        assert_eq!(note(&[3.26, 5.01, 2.62]), None);
+        assert_eq!(note(&[0.5, 2.9, 0.4]), None);
+        assert_eq!(note(&[]), None);
+        assert_eq!(note(&[1.0, f64::INFINITY, 1.0]), None);
+    }
     use crate::sim::XrayGeometry;
     use crate::sim::{phantom, PhantomParams};
     use crate::sim::{simulate_case, NoiseLevel};

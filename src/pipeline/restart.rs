@@ -160,40 +160,74 @@ pub(super) fn tilted_starts(init: &Placement, prm: &ReconParams) -> Vec<(&'stati
 /// open one leaves part of the model outline unwatched). Infinite when a view has no model
 /// outline.
 pub fn outline_distance_px(model_contours: &[ModelContour], observed: &[Vec<Curve>]) -> f64 {
+    // One running sum over the views, in their order.
     let (mut sum, mut n) = (0.0, 0usize);
-    for (view, curves) in observed.iter().enumerate() {
-        let Some(model) = model_contours.get(view).filter(|m| !m.points.is_empty()) else {
+    for view in 0..observed.len() {
+        if !add_view(model_contours, observed, view, &mut sum, &mut n) {
             return f64::INFINITY;
-        };
-        let to_model = Segments::new(&model.points, true);
-        let mut hint = 0;
-        for c in curves {
-            for q in &c.points {
-                sum += to_model.distance(q, &mut hint).powi(2);
-                n += 1;
-            }
-        }
-        if curves.iter().all(|c| c.closed) {
-            let to_observed: Vec<Segments> = curves
-                .iter()
-                .map(|c| Segments::new(&c.points, true))
-                .collect();
-            let mut hints = vec![0; curves.len()];
-            for q in &model.points {
-                let d = to_observed
-                    .iter()
-                    .zip(hints.iter_mut())
-                    .map(|(c, h)| c.distance(q, h))
-                    .fold(f64::INFINITY, f64::min);
-                sum += d * d;
-                n += 1;
-            }
         }
     }
     if n == 0 {
         return f64::INFINITY;
     }
     (sum / n as f64).sqrt()
+}
+
+/// `outline_distance_px` of each view alone (infinite for a view without a model contour).
+pub fn outline_distance_px_per_view(
+    model_contours: &[ModelContour],
+    observed: &[Vec<Curve>],
+) -> Vec<f64> {
+    (0..observed.len())
+        .map(|view| {
+            let (mut sum, mut n) = (0.0, 0usize);
+            if add_view(model_contours, observed, view, &mut sum, &mut n) && n > 0 {
+                (sum / n as f64).sqrt()
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect()
+}
+
+/// Add one view's squared distances to `sum` and their count to `n` for `outline_distance_px`;
+/// false when the view has no model contour.
+fn add_view(
+    model_contours: &[ModelContour],
+    observed: &[Vec<Curve>],
+    view: usize,
+    sum: &mut f64,
+    n: &mut usize,
+) -> bool {
+    let curves = &observed[view];
+    let Some(model) = model_contours.get(view).filter(|m| !m.points.is_empty()) else {
+        return false;
+    };
+    let to_model = Segments::new(&model.points, true);
+    let mut hint = 0;
+    for c in curves {
+        for q in &c.points {
+            *sum += to_model.distance(q, &mut hint).powi(2);
+            *n += 1;
+        }
+    }
+    if curves.iter().all(|c| c.closed) {
+        let to_observed: Vec<Segments> = curves
+            .iter()
+            .map(|c| Segments::new(&c.points, true))
+            .collect();
+        let mut hints = vec![0; curves.len()];
+        for q in &model.points {
+            let d = to_observed
+                .iter()
+                .zip(hints.iter_mut())
+                .map(|(c, h)| c.distance(q, h))
+                .fold(f64::INFINITY, f64::min);
+            *sum += d * d;
+            *n += 1;
+        }
+    }
+    true
 }
 
 #[cfg(test)]
