@@ -37,7 +37,7 @@ impl CupCatalogue {
                 }
                 _ => {
                     return Err(format!(
-                        "catalogue {s:?}: expected min:max:step with step > 0 and max >= min"
+                        "catalogue {s:?}: expected min:max:step with step > 0, max >= min and at most 10,000 sizes"
                     ))
                 }
             }
@@ -57,6 +57,9 @@ impl CupCatalogue {
         }
         let mut sizes = sizes;
         sizes.sort_by(f64::total_cmp);
+        if let Some(w) = sizes.windows(2).find(|w| w[0] == w[1]) {
+            return Err(format!("catalogue {s:?}: size {} is listed twice", w[0]));
+        }
         Ok(CupCatalogue { sizes_mm: sizes })
     }
 
@@ -125,6 +128,10 @@ mod tests {
         assert!(CupCatalogue::parse("40:30:2").is_err());
         assert!(CupCatalogue::parse("a,b").is_err());
         assert!(CupCatalogue::parse("-4").is_err());
+        let e = CupCatalogue::parse("48, 50, 48").unwrap_err();
+        assert!(e.contains("size 48 is listed twice"), "{e}");
+        let e = CupCatalogue::parse("1e9:1e10:1").unwrap_err();
+        assert!(e.contains("at most 10,000 sizes"), "{e}");
     }
 
     #[test]
