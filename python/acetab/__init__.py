@@ -18,6 +18,7 @@ Not a medical device: research software, see the project's README.
 from __future__ import annotations
 
 import json
+import math
 import os
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Union
 
@@ -65,6 +66,14 @@ def _options(options: Mapping[str, Any], allowed: Sequence[str], where: str) -> 
             v = os.fspath(v)
         if isinstance(v, np.generic):
             v = v.item()  # numpy scalars as plain numbers
+        if k == "seed":
+            v = _whole(v, k)
+            if not 0 <= v < 2**64:
+                raise ValueError(f"seed={v}: must be from 0 to 2**64 - 1")
+        if k == "uncertainty_samples":
+            v = _whole(v, k)
+            if not 0 <= v <= 1000:
+                raise ValueError(f"uncertainty_samples={v}: must be 2 to 1000")
         out[k] = v
     return json.dumps(out)
 
@@ -103,20 +112,68 @@ def reconstruct_case(
 
 
 def _float_list(x: Any, shape: Sequence[Optional[int]], name: str) -> Any:
-    a = np.asarray(x, dtype=np.float64)
+    try:
+        raw = np.asarray(x)
+    except ValueError as e:  # ragged nested lists
+        raise ValueError(f"{name}: not an array ({e})") from None
+    if np.iscomplexobj(raw):
+        raise ValueError(f"{name}: complex numbers; expected real ones")
+    try:
+        a = raw.astype(np.float64)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{name}: not numbers ({e})") from None
     if a.ndim != len(shape) or any(s is not None and s != d for s, d in zip(shape, a.shape)):
         want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
         raise ValueError(f"{name}: shape {a.shape}, expected {want}")
+    if not np.all(np.isfinite(a)):
+        at = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
+        where = name + (str(list(at)) if at else "")
+        raise ValueError(f"{where} = {a[at]}: must be finite")
     return a.tolist()
 
 
 def _intrinsics(k: Any, name: str) -> Dict[str, float]:
-    a = np.asarray(k, dtype=np.float64)
+    a = np.asarray(_float_list(k, (None,) * np.ndim(k), name))
     if a.shape == (3, 3):
+        if a[2, 2] == 0:
+            raise ValueError(f"{name}[2, 2] = 0: not an intrinsic matrix")
+        a = a / a[2, 2]
+        off = (a[0, 1], a[1, 0], a[2, 0], a[2, 1])
+        if any(abs(v) > 1e-9 * abs(a[0, 0]) for v in off):
+            raise ValueError(
+                f"{name}: {a.tolist()} has skew or a non-zero bottom row; expected "
+                "[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]"
+            )
         return {"fx": a[0, 0], "fy": a[1, 1], "cx": a[0, 2], "cy": a[1, 2]}
     if a.shape == (4,):
         return dict(zip(("fx", "fy", "cx", "cy"), a.tolist()))
     raise ValueError(f"{name}: shape {a.shape}, expected (4,) fx, fy, cx, cy or a (3, 3) K")
+
+
+def _whole(x: Any, name: str) -> int:
+    """A whole number given as an int (or a float with no fraction), else ValueError."""
+    if isinstance(x, (bool, np.bool_)):
+        raise ValueError(f"{name} = {x!r}: expected a whole number")
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    if isinstance(x, (float, np.floating)) and math.isfinite(x) and float(x).is_integer():
+        return int(x)
+    raise ValueError(f"{name} = {x!r}: expected a whole number")
+
+
+def _pixels(x: Any, name: str) -> int:
+    """An image size: a whole number the engine can take (it says 1..65536 pixels)."""
+    v = _whole(x, name)
+    if not 0 <= v < 2**32:
+        raise ValueError(f"{name} = {v}: image size must be 1..65536 pixels")
+    return v
+
+
+def _field(m: Mapping[str, Any], key: str, name: str) -> Any:
+    try:
+        return m[key]
+    except KeyError:
+        raise ValueError(f"{name}: missing {key!r}") from None
 
 
 def _contours(view: Any, name: str) -> List[Dict[str, Any]]:
@@ -160,12 +217,13 @@ def reconstruct(
         )
     views = []
     for i, (cam, cs) in enumerate(zip(cameras, contours)):
+        at = f"cameras[{i}]"
         v: Dict[str, Any] = {
-            "k": _intrinsics(cam["k"], f"cameras[{i}]['k']"),
-            "r": _float_list(cam["r"], (3, 3), f"cameras[{i}]['r']"),
-            "t": _float_list(cam["t"], (3,), f"cameras[{i}]['t']"),
-            "width": int(cam["width"]),
-            "height": int(cam["height"]),
+            "k": _intrinsics(_field(cam, "k", at), f"{at}['k']"),
+            "r": _float_list(_field(cam, "r", at), (3, 3), f"{at}['r']"),
+            "t": _float_list(_field(cam, "t", at), (3,), f"{at}['t']"),
+            "width": _pixels(_field(cam, "width", at), f"{at}['width']"),
+            "height": _pixels(_field(cam, "height", at), f"{at}['height']"),
             "contours": _contours(cs, f"contours[{i}]"),
         }
         if "name" in cam:
@@ -174,9 +232,8 @@ def reconstruct(
     case = {
         "views": views,
         "template": {
-            "center": _float_list(template["center"], (3,), "template['center']"),
-            "radius": float(template["radius"]),
-            "axis": _float_list(template["axis"], (3,), "template['axis']"),
+            key: _float_list(_field(template, key, "template"), shape, f"template[{key!r}]")
+            for key, shape in (("center", (3,)), ("radius", ()), ("axis", (3,)))
         },
     }
     opts = _options(options, _RECON_OPTIONS, "reconstruct")

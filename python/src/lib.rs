@@ -458,9 +458,10 @@ fn simulate_json(py: Python<'_>, options_json: &str) -> PyResult<String> {
         ..Default::default()
     };
     py.detach(move || {
-        let truth = load_truth(&o.gt).map_err(|e| e.to_string())?;
+        // Named as this function's arguments are (gt=...), not as the command line's flags.
+        let truth = load_truth(&o.gt).map_err(|e| format!("gt={}: {}", e.gt, e.reason))?;
         let (rows, _) = run_study(&truth, &cfg, &|| {}, Kernels::Cpu)
-            .map_err(|e| format!("--gt {}: {e}", o.gt))?;
+            .map_err(|e| format!("gt={}: {e}", o.gt))?;
         // runs.csv writes its metrics as fixed-precision text; here they are numbers again
         // (None where the run could not give one).
         let mut v = serde_json::to_value(&rows).map_err(|e| e.to_string())?;

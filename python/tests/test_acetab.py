@@ -123,6 +123,67 @@ def test_bad_arrays_are_refused_by_name():
         acetab.reconstruct(*case_arrays(CASE), method="cpd")
 
 
+def test_bad_values_are_refused_by_name_before_the_engine():
+    """Values the JSON between Python and the engine would lose or mangle (NaN, complex, a
+    fraction of a pixel, a skewed K, a negative seed) are refused naming the argument."""
+    def refused(pattern, mutate=None, **options):
+        cameras, contours, template = case_arrays(CASE)
+        if mutate:
+            mutate(cameras, contours, template)
+        with pytest.raises(ValueError, match=pattern):
+            acetab.reconstruct(cameras, contours, template, **options)
+
+    def nan_r(c, o, t):
+        c[0]["r"] = np.full((3, 3), np.nan)
+
+    def nan_point(c, o, t):
+        o[1][0]["points"] = np.array(o[1][0]["points"], dtype=float)
+        o[1][0]["points"][3, 0] = np.nan
+
+    def complex_points(c, o, t):
+        o[0][0]["points"] = np.array(o[0][0]["points"]) + 0j
+
+    def skewed_k(c, o, t):
+        k = c[0]["k"]
+        c[0]["k"] = np.array([[k[0], 0.5, k[2]], [0, k[1], k[3]], [0, 0, 1]])
+
+    def fractional_width(c, o, t):
+        c[0]["width"] = 2048.7
+
+    def negative_height(c, o, t):
+        c[2]["height"] = -1
+
+    def no_radius(c, o, t):
+        del t["radius"]
+
+    def infinite_radius(c, o, t):
+        t["radius"] = math.inf
+
+    refused(r"cameras\[0\]\['r'\]\[0, 0\] = nan: must be finite", nan_r)
+    refused(r"contours\[1\]\[0\]\[3, 0\] = nan", nan_point)
+    refused(r"contours\[0\]\[0\]: complex", complex_points)
+    refused(r"cameras\[0\]\['k'\].*skew", skewed_k)
+    refused(r"cameras\[0\]\['width'\] = 2048.7: expected a whole number", fractional_width)
+    refused(r"cameras\[2\]\['height'\] = -1: image size", negative_height)
+    refused(r"template: missing 'radius'", no_radius)
+    refused(r"template\['radius'\] = inf: must be finite", infinite_radius)
+    refused(r"seed=-5", seed=-5)
+    refused(r"uncertainty_samples=-1", uncertainty_samples=-1)
+    # The companions: a whole-number float, a scaled K and numpy integers are taken as given.
+    cameras, contours, template = case_arrays(CASE)
+    ref = acetab.reconstruct(cameras, contours, template, uncertainty_samples=2)
+    k = cameras[0]["k"]
+    cameras[0]["k"] = 2.0 * np.array([[k[0], 0, k[2]], [0, k[1], k[3]], [0, 0, 1]])
+    cameras[0]["width"] = float(cameras[0]["width"])
+    cameras[1]["height"] = np.int32(cameras[1]["height"])
+    same = acetab.reconstruct(
+        cameras, contours, template, uncertainty_samples=np.int64(2), seed=np.uint8(1)
+    )
+    assert same["cup"]["diameter_mm"] == ref["cup"]["diameter_mm"]
+    with pytest.raises(acetab.AcetabError, match=r"^gt=no_such_mesh\.stl"):
+        acetab.simulate("no_such_mesh.stl", levels=[1], runs=1)
+
+
 def test_the_shipped_prior_reaches_the_engine_as_on_the_command_line(tmp_path):
     cli = cli_reconstruct(CASE, tmp_path / "cli", "--prior", "default", "--uncertainty-samples", "2")
     py = acetab.reconstruct_case(CASE, prior="default", uncertainty_samples=2)
