@@ -353,6 +353,7 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
             "z:0,y:30",
             "at least two views from distinct directions",
         ),
+        ("--views", "z:0,z:1.5", "2 degrees or more apart"),
     ] {
         let mut cmd = bin();
         cmd.args(["simulate", "--gt", "phantom", flag, value]);

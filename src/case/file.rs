@@ -5,7 +5,7 @@
 use crate::geom::{signed_area, Curve};
 use crate::pipeline::Input;
 use crate::template::{Placement, Template};
-use crate::views::{Camera, Intrinsics};
+use crate::views::{widest_spread_deg, Camera, Intrinsics, MIN_VIEW_SPREAD_DEG};
 use nalgebra::{Matrix3, Point2, Point3, Rotation3, Unit, Vector3};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -209,10 +209,6 @@ fn field_err(
 
 /// Largest coordinate magnitude accepted anywhere (mm or px): beyond it the input is absurd.
 const ABSURD: f64 = 1e7;
-
-/// The least angle, degrees, between the viewing directions of some two views of a case: below
-/// it the views see the same outline and the depth of the cap is not determined.
-const MIN_VIEW_SPREAD_DEG: f64 = 2.0;
 
 /// A view's image as the case names it: where it is, its size, and its DICOM geometry.
 struct ViewImage {
@@ -641,12 +637,7 @@ impl CaseFile {
             .iter()
             .map(|c| c.r.inverse() * Vector3::z())
             .collect();
-        let widest = directions
-            .iter()
-            .enumerate()
-            .flat_map(|(i, a)| directions[i + 1..].iter().map(move |b| a.angle(b)))
-            .fold(0.0_f64, f64::max)
-            .to_degrees();
+        let widest = widest_spread_deg(&directions);
         if widest < MIN_VIEW_SPREAD_DEG {
             return Err(field_err(
                 path,

@@ -3,7 +3,7 @@
 //! one turned about body axes (default: about the longitudinal axis z by 0, +20 and -20 degrees)
 //! and aimed at the object.
 
-use crate::views::{Camera, Intrinsics};
+use crate::views::{widest_spread_deg, Camera, Intrinsics, MIN_VIEW_SPREAD_DEG};
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 
 /// X-ray geometry in mm and pixels.
@@ -139,8 +139,8 @@ pub struct GeometryError {
 
 impl XrayGeometry {
     /// Distances and pixel size finite and positive, the object between the source and the
-    /// detector, a non-empty image, and at least two distinct finite view angles (one view
-    /// cannot place anything in depth).
+    /// detector, a non-empty image, and finite view angles with two sources at least
+    /// `MIN_VIEW_SPREAD_DEG` apart (one view cannot place anything in depth).
     pub fn validate(&self) -> Result<(), GeometryError> {
         let bad = |field, value: String, expected| GeometryError {
             field,
@@ -173,15 +173,18 @@ impl XrayGeometry {
         {
             return Err(bad("views", v.to_string(), "turns of finite degrees"));
         }
-        // Two views are one if their sources stand in the same direction.
-        let source = |v: &ViewRotation| v.rotation() * Vector3::y();
-        let first = self.views.first().map(source);
-        if !first.is_some_and(|f| self.views.iter().any(|v| (source(v) - f).norm() > 1e-9)) {
+        // Two views are one if their sources stand in (about) the same direction.
+        let sources: Vec<Vector3<f64>> = self
+            .views
+            .iter()
+            .map(|v| v.rotation() * Vector3::y())
+            .collect();
+        if widest_spread_deg(&sources) < MIN_VIEW_SPREAD_DEG {
             let list: Vec<String> = self.views.iter().map(|v| v.to_string()).collect();
             return Err(bad(
                 "views",
                 format!("[{}]", list.join(",")),
-                "at least two views from distinct directions",
+                "at least two views from distinct directions (2 degrees or more apart)",
             ));
         }
         Ok(())
@@ -322,8 +325,13 @@ mod tests {
         for (field, g) in cases {
             assert_eq!(g.validate().map_err(|e| e.field), Err(field), "{g:?}");
         }
-        // Companion: two distinct views are enough, about any axis.
-        assert_eq!(about_z(&[0.0, 359.0]).validate(), Ok(()));
+        // Sources 1 degree apart see the same outline: refused as one view.
+        assert_eq!(
+            about_z(&[0.0, 359.0]).validate().map_err(|e| e.field),
+            Err("views")
+        );
+        // Companion: two views 3 degrees apart are enough, about any axis.
+        assert_eq!(about_z(&[0.0, 357.0]).validate(), Ok(()));
         let inlet = XrayGeometry {
             views: vec![ViewRotation::about_z(0.0), "x:25".parse().unwrap()],
             ..Default::default()
