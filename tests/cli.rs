@@ -303,6 +303,65 @@ fn a_view_whose_outline_disagrees_with_the_others_is_named_in_a_warning() {
     );
 }
 
+#[test]
+fn the_uncertainty_noise_does_not_depend_on_where_an_annotation_starts() {
+    let dir = tmp("starts");
+    // The example case (its images left out): a start a third of the way round triples its
+    // correspondences' reprojection RMS (not every case's does).
+    let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/case/case.json");
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(example).unwrap()).unwrap();
+    for view in v["views"].as_array_mut().unwrap() {
+        view.as_object_mut().unwrap().remove("image");
+    }
+    let case = dir.join("case.json");
+    std::fs::write(&case, v.to_string()).unwrap();
+    let report = |case: &Path, out: &str| -> serde_json::Value {
+        let o = bin()
+            .arg("reconstruct")
+            .arg(case)
+            .args([
+                "--uncertainty-samples",
+                "2",
+                "--calibration",
+                "none",
+                "--out",
+            ])
+            .arg(dir.join(out))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_str(&std::fs::read_to_string(dir.join(out).join("report.json")).unwrap())
+            .unwrap()
+    };
+    let given = report(&case, "given");
+    // The same annotations, each started a third of the way round.
+    for view in v["views"].as_array_mut().unwrap() {
+        let pts = view["contours"][0]["points"].as_array_mut().unwrap();
+        let n = pts.len();
+        pts.rotate_left(n / 3);
+    }
+    let moved = dir.join("moved.json");
+    std::fs::write(&moved, v.to_string()).unwrap();
+    let turned = report(&moved, "turned");
+    let noise = |r: &serde_json::Value| r["cup"]["noise_px"].as_f64().unwrap();
+    let rms = |r: &serde_json::Value| r["log"]["reprojection_rms_px"].as_f64().unwrap();
+    let ratio = |a: f64, b: f64| a.max(b) / a.min(b);
+    assert!(
+        ratio(noise(&given), noise(&turned)) < 1.5,
+        "noise {} against {}",
+        noise(&given),
+        noise(&turned)
+    );
+    // The companion: the correspondences' reprojection RMS, the noise used before, does move.
+    assert!(
+        ratio(rms(&given), rms(&turned)) > 1.5,
+        "reprojection {} against {}",
+        rms(&given),
+        rms(&turned)
+    );
+}
+
 /// `cmd --out out` exits with 1, its error holds every needle, and `out` is not written.
 fn fails_cleanly(cmd: Command, out: &Path, needles: &[&str]) {
     fails_cleanly_with(cmd, out, needles, 1)

@@ -140,6 +140,10 @@ pub struct SolveLog {
     /// both ways for a closed outline (`restart::outline_distance_px` of that view alone). A
     /// view far worse than the others has a wrong pose or annotation (`view_note`).
     pub outline_px_per_view: Vec<f64>,
+    /// The same over all views at once (`restart::outline_distance_px`): how far the result's
+    /// outlines are from the annotations, whatever point each annotation starts at. The
+    /// uncertainty's contour noise (`UncertaintyParams::noise_px`, when not given).
+    pub outline_px: f64,
     /// Per view, the size of the pose correction found (degrees, mm); empty without refinement.
     pub pose_corrections: Vec<[f64; 2]>,
     /// The sphere fitted to the outlines' limbs (centre x, y, z and radius, mm), when used.
@@ -731,6 +735,7 @@ fn finish(
     let initial = input.init.place(input.template.mesh());
     let final_contours = ctx.contours(&mesh, &poses.cams_now)?;
     log.outline_px_per_view = restart::outline_distance_px_per_view(&final_contours, ctx.observed);
+    log.outline_px = restart::outline_distance_px(&final_contours, ctx.observed);
     Ok(Reconstruction {
         initial_contours: ctx.contours(&initial, ctx.cams)?,
         final_contours,

@@ -1,7 +1,7 @@
 //! How sure the cup size is: the reconstruction is re-solved from its result many times with its
-//! inputs resampled, each observed contour jittered by Gaussian noise of the fit's own
-//! reprojection RMS and each correspondence re-weighted by an Exp(1) draw (the Bayesian
-//! bootstrap); each resample's cup goes through the estimator the result's own cup does
+//! inputs resampled, each observed contour jittered by Gaussian noise of the fit's own outline
+//! distance (its outlines' RMS distance from the annotations) and each correspondence
+//! re-weighted by an Exp(1) draw (the Bayesian bootstrap); each resample's cup goes through the estimator the result's own cup does
 //! (`pipeline::cup_spheres`: the observed part's sphere), and the spread of those diameters gives
 //! the +- and, per catalogue size, the share of resamples whose nearest size it is. Seeded; the
 //! seed is in the report.
@@ -24,7 +24,8 @@ pub struct UncertaintyParams {
     pub samples: usize,
     /// Seed of the resampling (reported).
     pub seed: u64,
-    /// Contour noise SD in pixels; None: the fit's reprojection RMS (at least 0.5 px).
+    /// Contour noise SD in pixels; None: the fit's outline distance (`SolveLog::outline_px`,
+    /// at least 0.5 px).
     pub noise_px: Option<f64>,
     /// Model-error SD of the diameter, mm, added in quadrature to the resamples' spread (what
     /// resampling cannot see: the walls no view outlines; `CupCalibration`). Default 0: the
@@ -168,14 +169,18 @@ fn resampled_diameters(
             expected: "finite and >= 0",
         });
     }
-    let noise_px = up.noise_px.unwrap_or(rec.log.reprojection_rms_px).max(0.5);
+    // The annotation's noise, read from the fit: its outlines' distance from the annotations.
+    // (The correspondences' reprojection RMS also holds how they slide along the outline,
+    // which depends on where an annotation starts: the example case's 1.7 px become about 5
+    // when its annotations start a third of the way round.)
+    let noise_px = up.noise_px.unwrap_or(rec.log.outline_px).max(0.5);
     let mut one_round = ctx.prm.clone();
     one_round.deformation.correspondence_updates = 1;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(up.seed);
     let normal = Normal::new(0.0, noise_px).map_err(|_| ReconError::Param {
         field: "uncertainty noise_px",
         value: noise_px.to_string(),
-        expected: "a finite SD (the fit's reprojection RMS was not finite)",
+        expected: "a finite SD (the fit's outline distance was not finite)",
     })?;
     // Every resample's draws first, in the order they were always drawn (its contour jitter,
     // then the seed of its re-weighting), so that the resamples can be solved side by side.
