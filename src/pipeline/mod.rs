@@ -734,8 +734,8 @@ fn finish(
     let cup = ctx.prm.cup.catalogue.nearest(sphere.diameter());
     let initial = input.init.place(input.template.mesh());
     let final_contours = ctx.contours(&mesh, &poses.cams_now)?;
-    log.outline_px_per_view = restart::outline_distance_px_per_view(&final_contours, ctx.observed);
-    log.outline_px = restart::outline_distance_px(&final_contours, ctx.observed);
+    (log.outline_px_per_view, log.outline_px) =
+        restart::outline_distances_px(&final_contours, ctx.observed);
     Ok(Reconstruction {
         initial_contours: ctx.contours(&initial, ctx.cams)?,
         final_contours,

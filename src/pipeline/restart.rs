@@ -160,44 +160,52 @@ pub(super) fn tilted_starts(init: &Placement, prm: &ReconParams) -> Vec<(&'stati
 /// open one leaves part of the model outline unwatched). Infinite when a view has no model
 /// outline.
 pub fn outline_distance_px(model_contours: &[ModelContour], observed: &[Vec<Curve>]) -> f64 {
-    // One running sum over the views, in their order.
-    let (mut sum, mut n) = (0.0, 0usize);
-    for view in 0..observed.len() {
-        if !add_view(model_contours, observed, view, &mut sum, &mut n) {
-            return f64::INFINITY;
-        }
-    }
-    if n == 0 {
-        return f64::INFINITY;
-    }
-    (sum / n as f64).sqrt()
+    outline_distances_px(model_contours, observed).1
 }
 
-/// `outline_distance_px` of each view alone (infinite for a view without a model contour).
-pub fn outline_distance_px_per_view(
+/// `outline_distance_px` of each view alone (infinite for a view without a model contour),
+/// and of all views at once, from one pass over the outlines.
+pub fn outline_distances_px(
     model_contours: &[ModelContour],
     observed: &[Vec<Curve>],
-) -> Vec<f64> {
-    (0..observed.len())
+) -> (Vec<f64>, f64) {
+    let rms = |sum: f64, n: usize| {
+        if n == 0 {
+            f64::INFINITY
+        } else {
+            (sum / n as f64).sqrt()
+        }
+    };
+    // One running sum over the views, in their order, beside each view's own.
+    let (mut sum, mut n) = (0.0, 0usize);
+    let mut all_seen = true;
+    let per_view = (0..observed.len())
         .map(|view| {
-            let (mut sum, mut n) = (0.0, 0usize);
-            if add_view(model_contours, observed, view, &mut sum, &mut n) && n > 0 {
-                (sum / n as f64).sqrt()
+            let (mut own, mut count) = (0.0, 0usize);
+            let seen = add_view(model_contours, observed, view, &mut |d2| {
+                sum += d2;
+                own += d2;
+                n += 1;
+                count += 1;
+            });
+            all_seen &= seen;
+            if seen {
+                rms(own, count)
             } else {
                 f64::INFINITY
             }
         })
-        .collect()
+        .collect();
+    (per_view, if all_seen { rms(sum, n) } else { f64::INFINITY })
 }
 
-/// Add one view's squared distances to `sum` and their count to `n` for `outline_distance_px`;
-/// false when the view has no model contour.
+/// Pass each squared distance of one view to `add` for `outline_distance_px`; false when the
+/// view has no model contour.
 fn add_view(
     model_contours: &[ModelContour],
     observed: &[Vec<Curve>],
     view: usize,
-    sum: &mut f64,
-    n: &mut usize,
+    add: &mut impl FnMut(f64),
 ) -> bool {
     let curves = &observed[view];
     let Some(model) = model_contours.get(view).filter(|m| !m.points.is_empty()) else {
@@ -207,8 +215,7 @@ fn add_view(
     let mut hint = 0;
     for c in curves {
         for q in &c.points {
-            *sum += to_model.distance(q, &mut hint).powi(2);
-            *n += 1;
+            add(to_model.distance(q, &mut hint).powi(2));
         }
     }
     if curves.iter().all(|c| c.closed) {
@@ -223,8 +230,7 @@ fn add_view(
                 .zip(hints.iter_mut())
                 .map(|(c, h)| c.distance(q, h))
                 .fold(f64::INFINITY, f64::min);
-            *sum += d * d;
-            *n += 1;
+            add(d * d);
         }
     }
     true

@@ -1,8 +1,9 @@
 //! How sure the cup size is: the reconstruction is re-solved from its result many times with its
 //! inputs resampled, each observed contour jittered by Gaussian noise of the fit's own outline
 //! distance (its outlines' RMS distance from the annotations) and each correspondence
-//! re-weighted by an Exp(1) draw (the Bayesian bootstrap); each resample's cup goes through the estimator the result's own cup does
-//! (`pipeline::cup_spheres`: the observed part's sphere), and the spread of those diameters gives
+//! re-weighted by an Exp(1) draw (the Bayesian bootstrap); each resample's cup goes through the
+//! estimator the result's own cup does (`pipeline::cup_spheres`: the observed part's sphere),
+//! and the spread of those diameters gives
 //! the +- and, per catalogue size, the share of resamples whose nearest size it is. Seeded; the
 //! seed is in the report.
 

@@ -28,8 +28,7 @@ pub fn open_device(choice: BackendChoice) -> Result<Option<GpuDevice>, String> {
 /// mix an earlier result's files with this one's. `force` lets it be reused (same-named files
 /// are replaced, others stay).
 pub fn check_out(out: &Path, force: bool) -> Result<(), String> {
-    acetab::io::check_writable(out)
-        .map_err(|e| format!("--out {}: cannot be written: {e}", out.display()))?;
+    check_writable_out(out, out)?;
     if force {
         return Ok(());
     }
@@ -50,6 +49,11 @@ pub fn check_out_file(out: &Path) -> Result<(), String> {
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
+    check_writable_out(out, folder)
+}
+
+/// `acetab::io::check_writable(folder)` for the `--out` given as `out`, as a message naming it.
+pub fn check_writable_out(out: &Path, folder: &Path) -> Result<(), String> {
     acetab::io::check_writable(folder)
         .map_err(|e| format!("--out {}: cannot be written: {e}", out.display()))
 }

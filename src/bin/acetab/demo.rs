@@ -51,8 +51,7 @@ pub fn run(args: DemoArgs) -> Result<(), String> {
         out,
         prior,
     } = args;
-    acetab::io::check_writable(&out)
-        .map_err(|e| format!("--out {}: cannot be written: {e}", out.display()))?;
+    crate::common::check_writable_out(&out, &out)?;
     let (shape_prior, _) = crate::prior::choose(&prior, None)?;
     let mut prm = ReconParams {
         method,
