@@ -172,8 +172,8 @@ impl ReconOptions {
         let up = UncertaintyParams {
             samples: self.uncertainty_samples as usize,
             seed: self.seed,
-            noise_px: None,
             model_sd_mm: cal.model_sd_mm,
+            ..Default::default()
         };
         Ok((prm, up))
     }

@@ -28,14 +28,10 @@ impl Ctx<'_> {
         Ok(self.kernels.contours(mesh, cams, self.prm.contour_source)?)
     }
 
-    /// Correspondences of `mesh` seen in `cams` with every observed outline.
-    fn all_correspondences(
-        &self,
-        mesh: &Mesh,
-        cams: &[Camera],
-    ) -> Result<Vec<Observation>, ReconError> {
+    /// Correspondences of the model contours `model` (one per view) with every observed
+    /// outline.
+    fn all_correspondences(&self, model: &[ModelContour]) -> Result<Vec<Observation>, ReconError> {
         let prm = self.prm;
-        let model = self.contours(mesh, cams)?;
         let view_pairs = |view: usize, curves: &Vec<Curve>| {
             let mut out = Vec::new();
             for (ci, curve) in curves.iter().enumerate() {
@@ -74,7 +70,19 @@ impl Ctx<'_> {
         cams: &[Camera],
         stage: &'static str,
     ) -> Result<Vec<Observation>, ReconError> {
-        let mut obs = self.all_correspondences(mesh, cams)?;
+        self.correspondences_to(&self.contours(mesh, cams)?, mesh, cams, stage)
+    }
+
+    /// `correspondences` with the model contours of `mesh` in `cams` given (`contours`), for
+    /// callers that pair one surface with many outlines (the cup's resamples).
+    pub(super) fn correspondences_to(
+        &self,
+        model: &[ModelContour],
+        mesh: &Mesh,
+        cams: &[Camera],
+        stage: &'static str,
+    ) -> Result<Vec<Observation>, ReconError> {
+        let mut obs = self.all_correspondences(model)?;
         let robust = match self.prm.method {
             Method::Srvf => self.prm.robust_srvf,
             Method::Icp | Method::IcpNormvec => self.prm.robust,

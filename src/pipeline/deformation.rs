@@ -4,6 +4,7 @@
 use super::correspondences::{check_finite, rms_motion, rms_px, Ctx};
 use super::placement::Poses;
 use super::{ReconError, ReconParams};
+use crate::contours::ModelContour;
 use crate::correspond::Method;
 use crate::correspond::Observation;
 use crate::geom::fit_sphere_robust;
@@ -13,10 +14,10 @@ use crate::solve::{
     levenberg_marquardt_cached, DeformationGraph, EdProblem, GraphParams, LmInfo, LmParams,
     SymbolicCache,
 };
-use crate::solve::{ShapeTerms, SpherePrior};
+use crate::solve::{Problem, ShapeTerms, SolveError, SpherePrior};
 use crate::template::Placement;
 use crate::views::Camera;
-use nalgebra::Point3;
+use nalgebra::{Point3, Vector2};
 
 /// Stage B's schedule: correspondence rounds in all, and the solver settings of each round's
 /// solve.
@@ -61,19 +62,18 @@ pub(super) struct EdState {
 }
 
 impl EdState {
-    /// One ED solve on fixed correspondences `obs` in views `cams`, a graph with `round.graph`'s
-    /// settings built on `mesh`: the deformed mesh.
-    pub(super) fn solve(
+    /// The ED problem of correspondences `obs` in views `cams` over `graph` (built on `mesh`),
+    /// with the sphere prior (its sphere fitted to `mesh` the first time).
+    fn problem<'a>(
         &mut self,
         ctx: &Ctx,
-        round: &EdRound,
-        cams: &[Camera],
+        graph: &'a DeformationGraph,
+        cams: &'a [Camera],
         mesh: &Mesh,
-        obs: &[Observation],
-    ) -> Result<(Mesh, LmInfo), ReconError> {
+        obs: &'a [Observation],
+    ) -> EdProblem<'a> {
         let prm = ctx.prm;
-        let graph = DeformationGraph::new(mesh, round.graph);
-        let mut problem = EdProblem::new(&graph, cams, obs, prm.weights.clone());
+        let mut problem = EdProblem::new(graph, cams, obs, prm.weights.clone());
         let prior = &prm.deformation;
         if prior.sphere_prior > 0.0 && self.prior_sphere.is_none() {
             self.prior_sphere = fit_sphere_robust(&mesh.vertices)
@@ -95,6 +95,21 @@ impl EdState {
                 shape,
             });
         }
+        problem
+    }
+
+    /// One ED solve on fixed correspondences `obs` in views `cams`, a graph with `round.graph`'s
+    /// settings built on `mesh`: the deformed mesh.
+    pub(super) fn solve(
+        &mut self,
+        ctx: &Ctx,
+        round: &EdRound,
+        cams: &[Camera],
+        mesh: &Mesh,
+        obs: &[Observation],
+    ) -> Result<(Mesh, LmInfo), ReconError> {
+        let graph = DeformationGraph::new(mesh, round.graph);
+        let problem = self.problem(ctx, &graph, cams, mesh, obs);
         let at = self.prior_sphere.unwrap_or((Point3::origin(), 0.0));
         let (x, info) =
             levenberg_marquardt_cached(&problem, problem.start(at), round.lm, &mut self.symbolic)
@@ -110,6 +125,69 @@ impl EdState {
         let out = mesh.with_vertices(ctx.kernels.deform(&graph, &x[..nodes])?);
         check_finite(&out)?;
         Ok((out, info))
+    }
+
+    /// The state every resample of a result `mesh` starts from (`resolve_from`): the sphere
+    /// prior's sphere fitted to it, and the symbolic factorisation of a pattern that holds every
+    /// resample's, the problem with every vertex of its model outlines `contours` (in views
+    /// `cams`) observed. A resample's correspondences pair only those vertices, so its solve
+    /// reuses the factorisation instead of analysing its own pattern (the blocks it lacks enter
+    /// as zeros: the same answer to rounding).
+    pub(super) fn for_resamples(
+        ctx: &Ctx,
+        graph: &GraphParams,
+        cams: &[Camera],
+        mesh: &Mesh,
+        contours: &[ModelContour],
+    ) -> Result<EdState, ReconError> {
+        let all: Vec<Observation> = contours
+            .iter()
+            .enumerate()
+            .flat_map(|(view, c)| {
+                c.vertex_ids
+                    .iter()
+                    .zip(&c.points)
+                    .map(move |(&vertex, p)| Observation {
+                        view,
+                        vertex,
+                        target: *p,
+                        weight: 1.0,
+                        normal: Vector2::zeros(),
+                    })
+            })
+            .collect();
+        let mut state = EdState::default();
+        let graph = DeformationGraph::new(mesh, graph);
+        let problem = state.problem(ctx, &graph, cams, mesh, &all);
+        let at = state.prior_sphere.unwrap_or((Point3::origin(), 0.0));
+        let ne = problem
+            .linearize(&problem.start(at), true)
+            .normal_equations();
+        state.symbolic =
+            SymbolicCache::for_pattern(ne.n, ne.block_size, ne.pattern()).map_err(|e| {
+                ReconError::Solve {
+                    stage: "resampling",
+                    source: SolveError::Linear {
+                        iteration: 0,
+                        source: e,
+                    },
+                }
+            })?;
+        Ok(state)
+    }
+
+    /// A copy for another solve: the same sphere, the symbolic factorisation shared.
+    pub(super) fn share(&self) -> Result<EdState, ReconError> {
+        Ok(EdState {
+            prior_sphere: self.prior_sphere,
+            symbolic: self.symbolic.share().map_err(|e| ReconError::Solve {
+                stage: "resampling",
+                source: SolveError::Linear {
+                    iteration: 0,
+                    source: e,
+                },
+            })?,
+        })
     }
 }
 
@@ -213,27 +291,30 @@ impl Deformation {
 }
 
 /// One more ED round from an already reconstructed mesh, in the views `ctx.cams`:
-/// correspondences recomputed once against `ctx.observed`, each observation's weight multiplied
-/// by `reweight` (the bootstrap's draws), the graph rebuilt on `mesh` and solved. Used to
-/// measure how the result moves when the inputs are resampled. Returns the new mesh and the
-/// round's correspondences with their robust weights (without the bootstrap's factors), as
-/// `Reconstruction::observations` are kept, so that the cup estimator (`cup_spheres`) sees the
-/// resample as it sees the result.
+/// correspondences of its model contours there (`model`, `Ctx::contours`) recomputed once
+/// against `ctx.observed`, each observation's weight multiplied
+/// by `reweight` (the bootstrap's draws), the graph rebuilt on `mesh` and solved from `state`
+/// (`EdState::for_resamples`) with `lm`. Used to measure how the result moves when the inputs
+/// are resampled. Returns the new mesh and the round's correspondences with their robust
+/// weights (without the bootstrap's factors), as `Reconstruction::observations` are kept, so
+/// that the cup estimator (`cup_spheres`) sees the resample as it sees the result.
 pub(super) fn resolve_from(
     ctx: &Ctx,
-    mesh: &Mesh,
+    (mesh, model): (&Mesh, &[ModelContour]),
     reweight: &mut dyn FnMut(usize) -> f64,
+    mut state: EdState,
+    lm: &LmParams,
 ) -> Result<(Mesh, Vec<Observation>), ReconError> {
-    let obs = ctx.correspondences(mesh, ctx.cams, "resampling")?;
+    let obs = ctx.correspondences_to(model, mesh, ctx.cams, "resampling")?;
     let mut drawn = obs.clone();
     for (k, o) in drawn.iter_mut().enumerate() {
         o.weight *= reweight(k);
     }
     let round = EdRound {
         graph: &ctx.prm.deformation.graph,
-        lm: &ctx.prm.lm,
+        lm,
         stage: "resampling",
     };
-    let (out, _) = EdState::default().solve(ctx, &round, ctx.cams, mesh, &drawn)?;
+    let (out, _) = state.solve(ctx, &round, ctx.cams, mesh, &drawn)?;
     Ok((out, obs))
 }

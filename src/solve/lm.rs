@@ -152,7 +152,8 @@ pub fn levenberg_marquardt_cached<P: Problem>(
             info.converged = true; // no descent direction left at any damping
             break;
         }
-        if info.converged {
+        // Converged, or out of iterations: no Jacobian at the last point is needed.
+        if info.converged || info.iterations >= prm.max_iterations {
             break;
         }
         lin = p.linearize(&x, true);

@@ -9,6 +9,7 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{Argsort, Pair, SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, Mat, Par, Side};
 use std::collections::HashMap;
+use std::sync::Arc;
 
 /// Residuals r and a Jacobian J stored row by row, each row as (block, bs values) pairs.
 #[derive(Clone, Debug)]
@@ -222,17 +223,140 @@ pub struct SymbolicCache {
     pub misses: usize,
 }
 
-struct CachedPattern {
+/// A block pattern's symbolic analysis: what every solve on the pattern shares.
+struct Analysis {
     n: usize,
     block_size: usize,
     keys: Vec<(u32, u32)>,
     csc: SymbolicSparseColMat<usize>,
     argsort: Argsort<usize>,
     chol: SymbolicCholesky<usize>,
-    /// The factor's values and the factorisation's scratch, sized by `chol`, reused by every
-    /// solve on this pattern.
+}
+
+struct CachedPattern {
+    analysis: Arc<Analysis>,
+    /// The factor's values and the factorisation's scratch, sized by the analysis, reused by
+    /// every solve on this pattern.
     l_values: Vec<f64>,
     mem: MemBuffer,
+}
+
+impl CachedPattern {
+    /// Numeric buffers for `analysis`.
+    fn new(analysis: Arc<Analysis>) -> Result<CachedPattern, LinearSolveError> {
+        let chol = &analysis.chol;
+        let mem = MemBuffer::try_new(
+            chol.factorize_numeric_llt_scratch::<f64>(PAR, Default::default())
+                .or(chol.solve_in_place_scratch::<f64>(1, PAR)),
+        )
+        .map_err(|e| LinearSolveError::Faer(format!("{e:?}")))?;
+        Ok(CachedPattern {
+            l_values: vec![0.0; chol.len_val()],
+            analysis,
+            mem,
+        })
+    }
+}
+
+/// The (row, column) pairs of the lower-triangle entries `NormalEquations::lower_entries` lays
+/// out on `layout` for `n` parameters in blocks of `block_size`, in its order, and the symbolic
+/// analysis of that pattern.
+fn analyse(
+    n: usize,
+    block_size: usize,
+    layout: Vec<(u32, u32)>,
+) -> Result<Analysis, LinearSolveError> {
+    let faer_err = |e: &dyn std::fmt::Debug| LinearSolveError::Faer(format!("{e:?}"));
+    let bs = block_size;
+    let mut idx = Vec::new();
+    for &(p, q) in &layout {
+        for a in 0..bs {
+            for b in 0..bs {
+                let (row, col) = (p as usize * bs + a, q as usize * bs + b);
+                if row >= col {
+                    idx.push(Pair { row, col });
+                }
+            }
+        }
+    }
+    for i in undiagonal(n, bs, &layout) {
+        idx.push(Pair { row: i, col: i });
+    }
+    let (csc, argsort) =
+        SymbolicSparseColMat::try_new_from_indices(n, n, &idx).map_err(|e| faer_err(&e))?;
+    let chol = factorize_symbolic_cholesky(
+        csc.as_ref(),
+        Side::Lower,
+        SymmetricOrdering::Amd,
+        Default::default(),
+    )
+    .map_err(|e| faer_err(&e))?;
+    Ok(Analysis {
+        n,
+        block_size,
+        keys: layout,
+        csc,
+        argsort,
+        chol,
+    })
+}
+
+/// The parameters `layout` (sorted block pairs) has no diagonal block for, in order: they
+/// still need a diagonal entry.
+fn undiagonal(n: usize, bs: usize, layout: &[(u32, u32)]) -> Vec<usize> {
+    let mut seen = vec![false; n];
+    for &(p, q) in layout {
+        if p == q {
+            for a in 0..bs {
+                if let Some(s) = seen.get_mut(p as usize * bs + a) {
+                    *s = true;
+                }
+            }
+        }
+    }
+    (0..n).filter(|&i| !seen[i]).collect()
+}
+
+impl SymbolicCache {
+    /// A cache that already holds the symbolic factorisation of `pattern` (block pairs, row
+    /// block >= column block) for `n` parameters in blocks of `block_size`, so that every solve
+    /// whose pattern lies within it reuses it: for many solves of one structure (the cup's
+    /// resamples) analysed once.
+    pub fn for_pattern(
+        n: usize,
+        block_size: usize,
+        mut pattern: Vec<(u32, u32)>,
+    ) -> Result<SymbolicCache, LinearSolveError> {
+        pattern.sort_unstable();
+        pattern.dedup();
+        if pattern
+            .iter()
+            .any(|&(p, q)| p < q || (p as usize + 1) * block_size > n)
+        {
+            return Err(LinearSolveError::Faer(format!(
+                "a block pair outside the lower triangle of {n} parameters in blocks of {block_size}"
+            )));
+        }
+        let analysis = Arc::new(analyse(n, block_size, pattern)?);
+        Ok(SymbolicCache {
+            entry: Some(CachedPattern::new(analysis)?),
+            hits: 0,
+            misses: 0,
+        })
+    }
+
+    /// A cache holding the same symbolic factorisation as this one (shared, not recomputed)
+    /// with numeric buffers of its own, its counts at zero: for solves on other threads.
+    pub fn share(&self) -> Result<SymbolicCache, LinearSolveError> {
+        Ok(SymbolicCache {
+            entry: match &self.entry {
+                Some(c) => Some(CachedPattern::new(Arc::clone(&c.analysis))?),
+                None => None,
+            },
+            hits: 0,
+            misses: 0,
+        })
+    }
 }
 
 /// Sequential on purpose: these systems have a few thousand unknowns, where faer's threads cost
@@ -266,16 +390,10 @@ impl NormalEquations {
     }
 
     /// Lower-triangle values of H + diag(damping) laid out on `layout`, a sorted superset of
-    /// this system's block pattern, in an order fixed by the layout alone; their (row, column)
-    /// pairs go to `idx` when given (only a new symbolic factorisation needs them). Layout blocks
-    /// this system lacks are zeros (a diagonal one gets the damping, at least 1, as a parameter
-    /// no row touches does).
-    fn lower_entries(
-        &self,
-        layout: &[(u32, u32)],
-        damping: &[f64],
-        mut idx: Option<&mut Vec<Pair<usize, usize>>>,
-    ) -> Vec<f64> {
+    /// this system's block pattern, in an order fixed by the layout alone (`analyse` lists
+    /// their (row, column) pairs in the same order). Layout blocks this system lacks are zeros
+    /// (a diagonal one gets the damping, at least 1, as a parameter no row touches does).
+    fn lower_entries(&self, layout: &[(u32, u32)], damping: &[f64]) -> Vec<f64> {
         let bs = self.block_size;
         let mut values = Vec::with_capacity(layout.len() * bs * bs);
         let zeros = vec![0.0; bs * bs];
@@ -302,29 +420,13 @@ impl NormalEquations {
                             damping[row].max(1.0)
                         };
                     }
-                    if let Some(idx) = idx.as_deref_mut() {
-                        idx.push(Pair { row, col });
-                    }
                     values.push(v);
                 }
             }
         }
         // Parameters the layout has no diagonal block for still need a diagonal entry.
-        let mut seen = vec![false; self.n];
-        for &(p, q) in layout {
-            if p == q {
-                for a in 0..bs {
-                    seen[p as usize * bs + a] = true;
-                }
-            }
-        }
-        for (i, s) in seen.iter().enumerate() {
-            if !s {
-                if let Some(idx) = idx.as_deref_mut() {
-                    idx.push(Pair { row: i, col: i });
-                }
-                values.push(damping[i].max(1.0));
-            }
+        for i in undiagonal(self.n, bs, layout) {
+            values.push(damping[i].max(1.0));
         }
         values
     }
@@ -341,47 +443,23 @@ impl NormalEquations {
         let faer_err = |e: &dyn std::fmt::Debug| LinearSolveError::Faer(format!("{e:?}"));
         let pattern = self.pattern();
         let kept = cache.entry.as_ref().filter(|c| {
-            c.n == self.n && c.block_size == self.block_size && is_sorted_subset(&pattern, &c.keys)
+            let a = &c.analysis;
+            a.n == self.n && a.block_size == self.block_size && is_sorted_subset(&pattern, &a.keys)
         });
-        let values = if let Some(c) = kept {
-            let values = self.lower_entries(&c.keys, damping, None);
+        if kept.is_some() {
             cache.hits += 1;
-            values
         } else {
-            let mut idx = Vec::new();
-            let values = self.lower_entries(&pattern, damping, Some(&mut idx));
-            let (csc, argsort) = SymbolicSparseColMat::try_new_from_indices(self.n, self.n, &idx)
-                .map_err(|e| faer_err(&e))?;
-            let chol = factorize_symbolic_cholesky(
-                csc.as_ref(),
-                Side::Lower,
-                SymmetricOrdering::Amd,
-                Default::default(),
-            )
-            .map_err(|e| faer_err(&e))?;
-            let mem = MemBuffer::try_new(
-                chol.factorize_numeric_llt_scratch::<f64>(PAR, Default::default())
-                    .or(chol.solve_in_place_scratch::<f64>(1, PAR)),
-            )
-            .map_err(|e| faer_err(&e))?;
-            cache.entry = Some(CachedPattern {
-                n: self.n,
-                block_size: self.block_size,
-                keys: pattern,
-                csc,
-                argsort,
-                l_values: vec![0.0; chol.len_val()],
-                chol,
-                mem,
-            });
+            let analysis = Arc::new(analyse(self.n, self.block_size, pattern)?);
+            cache.entry = Some(CachedPattern::new(analysis)?);
             cache.misses += 1;
-            values
-        };
+        }
         // Invariant: the entry was matched or filled just above.
         let c = cache.entry.as_mut().expect("cached pattern present");
-        let h = SparseColMat::new_from_argsort(c.csc.clone(), &c.argsort, &values)
+        let a = &*c.analysis;
+        let values = self.lower_entries(&a.keys, damping);
+        let h = SparseColMat::new_from_argsort(a.csc.clone(), &a.argsort, &values)
             .map_err(|e| faer_err(&e))?;
-        let llt = c
+        let llt = a
             .chol
             .factorize_numeric_llt(
                 &mut c.l_values,
@@ -529,6 +607,44 @@ mod tests {
             // The same system solved without the kept factorisation agrees to rounding.
             let fresh = ne.solve(&damping, &mut SymbolicCache::default()).unwrap();
             assert!(d.iter().zip(&fresh).all(|(a, b)| (a - b).abs() < 1e-9));
+        }
+    }
+
+    /// A cache made for a pattern serves every system within it from the first solve, its
+    /// shares hold the same analysis with buffers of their own, and a system outside the
+    /// pattern gets its own; the answers agree with fresh solves to rounding.
+    #[test]
+    fn a_cache_made_for_a_pattern_serves_the_systems_within_it_and_its_shares_too() {
+        let mut full = random_problem(21);
+        for p in 0..5u32 {
+            for q in 0..p {
+                full.push_row(0.5, &[(p, &[1.0, 0.5, 0.25]), (q, &[0.3, -0.2, 0.1])]);
+            }
+        }
+        let pattern = full.normal_equations().pattern();
+        let made = SymbolicCache::for_pattern(15, 3, pattern.clone()).unwrap();
+        for seed in [22, 23, 24] {
+            let ne = random_problem(seed).normal_equations();
+            let damping = vec![1e-3; ne.n];
+            let mut shared = made.share().unwrap();
+            let d = ne.solve(&damping, &mut shared).unwrap();
+            assert_eq!((shared.hits, shared.misses), (1, 0), "seed {seed}");
+            let fresh = ne.solve(&damping, &mut SymbolicCache::default()).unwrap();
+            assert!(d.iter().zip(&fresh).all(|(a, b)| (a - b).abs() < 1e-9));
+            assert!(worst_residual(&ne, &damping, &d) < 1e-9);
+        }
+        // Companion: a pattern without block pair (4, 0) does not serve a system that has it.
+        let smaller: Vec<(u32, u32)> = pattern.into_iter().filter(|&k| k != (4, 0)).collect();
+        let mut cache = SymbolicCache::for_pattern(15, 3, smaller).unwrap();
+        let ne = full.normal_equations();
+        ne.solve(&vec![1e-3; ne.n], &mut cache).unwrap();
+        assert_eq!((cache.hits, cache.misses), (0, 1));
+        // A pair above the diagonal or past the parameters is refused, not a panic.
+        for bad in [vec![(0, 1)], vec![(5, 5)]] {
+            let e = SymbolicCache::for_pattern(15, 3, bad)
+                .err()
+                .expect("refused");
+            assert!(e.to_string().contains("lower triangle"), "{e}");
         }
     }
 

@@ -107,8 +107,8 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
     let up = UncertaintyParams {
         samples: uncertainty_samples as usize,
         seed,
-        noise_px: None,
         model_sd_mm,
+        ..Default::default()
     };
     let provenance = acetab::report::Provenance::here(
         kernels.name(),
