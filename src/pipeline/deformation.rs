@@ -14,7 +14,7 @@ use crate::solve::{
     levenberg_marquardt_cached, DeformationGraph, EdProblem, GraphParams, LmInfo, LmParams,
     SymbolicCache,
 };
-use crate::solve::{Problem, ShapeTerms, SolveError, SpherePrior};
+use crate::solve::{LinearSolveError, Problem, ShapeTerms, SolveError, SpherePrior};
 use crate::template::Placement;
 use crate::views::Camera;
 use nalgebra::{Point3, Vector2};
@@ -163,16 +163,8 @@ impl EdState {
         let ne = problem
             .linearize(&problem.start(at), true)
             .normal_equations();
-        state.symbolic =
-            SymbolicCache::for_pattern(ne.n, ne.block_size, ne.pattern()).map_err(|e| {
-                ReconError::Solve {
-                    stage: "resampling",
-                    source: SolveError::Linear {
-                        iteration: 0,
-                        source: e,
-                    },
-                }
-            })?;
+        state.symbolic = SymbolicCache::for_pattern(ne.n, ne.block_size, ne.pattern())
+            .map_err(resampling_failed)?;
         Ok(state)
     }
 
@@ -180,14 +172,19 @@ impl EdState {
     pub(super) fn share(&self) -> Result<EdState, ReconError> {
         Ok(EdState {
             prior_sphere: self.prior_sphere,
-            symbolic: self.symbolic.share().map_err(|e| ReconError::Solve {
-                stage: "resampling",
-                source: SolveError::Linear {
-                    iteration: 0,
-                    source: e,
-                },
-            })?,
+            symbolic: self.symbolic.share().map_err(resampling_failed)?,
         })
+    }
+}
+
+/// A resamples' symbolic factorisation that could not be made (before any step).
+fn resampling_failed(source: LinearSolveError) -> ReconError {
+    ReconError::Solve {
+        stage: "resampling",
+        source: SolveError::Linear {
+            iteration: 0,
+            source,
+        },
     }
 }
 

@@ -576,15 +576,21 @@ mod tests {
             .fold(0.0, f64::max)
     }
 
-    #[test]
-    fn a_kept_factorisation_serves_a_pattern_within_it_and_a_new_pattern_gets_its_own() {
-        // Full pattern first: every pair of the five blocks coupled.
+    /// `random_problem(21)` with every pair of its five blocks coupled.
+    fn fully_coupled() -> Linearization {
         let mut full = random_problem(21);
         for p in 0..5u32 {
             for q in 0..p {
                 full.push_row(0.5, &[(p, &[1.0, 0.5, 0.25]), (q, &[0.3, -0.2, 0.1])]);
             }
         }
+        full
+    }
+
+    #[test]
+    fn a_kept_factorisation_serves_a_pattern_within_it_and_a_new_pattern_gets_its_own() {
+        // Full pattern first: every pair of the five blocks coupled.
+        let full = fully_coupled();
         // A pattern within it (random_problem couples some pairs only), and one outside it
         // (more blocks).
         let within = random_problem(22);
@@ -615,12 +621,7 @@ mod tests {
     /// pattern gets its own; the answers agree with fresh solves to rounding.
     #[test]
     fn a_cache_made_for_a_pattern_serves_the_systems_within_it_and_its_shares_too() {
-        let mut full = random_problem(21);
-        for p in 0..5u32 {
-            for q in 0..p {
-                full.push_row(0.5, &[(p, &[1.0, 0.5, 0.25]), (q, &[0.3, -0.2, 0.1])]);
-            }
-        }
+        let full = fully_coupled();
         let pattern = full.normal_equations().pattern();
         let made = SymbolicCache::for_pattern(15, 3, pattern.clone()).unwrap();
         for seed in [22, 23, 24] {
