@@ -103,6 +103,9 @@ pub struct CupReport {
     pub seed: u64,
     /// Contour noise SD used, pixels.
     pub noise_px: f64,
+    /// Gauss-Newton steps each resample's solve took at most (`UncertaintyParams::max_iterations`
+    /// within the reconstruction's own limit).
+    pub resample_steps: usize,
     /// The resampled diameters, in draw order.
     pub resampled_mm: Vec<f64>,
 }
@@ -193,7 +196,7 @@ fn resampled_diameters(
     let mut one_round = ctx.prm.clone();
     one_round.deformation.correspondence_updates = 1;
     let mut lm = ctx.prm.lm.clone();
-    lm.max_iterations = lm.max_iterations.min(up.max_iterations);
+    lm.max_iterations = resample_steps(ctx.prm, up);
     // What every resample pairs and starts from, once: the result's model contours, the
     // sphere and the symbolic factorisation.
     let model = ctx.contours(&rec.mesh, ctx.cams)?;
@@ -259,6 +262,11 @@ fn resampled_diameters(
     Ok((diam, noise_px))
 }
 
+/// Gauss-Newton steps a resample's solve takes at most.
+fn resample_steps(prm: &ReconParams, up: &UncertaintyParams) -> usize {
+    prm.lm.max_iterations.min(up.max_iterations)
+}
+
 /// Resample and re-solve `rec`, reconstructed from `observed` with `prm`, `up.samples` times in
 /// the views it was fitted with (`rec.cameras`; see the module comment).
 pub fn cup_report(
@@ -318,6 +326,7 @@ pub fn cup_report(
         samples: diam.len(),
         seed: up.seed,
         noise_px,
+        resample_steps: resample_steps(&used, up),
         resampled_mm: diam,
     })
 }
@@ -396,6 +405,7 @@ mod tests {
             samples: 16,
             seed: 1,
             noise_px: 1.0,
+            resample_steps: 2,
             resampled_mm: Vec::new(),
         }
     }
@@ -474,6 +484,10 @@ mod tests {
         };
         let two = report(UncertaintyParams::default().max_iterations).unwrap();
         let converged = report(prm.lm.max_iterations).unwrap();
+        assert_eq!(
+            (two.resample_steps, converged.resample_steps),
+            (2, prm.lm.max_iterations)
+        );
         let gap = largest_difference(&two.resampled_mm, &converged.resampled_mm);
         assert!(gap <= 0.005, "{gap} mm");
         assert!((two.resample_sd_mm - converged.resample_sd_mm).abs() <= 0.002);
