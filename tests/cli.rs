@@ -987,6 +987,12 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
     assert!(study["engine"]["adapter"].is_null(), "{study}");
     let shipped = acetab::pipeline::CupCalibration::shipped_realistic().model_sd_mm;
     assert_eq!(study["cup_model_sd_mm"], shipped);
+    // How the runs were resampled: two resamples of two Gauss-Newton steps each.
+    assert_eq!(
+        (&study["uncertainty_samples"], &study["resample_steps"]),
+        (&serde_json::json!(2), &serde_json::json!(2)),
+        "{study}"
+    );
     // The run's SD holds the model error.
     let rows = acetab::study::read_csv(&out.join("runs.csv")).unwrap();
     assert!(rows[0].cup_sd_mm >= shipped, "{}", rows[0].cup_sd_mm);
@@ -1003,6 +1009,9 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
         ],
         &dir.join("whole"),
     );
+    // Companion: a study without resampling records none.
+    assert_eq!(s["study"]["uncertainty_samples"], 0, "{s}");
+    assert!(s["study"]["resample_steps"].is_null(), "{s}");
     let p = &s["study"]["protocol"]["Realistic"];
     assert_eq!(p["left_out"], 0.0, "{p}");
     assert_eq!(p["pose_deg"], 0.5, "{p}");

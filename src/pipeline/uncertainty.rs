@@ -41,6 +41,14 @@ pub struct UncertaintyParams {
     pub max_iterations: usize,
 }
 
+impl UncertaintyParams {
+    /// Gauss-Newton steps a resample's solve takes at most under `prm`: `max_iterations` within
+    /// the reconstruction's own limit.
+    pub fn resample_steps(&self, prm: &ReconParams) -> usize {
+        prm.lm.max_iterations.min(self.max_iterations)
+    }
+}
+
 impl Default for UncertaintyParams {
     fn default() -> Self {
         UncertaintyParams {
@@ -196,7 +204,7 @@ fn resampled_diameters(
     let mut one_round = ctx.prm.clone();
     one_round.deformation.correspondence_updates = 1;
     let mut lm = ctx.prm.lm.clone();
-    lm.max_iterations = resample_steps(ctx.prm, up);
+    lm.max_iterations = up.resample_steps(ctx.prm);
     // What every resample pairs and starts from, once: the result's model contours, the
     // sphere and the symbolic factorisation.
     let model = ctx.contours(&rec.mesh, ctx.cams)?;
@@ -262,11 +270,6 @@ fn resampled_diameters(
     Ok((diam, noise_px))
 }
 
-/// Gauss-Newton steps a resample's solve takes at most.
-fn resample_steps(prm: &ReconParams, up: &UncertaintyParams) -> usize {
-    prm.lm.max_iterations.min(up.max_iterations)
-}
-
 /// Resample and re-solve `rec`, reconstructed from `observed` with `prm`, `up.samples` times in
 /// the views it was fitted with (`rec.cameras`; see the module comment).
 pub fn cup_report(
@@ -326,7 +329,7 @@ pub fn cup_report(
         samples: diam.len(),
         seed: up.seed,
         noise_px,
-        resample_steps: resample_steps(&used, up),
+        resample_steps: up.resample_steps(&used),
         resampled_mm: diam,
     })
 }

@@ -604,6 +604,9 @@ impl Study<'_> {
             "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
             "correspondence_updates": cfg.params.deformation.correspondence_updates,
             "srvf_samples": cfg.params.correspond.srvf.samples,
+            // How each run's cup uncertainty was resampled (0 resamples: none).
+            "uncertainty_samples": cfg.uncertainty.as_ref().map_or(0, |u| u.samples),
+            "resample_steps": cfg.uncertainty.as_ref().map(|u| u.resample_steps(&cfg.params)),
         });
         fill_dir_atomically(
             out,
