@@ -4,8 +4,8 @@
 //! falling.
 
 use super::band::DpOn;
-use super::curve::{best_rotation, dist2, srvf};
-use super::dp::{coprime_steps, Anchor, CurvePair, Warp};
+use super::curve::{best_rotation, dist2, srvf, Anchor};
+use super::dp::{coprime_steps, CurvePair, Warp};
 use super::dp_many::{rotate_and_warp_many, Candidate};
 use crate::geom::{polyline_length, resample_closed, resample_open, ClosedPolyline};
 use nalgebra::{Point2, Vector2};

@@ -4,7 +4,7 @@
 //! the traceback that turns them into a path. The host's own banded DP (`dp::band_path`) is the
 //! reference every such engine is tested against.
 
-use super::dp::Anchor;
+use super::curve::Anchor;
 use nalgebra::Vector2;
 
 /// The back-pointer of a cell no step reaches.

@@ -1,5 +1,6 @@
 //! Square-root velocity functions of sampled curves: q = b' / sqrt(|b'|), scaled to unit L2 norm
-//! (norm = mean over samples, so <q, q> = 1).
+//! (norm = mean over samples, so <q, q> = 1); a sampled curve read between its samples; and the
+//! position term that pairs two curves' samples drawn in one frame.
 
 use nalgebra::{Point2, Vector2};
 
@@ -74,6 +75,50 @@ pub fn rotate(q: &[Vector2<f64>], theta: f64) -> Vec<Vector2<f64>> {
     q.iter()
         .map(|v| Vector2::new(c * v.x - s * v.y, s * v.x + c * v.y))
         .collect()
+}
+
+/// The position term of a DP between curves drawn in one frame: both curves' arc-length samples
+/// on the same grids as their SRVFs (in units of a length scale), and its weight. A piece of the
+/// warp then costs, besides the SRVF difference, `weight * |a(t) - b(gamma(t))|^2` per sample:
+/// of two warps that match the shapes alike, the one that pairs nearby points wins.
+#[derive(Clone, Copy, Debug)]
+pub struct Anchor<'a> {
+    /// Curve A's samples (q1's grid).
+    pub a: &'a [Vector2<f64>],
+    /// Curve B's samples (q2's grid).
+    pub b: &'a [Vector2<f64>],
+    /// The weight (0: the SRVF energy alone).
+    pub weight: f64,
+}
+
+impl Anchor<'_> {
+    /// The position energy of a warp given at A's samples in B's sample units (mean over
+    /// samples, times the weight).
+    pub fn energy(&self, gamma_samples: &[f64]) -> f64 {
+        let n = self.a.len().max(1) as f64;
+        self.weight
+            * self
+                .a
+                .iter()
+                .zip(gamma_samples)
+                .map(|(a, &y)| (a - interp(self.b, y)).norm_squared())
+                .sum::<f64>()
+            / n
+    }
+}
+
+/// Linear interpolation of q at fractional index y (clamped to the grid).
+#[inline]
+pub(super) fn interp(q: &[Vector2<f64>], y: f64) -> Vector2<f64> {
+    let last = q.len() - 1;
+    let y = y.clamp(0.0, last as f64);
+    let k = (y as usize).min(last.saturating_sub(1));
+    let u = y - k as f64;
+    if last == 0 {
+        q[0]
+    } else {
+        q[k] * (1.0 - u) + q[k + 1] * u
+    }
 }
 
 #[cfg(test)]

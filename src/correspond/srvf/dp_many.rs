@@ -5,8 +5,8 @@
 //! results are the same to the bit as one job at a time.
 
 use super::band::{trace_band, BandProblem, DpOn};
-use super::curve::{best_rotation, dist2, rotate};
-use super::dp::{band_around, band_rows, dp_in_band, feasible_band, finish_warp, Anchor};
+use super::curve::{best_rotation, dist2, rotate, Anchor};
+use super::dp::{band_around, band_rows, dp_in_band, feasible_band, finish_warp};
 use super::dp::{Warp, EXACT_DP_MAX};
 use super::SrvfParams;
 use nalgebra::Vector2;

@@ -13,11 +13,9 @@ pub use align::{
 };
 pub use band::{trace_band, BandProblem, BandSolver, DpOn, NO_STEP};
 pub use batch::{align_batch, aligned_b, AlignProblem};
-pub use curve::{best_rotation, dist2, inner, rotate, srvf};
+pub use curve::{best_rotation, dist2, inner, rotate, srvf, Anchor};
 pub(crate) use dp::prepare as prepare_steps;
-pub use dp::{
-    coprime_steps, dp_warp, edge_cost, traceback, warp_from_path, Anchor, CurvePair, Warp,
-};
+pub use dp::{coprime_steps, dp_warp, edge_cost, traceback, warp_from_path, CurvePair, Warp};
 
 #[cfg(test)]
 mod tests {
