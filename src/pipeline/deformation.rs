@@ -45,10 +45,10 @@ impl StageB {
     }
 }
 
-/// What one ED solve is: the graph's settings, the solver's, and the stage it belongs to (named
-/// in errors).
+/// What one ED solve is: the deformation graph (built on the mesh it deforms), the solver's
+/// settings, and the stage it belongs to (named in errors).
 pub(super) struct EdRound<'a> {
-    pub(super) graph: &'a GraphParams,
+    pub(super) graph: &'a DeformationGraph,
     pub(super) lm: &'a LmParams,
     pub(super) stage: &'static str,
 }
@@ -98,8 +98,8 @@ impl EdState {
         problem
     }
 
-    /// One ED solve on fixed correspondences `obs` in views `cams`, a graph with `round.graph`'s
-    /// settings built on `mesh`: the deformed mesh.
+    /// One ED solve on fixed correspondences `obs` in views `cams`, over `round.graph` (built on
+    /// `mesh`): the deformed mesh.
     pub(super) fn solve(
         &mut self,
         ctx: &Ctx,
@@ -108,8 +108,8 @@ impl EdState {
         mesh: &Mesh,
         obs: &[Observation],
     ) -> Result<(Mesh, LmInfo), ReconError> {
-        let graph = DeformationGraph::new(mesh, round.graph);
-        let problem = self.problem(ctx, &graph, cams, mesh, obs);
+        let graph = round.graph;
+        let problem = self.problem(ctx, graph, cams, mesh, obs);
         let at = self.prior_sphere.unwrap_or((Point3::origin(), 0.0));
         let (x, info) =
             levenberg_marquardt_cached(&problem, problem.start(at), round.lm, &mut self.symbolic)
@@ -122,21 +122,20 @@ impl EdState {
             let b = &x[nodes..];
             self.prior_sphere = Some((Point3::new(b[0], b[1], b[2]), b[3]));
         }
-        let out = mesh.with_vertices(ctx.kernels.deform(&graph, &x[..nodes])?);
+        let out = mesh.with_vertices(ctx.kernels.deform(graph, &x[..nodes])?);
         check_finite(&out)?;
         Ok((out, info))
     }
 
     /// The state every resample of a result `mesh` starts from (`resolve_from`): the sphere
     /// prior's sphere fitted to it, and the symbolic factorisation of a pattern that holds every
-    /// resample's, the problem with every vertex of its model outlines `contours` (in views
-    /// `cams`) observed. A resample's correspondences pair only those vertices, so its solve
+    /// resample's, the problem over `graph` (built on `mesh`) with every vertex of its model
+    /// outlines `contours` (in views `ctx.cams`) observed. A resample's correspondences pair only those vertices, so its solve
     /// reuses the factorisation instead of analysing its own pattern (the blocks it lacks enter
     /// as zeros: the same answer to rounding).
     pub(super) fn for_resamples(
         ctx: &Ctx,
-        graph: &GraphParams,
-        cams: &[Camera],
+        graph: &DeformationGraph,
         mesh: &Mesh,
         contours: &[ModelContour],
     ) -> Result<EdState, ReconError> {
@@ -157,8 +156,7 @@ impl EdState {
             })
             .collect();
         let mut state = EdState::default();
-        let graph = DeformationGraph::new(mesh, graph);
-        let problem = state.problem(ctx, &graph, cams, mesh, &all);
+        let problem = state.problem(ctx, graph, ctx.cams, mesh, &all);
         let at = state.prior_sphere.unwrap_or((Point3::origin(), 0.0));
         let ne = problem
             .linearize(&problem.start(at), true)
@@ -268,8 +266,9 @@ impl Deformation {
                 }
                 _ => &prm.deformation.graph,
             };
+            let graph = DeformationGraph::new(&self.mesh, graph);
             let round = EdRound {
-                graph,
+                graph: &graph,
                 lm: &b.lm,
                 stage: "deformation",
             };
@@ -289,15 +288,15 @@ impl Deformation {
 
 /// One more ED round from an already reconstructed mesh, in the views `ctx.cams`:
 /// correspondences of its model contours there (`model`, `Ctx::contours`) recomputed once
-/// against `ctx.observed`, each observation's weight multiplied
-/// by `reweight` (the bootstrap's draws), the graph rebuilt on `mesh` and solved from `state`
-/// (`EdState::for_resamples`) with `lm`. Used to measure how the result moves when the inputs
-/// are resampled. Returns the new mesh and the round's correspondences with their robust
-/// weights (without the bootstrap's factors), as `Reconstruction::observations` are kept, so
-/// that the cup estimator (`cup_spheres`) sees the resample as it sees the result.
+/// against `ctx.observed`, each observation's weight multiplied by `reweight` (the bootstrap's
+/// draws), and solved over `graph` (built on `mesh`) from `state` (`EdState::for_resamples`)
+/// with `lm`. Used to measure how the result moves when the inputs are resampled. Returns the
+/// new mesh and the round's correspondences with their robust weights (without the bootstrap's
+/// factors), as `Reconstruction::observations` are kept, so that the cup estimator
+/// (`cup_spheres`) sees the resample as it sees the result.
 pub(super) fn resolve_from(
     ctx: &Ctx,
-    (mesh, model): (&Mesh, &[ModelContour]),
+    (mesh, model, graph): (&Mesh, &[ModelContour], &DeformationGraph),
     reweight: &mut dyn FnMut(usize) -> f64,
     mut state: EdState,
     lm: &LmParams,
@@ -308,7 +307,7 @@ pub(super) fn resolve_from(
         o.weight *= reweight(k);
     }
     let round = EdRound {
-        graph: &ctx.prm.deformation.graph,
+        graph,
         lm,
         stage: "resampling",
     };

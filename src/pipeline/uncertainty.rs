@@ -14,6 +14,7 @@ use crate::engine::Kernels;
 use crate::geom::Curve;
 use crate::geom::{mean_sd, quantile_sorted};
 use crate::pipeline::{cup_spheres, ReconError, ReconParams, Reconstruction};
+use crate::solve::DeformationGraph;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Exp1, Normal};
 use serde::Serialize;
@@ -205,11 +206,11 @@ fn resampled_diameters(
     one_round.deformation.correspondence_updates = 1;
     let mut lm = ctx.prm.lm.clone();
     lm.max_iterations = up.resample_steps(ctx.prm);
-    // What every resample pairs and starts from, once: the result's model contours, the
-    // sphere and the symbolic factorisation.
+    // What every resample pairs, deforms and starts from, once: the result's model contours,
+    // its deformation graph, the sphere and the symbolic factorisation.
     let model = ctx.contours(&rec.mesh, ctx.cams)?;
-    let start =
-        EdState::for_resamples(ctx, &ctx.prm.deformation.graph, ctx.cams, &rec.mesh, &model)?;
+    let graph = DeformationGraph::new(&rec.mesh, &ctx.prm.deformation.graph);
+    let start = EdState::for_resamples(ctx, &graph, &rec.mesh, &model)?;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(up.seed);
     let normal = Normal::new(0.0, noise_px).map_err(|_| ReconError::Param {
         field: "uncertainty noise_px",
@@ -254,7 +255,7 @@ fn resampled_diameters(
         };
         let (mesh, obs) = resolve_from(
             &resample,
-            (&rec.mesh, &model),
+            (&rec.mesh, &model, &graph),
             &mut reweight,
             start.share()?,
             &lm,

@@ -228,6 +228,8 @@ struct Analysis {
     n: usize,
     block_size: usize,
     keys: Vec<(u32, u32)>,
+    /// The parameters `keys` has no diagonal block for (`undiagonal`).
+    undiagonal: Vec<usize>,
     csc: SymbolicSparseColMat<usize>,
     argsort: Argsort<usize>,
     chol: SymbolicCholesky<usize>,
@@ -258,9 +260,9 @@ impl CachedPattern {
     }
 }
 
-/// The (row, column) pairs of the lower-triangle entries `NormalEquations::lower_entries` lays
-/// out on `layout` for `n` parameters in blocks of `block_size`, in its order, and the symbolic
-/// analysis of that pattern.
+/// The symbolic analysis of the lower-triangle entries `NormalEquations::lower_entries` lays
+/// out on `layout` for `n` parameters in blocks of `block_size` (their (row, column) pairs
+/// listed here in the same order).
 fn analyse(
     n: usize,
     block_size: usize,
@@ -279,7 +281,8 @@ fn analyse(
             }
         }
     }
-    for i in undiagonal(n, bs, &layout) {
+    let undiagonal = undiagonal(n, bs, &layout);
+    for &i in &undiagonal {
         idx.push(Pair { row: i, col: i });
     }
     let (csc, argsort) =
@@ -295,6 +298,7 @@ fn analyse(
         n,
         block_size,
         keys: layout,
+        undiagonal,
         csc,
         argsort,
         chol,
@@ -391,9 +395,16 @@ impl NormalEquations {
 
     /// Lower-triangle values of H + diag(damping) laid out on `layout`, a sorted superset of
     /// this system's block pattern, in an order fixed by the layout alone (`analyse` lists
-    /// their (row, column) pairs in the same order). Layout blocks this system lacks are zeros
-    /// (a diagonal one gets the damping, at least 1, as a parameter no row touches does).
-    fn lower_entries(&self, layout: &[(u32, u32)], damping: &[f64]) -> Vec<f64> {
+    /// their (row, column) pairs in the same order), then a diagonal entry for each parameter
+    /// in `undiagonal` (those the layout has no diagonal block for). Layout blocks this system
+    /// lacks are zeros (a diagonal one gets the damping, at least 1, as a parameter no row
+    /// touches does).
+    fn lower_entries(
+        &self,
+        layout: &[(u32, u32)],
+        undiagonal: &[usize],
+        damping: &[f64],
+    ) -> Vec<f64> {
         let bs = self.block_size;
         let mut values = Vec::with_capacity(layout.len() * bs * bs);
         let zeros = vec![0.0; bs * bs];
@@ -425,7 +436,7 @@ impl NormalEquations {
             }
         }
         // Parameters the layout has no diagonal block for still need a diagonal entry.
-        for i in undiagonal(self.n, bs, layout) {
+        for &i in undiagonal {
             values.push(damping[i].max(1.0));
         }
         values
@@ -456,7 +467,7 @@ impl NormalEquations {
         // Invariant: the entry was matched or filled just above.
         let c = cache.entry.as_mut().expect("cached pattern present");
         let a = &*c.analysis;
-        let values = self.lower_entries(&a.keys, damping);
+        let values = self.lower_entries(&a.keys, &a.undiagonal, damping);
         let h = SparseColMat::new_from_argsort(a.csc.clone(), &a.argsort, &values)
             .map_err(|e| faer_err(&e))?;
         let llt = a
