@@ -40,6 +40,22 @@ pub enum MeshError {
         /// The coordinate.
         value: f64,
     },
+    /// A vertex lies too far out for its corners to be welded at the tolerance (the weld keys
+    /// are whole multiples of it): not a mesh in millimetres.
+    #[error(
+        "vertex {index} has a coordinate of {value} mm, beyond the +-{limit:e} mm within which \
+         corners can be welded at {tol} mm (is the mesh in millimetres?)"
+    )]
+    TooFar {
+        /// The vertex.
+        index: usize,
+        /// The coordinate, mm.
+        value: f64,
+        /// The largest coordinate magnitude the weld takes, mm.
+        limit: f64,
+        /// The weld tolerance, mm.
+        tol: f64,
+    },
     /// The triangles have no area.
     #[error("mesh is degenerate: total area {area} mm^2")]
     Degenerate {
@@ -185,8 +201,21 @@ impl Mesh {
     }
 
     /// Weld vertices closer than `tol` mm (STL stores each triangle's corners separately).
+    /// Coordinates beyond 2^53 tolerances (about 9,000 km at 1e-6 mm) are refused: their keys
+    /// would no longer be whole numbers, and past 2^63 every vertex would share one.
     pub fn welded(&self, tol: f64) -> Result<Mesh, MeshError> {
         use std::collections::HashMap;
+        let limit = tol * 2f64.powi(53);
+        for (index, p) in self.vertices.iter().enumerate() {
+            if let Some(&value) = p.coords.iter().find(|c| c.abs() > limit) {
+                return Err(MeshError::TooFar {
+                    index,
+                    value,
+                    limit,
+                    tol,
+                });
+            }
+        }
         let key = |p: &Point3<f64>| {
             (
                 (p.x / tol).round() as i64,
@@ -314,5 +343,34 @@ mod tests {
         let w = soup.welded(1e-6).unwrap();
         assert_eq!(w.vertex_count(), 4);
         assert_eq!(w.boundary_edges().len(), 4);
+    }
+
+    /// The quad's corners as a triangle soup moved by `shift` mm along x.
+    fn soup_at(shift: f64) -> Mesh {
+        let m = quad();
+        let mut v = Vec::new();
+        let mut t = Vec::new();
+        for tri in &m.triangles {
+            let base = v.len() as u32;
+            for &i in tri {
+                v.push(m.vertices[i as usize] + Vector3::new(shift, 0.0, 0.0));
+            }
+            t.push([base, base + 1, base + 2]);
+        }
+        Mesh::new(v, t).unwrap()
+    }
+
+    #[test]
+    fn a_mesh_far_out_is_refused_by_the_weld_not_collapsed() {
+        // 1e12 mm: past 2^53 tolerances the keys are no longer whole numbers (and past 2^63,
+        // as with a file's 1e30, every key saturates to one and no triangle is left).
+        let far = soup_at(1e12).welded(1e-6);
+        assert!(
+            matches!(far, Err(MeshError::TooFar { index: 0, .. })),
+            "{far:?}"
+        );
+        // Companion: the same soup a kilometre out still welds to the quad.
+        let near = soup_at(1e6).welded(1e-6).unwrap();
+        assert_eq!(near.vertex_count(), 4);
     }
 }
