@@ -260,8 +260,9 @@ impl SolveLog {
 /// One orientation stage B tried.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct OrientationTrial {
-    /// "stage A" (its result) or "mirrored" (the mirrored start, settled by stage A); for a
-    /// restart, "given" or the tilt ("+u", "-u", "+v", "-v").
+    /// "stage A" (the given start's result) or "mirrored" (the mirrored start, settled by
+    /// stage A), the one stage A ranked first listed first; for a restart, "given" or the tilt
+    /// ("+u", "-u", "+v", "-v").
     pub source: &'static str,
     /// Its reprojection RMS, pixels.
     pub rms_px: f64,
@@ -456,7 +457,7 @@ pub(super) fn attempt(
     let start = limb_start(&ctx, input.init, &mut log);
     let placed = place(&ctx, input.template, &start, &mut log)?;
     let posed = refine_views(&ctx, input.template, placed.best, &mut log)?;
-    let deformed = deform(&ctx, posed, placed.rivals, &mut log)?;
+    let deformed = deform(&ctx, posed, (placed.lead, placed.rivals), &mut log)?;
     finish(&ctx, input, deformed, log)
 }
 
@@ -508,19 +509,25 @@ fn limb_start(ctx: &Ctx, init: &Placement, log: &mut SolveLog) -> Start {
     }
 }
 
-/// What stage A settled on, and the mirrored orientation when the outlines leave it open.
+/// What stage A settled on (`lead` names which start: "stage A", the given one, or
+/// "mirrored"), and the other orientation when the outlines leave it open.
 struct Placed {
     best: StageA,
+    lead: &'static str,
     rivals: Vec<(&'static str, Mesh, Placement)>,
 }
 
 /// Stage A: similarity, correspondences recomputed each round. When the sphere is known the
 /// axis mirrored through the first view's image plane is probed too: an acetabulum opening
 /// forwards and one opening backwards by as much cast nearly the same outline in a frontal
-/// view, and only the oblique views tell them apart. The mirrored one replaces the given start
-/// when it reprojects clearly better (by the factor MIRROR_SWITCH) and is dropped when clearly
-/// worse; in between, the rigid cap cannot tell them apart and both go on to stage B (see
-/// `DeformationParams::orientation_rounds`).
+/// view, and only the oblique views tell them apart. The mirrored one leads when it reprojects
+/// clearly better (by the factor MIRROR_SWITCH) and is dropped when clearly worse; in between,
+/// the rigid cap cannot tell them apart. Unless it is dropped, both go on to stage B, which
+/// compares them after a deformation round (see `DeformationParams::orientation_rounds`): a
+/// rigid cap's score is not the last word even when the mirrored one leads, since the given
+/// start's cap may not have settled in its rounds (an atlas acetabulum tilted 12 degrees, level
+/// 3: the given cap 24 degrees off the truth's axis after 10 rounds, the mirrored one 57 degrees
+/// off but scoring 0.58 of it; stage B's round told them apart, 3.7 against 18.7 px).
 fn place(
     ctx: &Ctx,
     template: &Template,
@@ -582,6 +589,7 @@ fn place(
         }
     };
     let mut best = logged(first, log)?;
+    let mut lead = "stage A";
     let mut rivals = Vec::new();
     if let Some(probe) = probe {
         let probe = logged(probe, log)?;
@@ -595,13 +603,17 @@ fn place(
                 log,
             )?;
             if clear {
-                best = settled;
+                let given = std::mem::replace(&mut best, settled);
+                lead = "mirrored";
+                if prm.deformation.orientation_rounds > 0 {
+                    rivals.push(("stage A", given.mesh, given.placement));
+                }
             } else {
                 rivals.push(("mirrored", settled.mesh, settled.placement));
             }
         }
     }
-    Ok(Placed { best, rivals })
+    Ok(Placed { best, lead, rivals })
 }
 
 /// Where stage B starts: the placed cap and the views' corrections so far.
@@ -673,7 +685,7 @@ fn refine_views(
 fn deform(
     ctx: &Ctx,
     posed: Posed,
-    rivals: Vec<(&'static str, Mesh, Placement)>,
+    (lead, rivals): (&'static str, Vec<(&'static str, Mesh, Placement)>),
     log: &mut SolveLog,
 ) -> Result<Deformation, ReconError> {
     let b = StageB::new(ctx.prm);
@@ -683,7 +695,7 @@ fn deform(
         let k = ctx.prm.deformation.orientation_rounds.min(b.rounds);
         run.advance(ctx, &b, k)?;
         log.orientations.push(OrientationTrial {
-            source: "stage A",
+            source: lead,
             rms_px: run.rms_px(),
         });
         for (source, m, p) in rivals {

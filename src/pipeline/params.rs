@@ -120,8 +120,9 @@ pub struct DeformationParams {
     pub icp_iterations: usize,
     /// ... or until an iteration moves the surface by less than this RMS (default 0.02 mm).
     pub icp_tol_mm: f64,
-    /// Rounds both orientations get when stage A cannot choose between the start's and the
-    /// mirrored one (0: keep the start's; default 1; the ICP baselines' rounds are single
+    /// Rounds both orientations get when stage A does not drop the mirrored one (it may lead,
+    /// but a rigid cap's score is not the last word: see `pipeline::place`); 0: the one stage
+    /// A ranks first goes on alone (default 1; the ICP baselines' rounds are single
     /// iterations).
     pub orientation_rounds: usize,
     /// Weight per vertex of the sphere prior (0 = off; default 0.3; see `solve::SpherePrior`).

@@ -102,14 +102,14 @@ for name in ["empty.stl", "degenerate.obj", "nan_vertex.obj", "no_faces.obj", "t
     rows.append((name, "simulate", ""))
 rows.append(("short_vertex_list.ply", "simulate", "not a valid PLY file"))
 # Valid meshes no study can use: a flat grid (no sphere fits it) and a tetrahedron with corners
-# 1e38 mm out (its sphere is no acetabulum's: units?). Refused up front, before any run.
+# 1e38 mm out (units?): refused up front by name, before any run.
 grid = [f"v {i} {j} 0" for i in range(6) for j in range(6)]
 grid += [f"f {i*6+j+1} {i*6+j+2} {i*6+j+8}\nf {i*6+j+1} {i*6+j+8} {i*6+j+7}" for i in range(5) for j in range(5)]
 open(os.path.join(out, "flat_plane.obj"), "w").write("\n".join(grid) + "\n")
 rows.append(("flat_plane.obj", "simulate", "ground truth sphere fit"))
 open(os.path.join(out, "far_away.obj"), "w").write(
     "v 1e38 0 0\nv -1e38 0 0\nv 0 1e38 0\nv 0 0 1e38\nf 1 2 3\nf 1 3 4\nf 2 3 4\nf 1 2 4\n")
-rows.append(("far_away.obj", "simulate", "outside the 15-60 mm"))
+rows.append(("far_away.obj", "simulate", "is the mesh in millimetres?"))
 with open(os.path.join(out, "expected.tsv"), "w") as f:
     f.write("# file\tcommand\texpected substring of the error\n")
     for r in rows:
