@@ -172,6 +172,21 @@ fn m1_rhip_run(
     Some((accuracy(&truth, &rec.mesh).mae_mm, rec.log.orientations))
 }
 
+/// The settings without stage B's comparison of orientations and without restarts.
+fn no_comparison_no_restarts() -> ReconParams {
+    ReconParams {
+        deformation: DeformationParams {
+            orientation_rounds: 0,
+            ..Default::default()
+        },
+        placement: PlacementParams {
+            restart_above_px: f64::INFINITY,
+            ..Default::default()
+        },
+        ..Default::default()
+    }
+}
+
 /// The candidate with the lowest reprojection RMS.
 fn chosen(trials: &[acetab::pipeline::OrientationTrial]) -> &'static str {
     trials
@@ -192,17 +207,7 @@ fn an_orientation_the_cap_cannot_choose_is_chosen_after_a_deformation_round() {
     assert!(mae < 1.2, "MAE {mae}");
     // Companion: without the comparison (and without restarts, which would also rescue it)
     // the start's (wrong) orientation stays, and the same bound rejects it.
-    let prm = ReconParams {
-        deformation: DeformationParams {
-            orientation_rounds: 0,
-            ..Default::default()
-        },
-        placement: PlacementParams {
-            restart_above_px: f64::INFINITY,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
+    let prm = no_comparison_no_restarts();
     let (wrong, none) = m1_rhip_run(2, 2, &prm).unwrap();
     println!("without the comparison: MAE {wrong:.3} mm");
     assert!(none.is_empty());
@@ -529,17 +534,7 @@ fn a_mirrored_cap_that_leads_in_stage_a_is_still_compared_with_the_given_one() {
     assert!(mae < 1.2, "MAE {mae}");
     // Companion: without the comparison the mirrored cap goes on alone, and the same bound
     // rejects the result (restarts, which its outlines are too near to fire, are off too).
-    let prm = ReconParams {
-        deformation: DeformationParams {
-            orientation_rounds: 0,
-            ..Default::default()
-        },
-        placement: PlacementParams {
-            restart_above_px: f64::INFINITY,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
+    let prm = no_comparison_no_restarts();
     let (wrong, none) = tilted_a24_run(3, 0, &prm).unwrap();
     println!("without the comparison: MAE {wrong:.3} mm");
     assert!(none.is_empty());

@@ -328,17 +328,7 @@ mod tests {
 
     #[test]
     fn welding_merges_duplicated_corners() {
-        let m = quad();
-        let mut v = Vec::new();
-        let mut t = Vec::new();
-        for tri in &m.triangles {
-            let base = v.len() as u32;
-            for &i in tri {
-                v.push(m.vertices[i as usize]);
-            }
-            t.push([base, base + 1, base + 2]);
-        }
-        let soup = Mesh::new(v, t).unwrap();
+        let soup = soup_at(0.0);
         assert_eq!(soup.vertex_count(), 6);
         let w = soup.welded(1e-6).unwrap();
         assert_eq!(w.vertex_count(), 4);
