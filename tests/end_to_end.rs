@@ -159,17 +159,33 @@ fn m1_rhip_run(
         return None;
     }
     let truth = ground_truth_surface(&read_mesh(&path).unwrap()).unwrap();
-    let sim = simulate_case(
+    Some(simulated_run(
         &truth,
+        acetab::study::run_seed(1, level, run),
+        level,
+        prm,
+    ))
+}
+
+/// One simulated case of `truth` (2 px outline noise, the default views) at `level` with
+/// `seed`, reconstructed with `prm`: its MAE and the orientations stage B compared.
+fn simulated_run(
+    truth: &acetab::Mesh,
+    seed: u64,
+    level: u32,
+    prm: &ReconParams,
+) -> (f64, Vec<acetab::pipeline::OrientationTrial>) {
+    let sim = simulate_case(
+        truth,
         &XrayGeometry::default(),
         2.0,
         &NoiseLevel::level(level).unwrap(),
-        acetab::study::run_seed(1, level, run),
+        seed,
     )
     .unwrap();
     let template = Template::standard();
     let rec = reconstruct(&sim.input(&template), prm, Kernels::Cpu).unwrap();
-    Some((accuracy(&truth, &rec.mesh).mae_mm, rec.log.orientations))
+    (accuracy(truth, &rec.mesh).mae_mm, rec.log.orientations)
 }
 
 /// The settings without stage B's comparison of orientations and without restarts.
@@ -503,17 +519,12 @@ fn tilted_a24_run(
     )
     .unwrap();
     let truth = ground_truth_surface(&tilted).unwrap();
-    let sim = simulate_case(
+    Some(simulated_run(
         &truth,
-        &XrayGeometry::default(),
-        2.0,
-        &NoiseLevel::level(level).unwrap(),
         acetab::study::run_seed(7, level, run),
-    )
-    .unwrap();
-    let template = Template::standard();
-    let rec = reconstruct(&sim.input(&template), prm, Kernels::Cpu).unwrap();
-    Some((accuracy(&truth, &rec.mesh).mae_mm, rec.log.orientations))
+        level,
+        prm,
+    ))
 }
 
 #[test]
