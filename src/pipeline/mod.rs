@@ -457,7 +457,7 @@ pub(super) fn attempt(
     let start = limb_start(&ctx, input.init, &mut log);
     let placed = place(&ctx, input.template, &start, &mut log)?;
     let posed = refine_views(&ctx, input.template, placed.best, &mut log)?;
-    let deformed = deform(&ctx, posed, (placed.lead, placed.rivals), &mut log)?;
+    let deformed = deform(&ctx, posed, placed.orientations, &mut log)?;
     finish(&ctx, input, deformed, log)
 }
 
@@ -509,10 +509,16 @@ fn limb_start(ctx: &Ctx, init: &Placement, log: &mut SolveLog) -> Start {
     }
 }
 
-/// What stage A settled on (`lead` names which start: "stage A", the given one, or
-/// "mirrored"), and the other orientation when the outlines leave it open.
+/// What stage A settled on, and which orientations stage B is to compare.
 struct Placed {
     best: StageA,
+    orientations: Orientations,
+}
+
+/// The orientations stage A leaves to stage B: `lead` names where `Placed::best` came from
+/// ("stage A", the given start, or "mirrored"), and `rivals` are the other settled caps, by
+/// name, when the outlines leave the choice open (empty when stage A's was the only one).
+struct Orientations {
     lead: &'static str,
     rivals: Vec<(&'static str, Mesh, Placement)>,
 }
@@ -613,7 +619,10 @@ fn place(
             }
         }
     }
-    Ok(Placed { best, lead, rivals })
+    Ok(Placed {
+        best,
+        orientations: Orientations { lead, rivals },
+    })
 }
 
 /// Where stage B starts: the placed cap and the views' corrections so far.
@@ -685,7 +694,7 @@ fn refine_views(
 fn deform(
     ctx: &Ctx,
     posed: Posed,
-    (lead, rivals): (&'static str, Vec<(&'static str, Mesh, Placement)>),
+    Orientations { lead, rivals }: Orientations,
     log: &mut SolveLog,
 ) -> Result<Deformation, ReconError> {
     let b = StageB::new(ctx.prm);

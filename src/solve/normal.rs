@@ -209,6 +209,20 @@ pub enum LinearSolveError {
     /// faer's factorisation failed (its message).
     #[error("sparse factorisation failed: {0}")]
     Faer(String),
+    /// A block pattern given to `SymbolicCache::for_pattern` holds a pair above the diagonal
+    /// or past the parameters.
+    #[error(
+        "block pair {pair:?} lies outside the lower triangle of {n} parameters in blocks of \
+         {block_size}"
+    )]
+    PatternOutside {
+        /// The (row block, column block) pair.
+        pair: (u32, u32),
+        /// Parameters.
+        n: usize,
+        /// Parameters per block.
+        block_size: usize,
+    },
 }
 
 /// The symbolic Cholesky factorisation of the last new block pattern solved, kept for later
@@ -333,13 +347,15 @@ impl SymbolicCache {
     ) -> Result<SymbolicCache, LinearSolveError> {
         pattern.sort_unstable();
         pattern.dedup();
-        if pattern
+        if let Some(&pair) = pattern
             .iter()
-            .any(|&(p, q)| p < q || (p as usize + 1) * block_size > n)
+            .find(|&&(p, q)| p < q || (p as usize + 1) * block_size > n)
         {
-            return Err(LinearSolveError::Faer(format!(
-                "a block pair outside the lower triangle of {n} parameters in blocks of {block_size}"
-            )));
+            return Err(LinearSolveError::PatternOutside {
+                pair,
+                n,
+                block_size,
+            });
         }
         let analysis = Arc::new(analyse(n, block_size, pattern)?);
         Ok(SymbolicCache {
@@ -653,9 +669,14 @@ mod tests {
         assert_eq!((cache.hits, cache.misses), (0, 1));
         // A pair above the diagonal or past the parameters is refused, not a panic.
         for bad in [vec![(0, 1)], vec![(5, 5)]] {
+            let pair = bad[0];
             let e = SymbolicCache::for_pattern(15, 3, bad)
                 .err()
                 .expect("refused");
+            assert!(
+                matches!(e, LinearSolveError::PatternOutside { pair: p, n: 15, block_size: 3 } if p == pair),
+                "{e}"
+            );
             assert!(e.to_string().contains("lower triangle"), "{e}");
         }
     }
