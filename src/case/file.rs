@@ -2,7 +2,7 @@
 //! and the template's initial placement. Everything is validated on load; an error names the
 //! file, the field and the value.
 
-use crate::geom::{signed_area, Curve};
+use crate::geom::{signed_area, stray_point, Curve};
 use crate::pipeline::Input;
 use crate::template::{Placement, Template};
 use crate::views::{widest_spread_deg, Camera, Intrinsics, MIN_VIEW_SPREAD_DEG};
@@ -572,11 +572,19 @@ impl CaseFile {
                         ))
                     }
                 };
-                let mut pts: Vec<Point2<f64>> =
-                    c.points.iter().map(|p| Point2::new(p[0], p[1])).collect();
-                pts.dedup_by(|a, b| (*a - *b).norm() < 1e-9);
+                // The distinct points, each with its index in the file.
+                let mut pts: Vec<Point2<f64>> = Vec::with_capacity(c.points.len());
+                let mut index: Vec<usize> = Vec::with_capacity(c.points.len());
+                for (pi, p) in c.points.iter().enumerate() {
+                    let q = Point2::new(p[0], p[1]);
+                    if pts.last().is_none_or(|last| (q - last).norm() >= 1e-9) {
+                        pts.push(q);
+                        index.push(pi);
+                    }
+                }
                 if closed && pts.len() > 1 && (pts[0] - pts[pts.len() - 1]).norm() < 1e-9 {
                     pts.pop(); // an explicitly repeated first point
+                    index.pop();
                 }
                 let distinct = pts.len();
                 if distinct < 4 {
@@ -594,6 +602,20 @@ impl CaseFile {
                         cf("points"),
                         format!("extent {extent:.3} px"),
                         "the contour is smaller than 2 pixels",
+                    ));
+                }
+                if let Some(s) = stray_point(&pts, closed) {
+                    let pi = index[s.index];
+                    return Err(field_err(
+                        path,
+                        cf(&format!("points[{pi}]")),
+                        format!("{:?}", c.points[pi]),
+                        format!(
+                            "a stray point: {:.0} px from both its neighbours, which lie {:.0} px \
+                             apart (the contour's points are {:.0} px apart at the median); \
+                             remove or correct it",
+                            s.off_px, s.neighbours_px, s.spacing_px
+                        ),
                     ));
                 }
                 if closed && signed_area(&pts) < 0.0 {

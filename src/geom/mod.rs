@@ -9,6 +9,7 @@ mod pool;
 mod segments;
 mod sphere;
 mod stats;
+mod stray;
 
 pub use knn::Knn3;
 pub use mesh::{Mesh, MeshError};
@@ -20,3 +21,4 @@ pub use pool::{par_map, pool_map};
 pub use segments::Segments;
 pub use sphere::{fit_sphere, fit_sphere_robust, Sphere, SphereFitError};
 pub use stats::{centroid, mean, mean_sd, opening_axis, quantile_sorted};
+pub use stray::{stray_point, StrayPoint};
