@@ -2,11 +2,11 @@
 //! and the template's initial placement. Everything is validated on load; an error names the
 //! file, the field and the value.
 
-use crate::geom::{signed_area, stray_point, Curve};
+use crate::geom::{signed_area, stray_point, winding_number, Curve};
 use crate::pipeline::Input;
 use crate::template::{Placement, Template};
 use crate::views::{widest_spread_deg, Camera, Intrinsics, MIN_VIEW_SPREAD_DEG};
-use nalgebra::{Matrix3, Point2, Point3, Rotation3, Unit, Vector3};
+use nalgebra::{Matrix3, Point2, Point3, Rotation3, Unit, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -602,6 +602,27 @@ impl CaseFile {
                         cf("points"),
                         format!("extent {extent:.3} px"),
                         "the contour is smaller than 2 pixels",
+                    ));
+                }
+                // A closed outline traced round more than once (two passes of the annotation
+                // joined) goes twice round its own centre; a noisy or notched one, once.
+                let centre = Point2::from(
+                    pts.iter().map(|p| p.coords).sum::<Vector2<f64>>() / pts.len() as f64,
+                );
+                let turns = if closed {
+                    winding_number(&pts, centre).abs()
+                } else {
+                    1
+                };
+                if turns > 1 {
+                    return Err(field_err(
+                        path,
+                        cf("points"),
+                        format!(
+                            "{} points going {turns} times round their centre",
+                            c.points.len()
+                        ),
+                        "a closed contour goes once round the rim: is it traced twice?",
                     ));
                 }
                 if let Some(s) = stray_point(&pts, closed) {

@@ -121,9 +121,48 @@ pub fn resample_open(p: &[Point2<f64>], t: usize) -> (Vec<Point2<f64>>, Vec<f64>
         .unzip()
 }
 
+/// How many times the closed polyline `p` goes round the point `about` (counter-clockwise
+/// positive): the sum of the turns of `p[i] - about` from point to point, over 2 pi, rounded.
+/// 0 when a point of `p` is `about` itself or `p` has fewer than 3 points.
+pub fn winding_number(p: &[Point2<f64>], about: Point2<f64>) -> i64 {
+    let n = p.len();
+    if n < 3 || p.iter().any(|q| (q - about).norm() == 0.0) {
+        return 0;
+    }
+    let turn: f64 = (0..n)
+        .map(|i| {
+            let (a, b) = (p[i] - about, p[(i + 1) % n] - about);
+            (a.x * b.y - a.y * b.x).atan2(a.dot(&b))
+        })
+        .sum();
+    (turn / std::f64::consts::TAU).round() as i64
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A circle winds once round its centre (either way), the same circle traced twice winds
+    /// twice, and a point outside it not at all.
+    #[test]
+    fn winding_counts_the_turns_round_a_point() {
+        let c = Point2::new(5.0, -3.0);
+        let circle: Vec<Point2<f64>> = (0..40)
+            .map(|i| {
+                let t = std::f64::consts::TAU * i as f64 / 40.0;
+                c + nalgebra::Vector2::new(10.0 * t.cos(), 10.0 * t.sin())
+            })
+            .collect();
+        assert_eq!(winding_number(&circle, c), 1);
+        let reversed: Vec<_> = circle.iter().rev().copied().collect();
+        assert_eq!(winding_number(&reversed, c), -1);
+        let twice: Vec<_> = circle.iter().chain(&circle).copied().collect();
+        assert_eq!(winding_number(&twice, c), 2);
+        assert_eq!(
+            winding_number(&circle, c + nalgebra::Vector2::new(30.0, 0.0)),
+            0
+        );
+    }
 
     #[test]
     fn square_resampling_and_area() {
