@@ -1003,7 +1003,7 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
             "--protocol",
             "realistic",
             "--realistic",
-            "left_out=0,pose_deg=0.5",
+            "left_out=0,pose_deg=0.5,click_px=12",
             "--uncertainty-samples",
             "0",
         ],
@@ -1016,6 +1016,7 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
     assert_eq!(p["left_out"], 0.0, "{p}");
     assert_eq!(p["pose_deg"], 0.5, "{p}");
     assert_eq!(p["pose_mm"], 2.0, "{p}");
+    assert_eq!(p["click_px"], 12.0, "{p}");
     for (args, needle, code) in [
         (
             vec!["--protocol", "realistic", "--realistic", "left=0"],
@@ -1025,6 +1026,11 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
         (
             vec!["--protocol", "realistic", "--realistic", "left_out=0.9"],
             "left_out",
+            2,
+        ),
+        (
+            vec!["--protocol", "realistic", "--realistic", "click_px=-5"],
+            "click_px",
             2,
         ),
         (

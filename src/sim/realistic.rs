@@ -55,6 +55,10 @@ pub struct RealisticErrors {
     pub drift_length_px: f64,
     /// Independent jitter per point, px (default 1).
     pub jitter_px: f64,
+    /// Distance between the annotator's clicks along the outline, px: the kept outline is
+    /// replaced by points this far apart (a polygon, as a rim clicked point by point), before
+    /// the drift and jitter. 0 (the default) keeps the outline's own points, a few px apart.
+    pub click_px: f64,
 }
 
 impl Default for RealisticErrors {
@@ -67,6 +71,7 @@ impl Default for RealisticErrors {
             drift_px: 2.0,
             drift_length_px: 20.0,
             jitter_px: 1.0,
+            click_px: 0.0,
         }
     }
 }
@@ -102,6 +107,13 @@ impl RealisticErrors {
         }
         if !(self.left_out.is_finite() && (0.0..=0.6).contains(&self.left_out)) {
             return bad("realistic left_out", self.left_out, "a share in [0, 0.6]");
+        }
+        if !(self.click_px.is_finite() && self.click_px >= 0.0) {
+            return bad(
+                "realistic click_px",
+                self.click_px,
+                "a finite distance >= 0 (0: the outline's own points)",
+            );
         }
         if !(self.drift_length_px.is_finite() && self.drift_length_px > 0.0) {
             return bad(
@@ -174,6 +186,11 @@ fn annotate(
     rng: &mut rand_chacha::ChaCha8Rng,
 ) -> Result<Curve, crate::contours::ContourError> {
     let (kept, closed) = leave_out_arc(pts, cam, setup, e.left_out);
+    let kept = if e.click_px > 0.0 {
+        clicked(&kept, closed, e.click_px)
+    } else {
+        kept
+    };
     if kept.len() < MIN_KEPT_POINTS {
         return Err(crate::contours::ContourError::TooFewPoints { count: kept.len() });
     }
@@ -198,6 +215,19 @@ fn annotate(
         })
         .collect();
     Ok(Curve { points, closed })
+}
+
+/// The outline `pts` as an annotator clicks it: points evenly spaced along its arc length,
+/// about `step` px apart (a closed outline from its first point round; an open one from end
+/// to end, both ends kept).
+fn clicked(pts: &[Point2<f64>], closed: bool, step: f64) -> Vec<Point2<f64>> {
+    let total = crate::geom::polyline_length(pts, closed);
+    let gaps = (total / step).round().max(1.0) as usize;
+    if closed {
+        crate::geom::resample_closed(pts, gaps).0
+    } else {
+        crate::geom::resample_open(pts, gaps + 1).0
+    }
 }
 
 /// `pts` without the arc of `share` of its length centred on the point farthest along the
@@ -391,6 +421,7 @@ mod tests {
             drift_px: 0.0,
             drift_length_px: 20.0,
             jitter_px: 0.0,
+            click_px: 0.0,
         };
         let exact = s.realistic_case(&truth, &none, &level, 11).unwrap();
         for v in 0..s.cameras.len() {
@@ -410,6 +441,61 @@ mod tests {
             })
             .fold(0.0, f64::max);
         assert!(grown > 0.03, "magnification not applied: {grown}");
+    }
+
+    /// Clicks 20 px apart: each annotation is a polygon of about its length / 20 points, 20 px
+    /// apart give or take the drift and jitter, over the same arc; the default keeps the
+    /// outline's own points, a few px apart (the companion: clicks not applied are told apart).
+    #[test]
+    fn clicks_make_the_annotation_a_polygon_of_points_that_far_apart() {
+        let (truth, s) = setup();
+        let level = NoiseLevel::level(1).unwrap();
+        let dense = RealisticErrors::default();
+        let clicks = RealisticErrors {
+            click_px: 20.0,
+            ..dense.clone()
+        };
+        let spacing = |c: &Curve| {
+            let mut d: Vec<f64> = c.points.windows(2).map(|w| (w[1] - w[0]).norm()).collect();
+            d.sort_by(f64::total_cmp);
+            d[d.len() / 2]
+        };
+        let a = s.realistic_case(&truth, &dense, &level, 5).unwrap();
+        let b = s.realistic_case(&truth, &clicks, &level, 5).unwrap();
+        for v in 0..s.cameras.len() {
+            let (da, db) = (&a.observed[v][0], &b.observed[v][0]);
+            assert!(!db.closed);
+            let length = crate::geom::polyline_length(&db.points, false);
+            assert!(
+                (17.0..23.0).contains(&spacing(db)),
+                "view {v}: {}",
+                spacing(db)
+            );
+            assert!(
+                (db.points.len() as f64 - length / 20.0 - 1.0).abs() < 0.15 * length / 20.0,
+                "view {v}: {} points over {length:.0} px",
+                db.points.len()
+            );
+            assert!(
+                spacing(da) < 10.0,
+                "view {v}: the default's {}",
+                spacing(da)
+            );
+            let kept = crate::geom::polyline_length(&da.points, false);
+            assert!((length / kept - 1.0).abs() < 0.1, "{length} against {kept}");
+        }
+        // Companion: a negative or infinite distance is refused, naming the setting.
+        for bad in [-1.0, f64::INFINITY] {
+            let e = RealisticErrors {
+                click_px: bad,
+                ..dense.clone()
+            };
+            let err = s
+                .realistic_case(&truth, &e, &level, 5)
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("click_px"), "{err}");
+        }
     }
 
     #[test]

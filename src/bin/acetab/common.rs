@@ -262,10 +262,11 @@ pub fn realistic(s: &str) -> Result<Box<Realistic>, String> {
             "drift_px" => &mut e.drift_px,
             "drift_length_px" => &mut e.drift_length_px,
             "jitter_px" => &mut e.jitter_px,
+            "click_px" => &mut e.click_px,
             other => {
                 return Err(format!(
                     "{other:?} is not a setting; expected pose_deg, pose_mm, magnification, \
-                     left_out, drift_px, drift_length_px or jitter_px"
+                     left_out, drift_px, drift_length_px, jitter_px or click_px"
                 ))
             }
         };
