@@ -732,12 +732,18 @@ fn registered_runs_go_to_the_device_in_lock_step() {
         // `lanes` above their number and a 5 s wait, so only the lock-step rule can send them.
         let staggered = |batcher: &GpuBatcher, register: bool| {
             let start = Instant::now();
+            // Every run registers before any starts: a run that reached the device before the
+            // others had registered would be sent alone (a race the loaded CI machine lost).
+            let guards: Vec<_> = batches
+                .iter()
+                .map(|_| register.then(|| batcher.run()))
+                .collect();
             let out: Vec<Vec<[f32; 4]>> = std::thread::scope(|s| {
                 let hs: Vec<_> = batches
                     .iter()
+                    .zip(guards)
                     .enumerate()
-                    .map(|(k, b)| {
-                        let guard = register.then(|| batcher.run());
+                    .map(|(k, (b, guard))| {
                         s.spawn(move || {
                             let _guard = guard;
                             std::thread::sleep(Duration::from_millis(30 * k as u64));
