@@ -606,11 +606,10 @@ impl CaseFile {
                 }
                 // A closed outline traced round more than once (two passes of the annotation
                 // joined) goes twice round its own centre; a noisy or notched one, once.
-                let centre = Point2::from(
-                    pts.iter().map(|p| p.coords).sum::<Vector2<f64>>() / pts.len() as f64,
-                );
                 let turns = if closed {
-                    winding_number(&pts, centre).abs()
+                    let centre =
+                        pts.iter().map(|p| p.coords).sum::<Vector2<f64>>() / distinct as f64;
+                    winding_number(&pts, Point2::from(centre)).abs()
                 } else {
                     1
                 };
