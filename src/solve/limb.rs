@@ -386,6 +386,29 @@ mod tests {
         assert!(zero.radius.is_finite() && (zero.radius - place.radius).abs() < 3.0);
     }
 
+    /// One realistic case of a shared mesh (`rel` under ../shared/data), level and run of seed
+    /// 7 as the study draws them; None (the test skips) when the data is absent.
+    fn shared_case(
+        rel: &str,
+        errors: &crate::sim::RealisticErrors,
+        level: u32,
+        run: usize,
+    ) -> Option<crate::sim::SimCase> {
+        use crate::sim::{load_truth, NoiseLevel, SimSetup};
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/data")
+            .join(rel);
+        if !path.exists() {
+            eprintln!("skipped: {} is absent", path.display());
+            return None;
+        }
+        let truth = load_truth(path.to_str().unwrap()).unwrap();
+        let setup = SimSetup::new(&truth, &XrayGeometry::default()).unwrap();
+        let seed = crate::study::run_seed(7, level, run);
+        let level = NoiseLevel::level(level).unwrap();
+        Some(setup.realistic_case(&truth, errors, &level, seed).unwrap())
+    }
+
     #[test]
     fn a_rim_clicked_point_by_point_keeps_the_sphere_near_the_truth() {
         // Atlas acetabulum a08_lhip (JHU pelvis atlas, CC BY 4.0), its whole outlines clicked
@@ -394,15 +417,7 @@ mod tests {
         // on the rim than the outline's corners did, and the graduated path alone ends 10 mm
         // from the truth's sphere with the radius 1 mm short (the restarts at the floor find
         // the lower minimum near it).
-        use crate::sim::{load_truth, NoiseLevel, RealisticErrors, SimSetup};
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../shared/data/pelvis-atlas/acetabula/a08_lhip.stl");
-        if !path.exists() {
-            eprintln!("skipped: {} is absent", path.display());
-            return;
-        }
-        let truth = load_truth(path.to_str().unwrap()).unwrap();
-        let setup = SimSetup::new(&truth, &XrayGeometry::default()).unwrap();
+        use crate::sim::RealisticErrors;
         let clicked = RealisticErrors {
             pose_deg: 0.0,
             pose_mm: 0.0,
@@ -413,11 +428,9 @@ mod tests {
             click_px: 10.0,
             ..Default::default()
         };
-        let seed = crate::study::run_seed(7, 3, 0);
-        let level = NoiseLevel::level(3).unwrap();
-        let case = setup
-            .realistic_case(&truth, &clicked, &level, seed)
-            .unwrap();
+        let Some(case) = shared_case("pelvis-atlas/acetabula/a08_lhip.stl", &clicked, 3, 0) else {
+            return;
+        };
         let t = &case.truth_sphere;
         let near = |c: &Point3<f64>, r: f64| {
             (c - Point3::from(t.center)).norm() < 3.0 && (r - t.radius).abs() < 2.5
@@ -437,20 +450,10 @@ mod tests {
         // out, drift, jitter, pose and magnification errors), level 5 run 1 of seed 7: from the
         // lattice a sphere 11 mm larger, grown into the gaps, scores 12 % lower than the
         // graduated one. On open outlines the restarts are not made.
-        use crate::sim::{load_truth, NoiseLevel, RealisticErrors, SimSetup};
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../shared/data/acetabula/m3_lhip_ac_wo_gap.stl");
-        if !path.exists() {
-            eprintln!("skipped: {} is absent", path.display());
+        let realistic = crate::sim::RealisticErrors::default();
+        let Some(case) = shared_case("acetabula/m3_lhip_ac_wo_gap.stl", &realistic, 5, 1) else {
             return;
-        }
-        let truth = load_truth(path.to_str().unwrap()).unwrap();
-        let setup = SimSetup::new(&truth, &XrayGeometry::default()).unwrap();
-        let seed = crate::study::run_seed(7, 5, 1);
-        let level = NoiseLevel::level(5).unwrap();
-        let case = setup
-            .realistic_case(&truth, &RealisticErrors::default(), &level, seed)
-            .unwrap();
+        };
         assert!(case.observed.iter().flatten().all(|c| !c.closed));
         let ls = limb_sphere(&case.cameras, &case.observed, 0.5).unwrap();
         let (rays, _) = rays(&case.cameras, &case.observed);
