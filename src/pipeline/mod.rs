@@ -30,7 +30,7 @@ use crate::correspond::Observation;
 use crate::engine::{KernelError, Kernels};
 use crate::geom::{Curve, Mesh, Sphere, SphereFitError};
 use crate::report::CupSize;
-use crate::solve::{limb_sphere, SolveError};
+use crate::solve::{limb_sphere, LimbSphere, SolveError};
 use crate::template::{Placement, Template, TemplateError};
 use crate::views::Camera;
 use correspondences::{rms_px, Ctx};
@@ -337,15 +337,17 @@ pub fn reconstruct(
 ) -> Result<Reconstruction, ReconError> {
     prm.validate()?;
     check_views(input, prm)?;
+    // The fallbacks change no placement setting, so they share the limb sphere too.
+    let limb = LimbOnce::new(input, prm);
     if prm.guards.is_none() {
-        return restarting(input, prm, kernels).map(|(rec, _)| rec);
+        return restarting(input, prm, kernels, &limb).map(|(rec, _)| rec);
     }
     // `restarting` judged its result by the guards already.
     let guarded = |r: Result<(Reconstruction, Option<GuardFailure>), ReconError>| match r? {
         (rec, None) => Ok(rec),
         (_, Some(failure)) => Err(ReconError::Guard(failure)),
     };
-    let failure = match guarded(restarting(input, prm, kernels)) {
+    let failure = match guarded(restarting(input, prm, kernels, &limb)) {
         Ok(rec) => return Ok(rec),
         Err(ReconError::Guard(f)) => f,
         Err(ReconError::NonFiniteVertex { vertex }) => GuardFailure::NonFiniteVertex { vertex },
@@ -354,7 +356,7 @@ pub fn reconstruct(
     };
     for fb in FALLBACKS {
         let Some(p) = fb.params(prm) else { continue };
-        if let Ok(mut rec) = guarded(restarting(input, &p, kernels)) {
+        if let Ok(mut rec) = guarded(restarting(input, &p, kernels, &limb)) {
             rec.log.fallback = Some(fb.name());
             rec.log.guard = Some(failure);
             return Ok(rec);
@@ -441,11 +443,40 @@ pub fn params_used(rec: &Reconstruction, prm: &ReconParams) -> ReconParams {
         .unwrap_or_else(|| prm.clone())
 }
 
+/// The outlines' limb sphere (`solve::limb_sphere`), fitted at most once for all the passes of
+/// one `reconstruct` call: it depends only on the views, their outlines and
+/// `placement.limb_scale_mm`, which every start, restart and fallback shares. None when no
+/// sphere fits.
+pub(super) struct LimbOnce<'a> {
+    cams: &'a [Camera],
+    observed: &'a [Vec<Curve>],
+    scale_mm: f64,
+    fit: std::sync::OnceLock<Option<LimbSphere>>,
+}
+
+impl<'a> LimbOnce<'a> {
+    fn new(input: &Input<'a>, prm: &ReconParams) -> Self {
+        LimbOnce {
+            cams: input.cameras,
+            observed: input.observed,
+            scale_mm: prm.placement.limb_scale_mm,
+            fit: std::sync::OnceLock::new(),
+        }
+    }
+
+    pub(super) fn get(&self) -> Option<LimbSphere> {
+        *self
+            .fit
+            .get_or_init(|| limb_sphere(self.cams, self.observed, self.scale_mm).ok())
+    }
+}
+
 /// One pass of the method, unguarded.
 pub(super) fn attempt(
     input: &Input,
     prm: &ReconParams,
     kernels: Kernels,
+    limb: &LimbOnce,
 ) -> Result<Reconstruction, ReconError> {
     let ctx = Ctx {
         cams: input.cameras,
@@ -454,7 +485,7 @@ pub(super) fn attempt(
         kernels,
     };
     let mut log = SolveLog::default();
-    let start = limb_start(&ctx, input.init, &mut log);
+    let start = limb_start(&ctx, input.init, limb, &mut log);
     let placed = place(&ctx, input.template, &start, &mut log)?;
     let posed = refine_views(&ctx, input.template, placed.best, &mut log)?;
     let deformed = deform(&ctx, posed, placed.orientations, &mut log)?;
@@ -492,11 +523,11 @@ struct Start {
 
 /// Stage 0: the template on the sphere the outlines' limbs define (the given axis kept). The
 /// limb sphere needs the views' poses as given; with pose refinement it is left out.
-fn limb_start(ctx: &Ctx, init: &Placement, log: &mut SolveLog) -> Start {
+fn limb_start(ctx: &Ctx, init: &Placement, limb: &LimbOnce, log: &mut SolveLog) -> Start {
     let prm = ctx.prm;
     let mut placement = init.clone();
     if prm.placement.limb_start && prm.pose.is_none() {
-        if let Ok(ls) = limb_sphere(ctx.cams, ctx.observed, prm.placement.limb_scale_mm) {
+        if let Some(ls) = limb.get() {
             placement.center = ls.center;
             placement.radius = ls.radius;
             log.limb_sphere = Some([ls.center.x, ls.center.y, ls.center.z, ls.radius]);

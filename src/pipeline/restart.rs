@@ -2,8 +2,8 @@
 //! the result that follows them best kept.
 
 use super::{
-    attempt, guard_failure, GuardFailure, Input, OrientationTrial, ReconError, ReconParams,
-    Reconstruction,
+    attempt, guard_failure, GuardFailure, Input, LimbOnce, OrientationTrial, ReconError,
+    ReconParams, Reconstruction,
 };
 use crate::contours::ModelContour;
 use crate::engine::Kernels;
@@ -27,6 +27,7 @@ pub(super) fn restarting(
     input: &Input,
     prm: &ReconParams,
     kernels: Kernels,
+    limb: &LimbOnce,
 ) -> Result<(Reconstruction, Option<GuardFailure>), ReconError> {
     // A result's score: the guard it fails (None without guards), then its outline distance;
     // it ranks by (refused or not, distance).
@@ -38,17 +39,17 @@ pub(super) fn restarting(
     };
     let rank = |s: &(Option<GuardFailure>, f64)| (s.0.is_some(), s.1);
     // The given start, or where it failed, the limb sphere's (see `limb_started`).
-    let (first, start, kept_first) = match attempt(input, prm, kernels) {
+    let (first, start, kept_first) = match attempt(input, prm, kernels, limb) {
         Ok(rec) => (rec, input.init.clone(), "given"),
         Err(e) => {
-            let Some(init) = limb_started(input, prm) else {
+            let Some(init) = limb_started(input, prm, limb) else {
                 return Err(e);
             };
             let from_limb = Input {
                 init: &init,
                 ..*input
             };
-            let Ok(rec) = attempt(&from_limb, prm, kernels) else {
+            let Ok(rec) = attempt(&from_limb, prm, kernels, limb) else {
                 return Err(e);
             };
             (rec, init, LIMB_SPHERE)
@@ -81,7 +82,7 @@ pub(super) fn restarting(
     let starts = tilted_starts(&start, prm);
     let results = kernels.map_parts(&starts, |_, (_, init)| {
         let tilted = Input { init, ..*input };
-        attempt(&tilted, prm, kernels).ok()
+        attempt(&tilted, prm, kernels, limb).ok()
     });
     for ((source, _), rec) in starts.iter().zip(results) {
         let Some(rec) = rec else {
@@ -111,12 +112,11 @@ pub const LIMB_SPHERE: &str = "limb sphere";
 /// level 5 shifts it by 100 mm SD per axis) that the first correspondences cannot form; the
 /// limbs, even of views whose poses are a little off, put it within millimetres. None when
 /// stage 0 uses the limb sphere anyway, or no limb sphere fits.
-fn limb_started(input: &Input, prm: &ReconParams) -> Option<Placement> {
+fn limb_started(input: &Input, prm: &ReconParams, limb: &LimbOnce) -> Option<Placement> {
     if !prm.placement.limb_restart || (prm.pose.is_none() && prm.placement.limb_start) {
         return None;
     }
-    let ls = crate::solve::limb_sphere(input.cameras, input.observed, prm.placement.limb_scale_mm)
-        .ok()?;
+    let ls = limb.get()?;
     Some(Placement {
         center: ls.center,
         radius: ls.radius,
