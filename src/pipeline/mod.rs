@@ -19,7 +19,7 @@ pub use cup::{
     cup_spheres, observed_part_sphere, prior_region_sphere, CupSpheres, PriorRegion,
     REGION_MIN_COVERAGE,
 };
-pub use guards::{first_failure, folded_share, GuardFailure, GuardParams};
+pub use guards::{first_failure, folded_share, GuardFailure, GuardParams, Judged};
 pub use params::{CupEstimator, CupParams, DeformationParams, PlacementParams, ReconParams};
 pub use restart::outline_distance_px;
 pub use uncertainty::{cup_report, CupReport, SizeProbability, UncertaintyParams};
@@ -158,8 +158,9 @@ pub struct SolveLog {
     pub restarts: Vec<OrientationTrial>,
     /// Which of `restarts` gave this result ("given" or a tilt); None when there were none.
     pub restart: Option<&'static str>,
-    /// The fallback that gave this result ("srvf-shape", "icp-normvec" or "rigid"; see
-    /// `Fallback`), when the method as asked for did not pass the guards; None when it did.
+    /// The fallback that gave this result ("srvf-shape", "icp-normvec", "rigid" or
+    /// "refine-poses"; see `Fallback`), when the method as asked for did not pass the guards;
+    /// None when it did.
     pub fallback: Option<&'static str>,
     /// What the method as asked for failed, when a fallback was taken.
     pub guard: Option<GuardFailure>,
@@ -354,7 +355,7 @@ pub fn reconstruct(
         Err(ReconError::NonFinitePose { view }) => GuardFailure::NonFinitePose { view },
         Err(e) => return Err(e),
     };
-    for fb in FALLBACKS {
+    for fb in Fallback::order(&failure) {
         let Some(p) = fb.params(prm) else { continue };
         if let Ok(mut rec) = guarded(restarting(input, &p, kernels, &limb)) {
             rec.log.fallback = Some(fb.name());
@@ -369,10 +370,13 @@ pub fn reconstruct(
 pub(super) fn guard_failure(g: &GuardParams, rec: &Reconstruction) -> Option<GuardFailure> {
     first_failure(
         g,
-        &rec.mesh,
-        &rec.sphere,
-        rec.log.limb_sphere,
-        rec.log.reprojection_rms_px,
+        &Judged {
+            mesh: &rec.mesh,
+            cup: &rec.sphere,
+            limb: rec.log.limb_sphere,
+            rms_px: rec.log.reprojection_rms_px,
+            outline_px: rec.log.outline_px,
+        },
     )
 }
 
@@ -391,15 +395,43 @@ pub enum Fallback {
     /// itself goes on to `Rigid`): closest points with a normal test cannot pull a vertex
     /// across the outline. A baseline that borrows it is only made harder to beat.
     IcpNormvec,
+    /// The same method with the views' poses refined (`solve::PoseParams::default()`, as
+    /// `--refine-poses`; for a run without it): where the result's outlines stay far from the
+    /// annotations (`GuardFailure::Outlines`) no shape meets every view as its pose says, and
+    /// a pose off by a few millimetres is the usual cause.
+    RefinePoses,
 }
 
-/// The fallbacks, in the order they are tried.
-pub const FALLBACKS: [Fallback; 3] = [Fallback::ShapeOnly, Fallback::IcpNormvec, Fallback::Rigid];
+/// The fallbacks, in the order they are tried after any guard but `Outlines` (see
+/// `Fallback::order`).
+pub const FALLBACKS: [Fallback; 4] = [
+    Fallback::ShapeOnly,
+    Fallback::IcpNormvec,
+    Fallback::Rigid,
+    Fallback::RefinePoses,
+];
 
 impl Fallback {
+    /// The fallbacks in the order they are tried after `failure`: for outlines the result does
+    /// not meet, the poses refined first (the other fallbacks change the correspondences or the
+    /// graph, which cannot make views whose poses disagree agree); else `FALLBACKS`' order, the
+    /// poses last.
+    pub fn order(failure: &GuardFailure) -> [Fallback; 4] {
+        match failure {
+            GuardFailure::Outlines { .. } => [
+                Fallback::RefinePoses,
+                Fallback::ShapeOnly,
+                Fallback::IcpNormvec,
+                Fallback::Rigid,
+            ],
+            _ => FALLBACKS,
+        }
+    }
+
     /// Its name in logs and tables.
     pub fn name(self) -> &'static str {
         match self {
+            Fallback::RefinePoses => "refine-poses",
             Fallback::Rigid => "rigid",
             Fallback::ShapeOnly => "srvf-shape",
             Fallback::IcpNormvec => "icp-normvec",
@@ -427,6 +459,12 @@ impl Fallback {
                     return None;
                 }
                 p.method = crate::correspond::Method::IcpNormvec;
+            }
+            Fallback::RefinePoses => {
+                if prm.pose.is_some() {
+                    return None;
+                }
+                p.pose = Some(crate::solve::PoseParams::default());
             }
         }
         Some(p)
@@ -858,6 +896,74 @@ mod tests {
         // Companion: the last view is a view.
         let ok = reconstruct(&sim.input(&template), &with_reference(2), Kernels::Cpu);
         assert!(ok.is_ok(), "{:?}", ok.err());
+    }
+
+    #[test]
+    fn outlines_a_wrong_pose_keeps_far_away_send_the_run_to_pose_refinement() {
+        let (_, mut sim) = crate::sim::phantom_case(1, 3).unwrap();
+        let template = Template::standard();
+        // View 1's pose is 8 mm off across its image (about 48 px at the object) and nothing
+        // refines it.
+        sim.cameras[1].t.x += 8.0;
+        let truth = sim.truth_sphere.diameter();
+        let rec =
+            reconstruct(&sim.input(&template), &ReconParams::default(), Kernels::Cpu).unwrap();
+        assert_eq!(rec.log.fallback, Some("refine-poses"));
+        assert!(
+            matches!(rec.log.guard, Some(GuardFailure::Outlines { outline_px, .. }) if outline_px > 5.0),
+            "{:?}",
+            rec.log.guard
+        );
+        assert!(rec.log.outline_px < 3.0, "{}", rec.log.outline_px);
+        assert!(!rec.log.pose_corrections.is_empty());
+        // The phantom's cup is 1.2-1.5 mm small with exact poses (`acetab demo`).
+        assert!(
+            (rec.sphere.diameter() - truth).abs() < 2.0,
+            "{} against {truth}",
+            rec.sphere.diameter()
+        );
+        // The companion: without the outline guard the method's own result stands, and it is
+        // what the guard refuses: outlines far off and a cup farther from the truth.
+        let unguarded = ReconParams {
+            guards: Some(GuardParams {
+                max_outline_px: f64::INFINITY,
+                ..Default::default()
+            }),
+            ..Default::default()
+        };
+        let own = reconstruct(&sim.input(&template), &unguarded, Kernels::Cpu).unwrap();
+        assert_eq!(own.log.fallback, None);
+        assert!(
+            matches!(
+                guard_failure(&GuardParams::default(), &own),
+                Some(GuardFailure::Outlines { .. })
+            ),
+            "{}",
+            own.log.outline_px
+        );
+        assert!(
+            (own.sphere.diameter() - truth).abs() > (rec.sphere.diameter() - truth).abs(),
+            "{} / {} against {truth}",
+            own.sphere.diameter(),
+            rec.sphere.diameter()
+        );
+        // A run that refines its poses already has no such fallback.
+        let refining = ReconParams {
+            pose: Some(crate::solve::PoseParams::default()),
+            ..Default::default()
+        };
+        assert!(Fallback::RefinePoses.params(&refining).is_none());
+        assert_eq!(
+            Fallback::order(&GuardFailure::Outlines {
+                outline_px: 7.0,
+                max_px: 5.0
+            })[0],
+            Fallback::RefinePoses
+        );
+        assert_eq!(
+            Fallback::order(&GuardFailure::Folded { folded: 0.5 }),
+            FALLBACKS
+        );
     }
 
     #[test]

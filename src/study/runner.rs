@@ -240,6 +240,7 @@ fn run_prepared(
     row.correspondence_updates = rec.log.correspondence_updates;
     row.fallback = rec.log.fallback.unwrap_or_default().to_string();
     row.restart = rec.log.restart.unwrap_or_default().to_string();
+    row.outline_px = rec.log.outline_px;
     // The cup's orientation: the report's when the run resampled (it fits the same rim), else
     // fitted here.
     let mut orientation = None;

@@ -55,7 +55,7 @@ pub struct Row {
     /// Why the run failed (empty when it did not).
     pub error: String,
     /// The fallback that gave the result when the method's own failed a guard ("srvf-shape",
-    /// "icp-normvec", "rigid"), or empty.
+    /// "icp-normvec", "rigid", "refine-poses"), or empty.
     #[serde(default)]
     pub fallback: String,
     /// SD of the cup diameter over the run's resamples (`cup_report`, the same resampling as
@@ -89,12 +89,18 @@ pub struct Row {
     /// "-v"); empty when the run did not restart.
     #[serde(default)]
     pub restart: String,
+    /// How far the result's outlines lie from the annotations (`SolveLog::outline_px`, the mean
+    /// over all views, pixels); NaN when the run failed. Annotation noise alone leaves 1-3 px.
+    #[serde(serialize_with = "six", default = "nan")]
+    pub outline_px: f64,
 }
 
 /// The columns runs.csv gained with the cup's orientation: a file without them still reads (NaN).
 const ORIENTATION_COLUMNS: usize = 4;
 /// The column runs.csv gained with the restarts (`restart`): a file without it still reads.
 const RESTART_COLUMNS: usize = 1;
+/// The column runs.csv gained after the restarts (`outline_px`): a file without it reads (NaN).
+const OUTLINE_COLUMNS: usize = 1;
 
 fn nan() -> f64 {
     f64::NAN
@@ -130,6 +136,7 @@ impl Row {
             inclination_err_deg: f64::NAN,
             anteversion_err_deg: f64::NAN,
             restart: String::new(),
+            outline_px: f64::NAN,
         }
     }
 
@@ -271,12 +278,13 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
         other => perr(1, format!("{other:?}")),
     })?;
     let full = header();
-    // Files written before the restart column, or before the orientation columns too, have the
-    // header without them.
+    // Files written before the outline column, before the restart column too, or before the
+    // orientation columns as well, have the header without them.
     let prefix = |n: usize| -> csv::StringRecord { full.iter().take(n).collect() };
     let older = [
-        full.len() - RESTART_COLUMNS,
-        full.len() - RESTART_COLUMNS - ORIENTATION_COLUMNS,
+        full.len() - OUTLINE_COLUMNS,
+        full.len() - OUTLINE_COLUMNS - RESTART_COLUMNS,
+        full.len() - OUTLINE_COLUMNS - RESTART_COLUMNS - ORIENTATION_COLUMNS,
     ];
     let want = match rd.headers() {
         Ok(h) if *h == full => full.clone(),
@@ -758,23 +766,29 @@ mod tests {
             merge_dirs(std::slice::from_ref(&b)),
             Err(StudyError::Parse { line: 1, .. })
         ));
-        // A file from before the restart column reads, its restarts empty.
-        let no_restart: String = good
-            .lines()
-            .map(|l| l.rsplit_once(',').unwrap().0.to_string() + "\n")
-            .collect();
+        let drop_last = |text: &str, k: usize| -> String {
+            text.lines()
+                .map(|l| {
+                    let f: Vec<&str> = l.split(',').collect();
+                    f[..f.len() - k].join(",") + "\n"
+                })
+                .collect()
+        };
+        // A file from before the outline column reads, its outline distances NaN.
+        std::fs::write(b.join("runs.csv"), drop_last(&good, OUTLINE_COLUMNS)).unwrap();
+        let back = read_csv(&b.join("runs.csv")).unwrap();
+        assert!(back[0].outline_px.is_nan() && back[0].mae_mm == 0.5);
+        // One from before the restart column too, its restarts empty.
+        let no_restart = drop_last(&good, OUTLINE_COLUMNS + RESTART_COLUMNS);
         std::fs::write(b.join("runs.csv"), &no_restart).unwrap();
         let back = read_csv(&b.join("runs.csv")).unwrap();
         assert!(back[0].restart.is_empty() && back[0].mae_mm == 0.5);
         // A file from before the orientation columns reads, its angles NaN; one column short
         // of that is still refused.
-        let old: String = good
-            .lines()
-            .map(|l| {
-                let f: Vec<&str> = l.split(',').collect();
-                f[..f.len() - ORIENTATION_COLUMNS - RESTART_COLUMNS].join(",") + "\n"
-            })
-            .collect();
+        let old = drop_last(
+            &good,
+            OUTLINE_COLUMNS + RESTART_COLUMNS + ORIENTATION_COLUMNS,
+        );
         std::fs::write(b.join("runs.csv"), &old).unwrap();
         let back = read_csv(&b.join("runs.csv")).unwrap();
         assert_eq!(back[0].mae_mm, 0.5);
