@@ -289,18 +289,38 @@ fn a_view_whose_outline_disagrees_with_the_others_is_named_in_a_warning() {
     }
     let moved = dir.join("moved.json");
     std::fs::write(&moved, v.to_string()).unwrap();
+    // Its result's outlines lie far from the annotations, so the poses are refined (the
+    // refine-poses fallback), and the warning names the view that moved most.
     let (err, report) = run(&moved, "moved");
+    assert_eq!(report["log"]["fallback"], "refine-poses", "{report}");
     assert!(
-        err.contains("warning: view 1") && err.contains("do not agree"),
+        err.contains("warning: no shape met the views")
+            && err.contains("view 1 (view1) moved most"),
         "{err}"
     );
+    let moves = report["log"]["pose_corrections"].as_array().unwrap();
+    let mm = |k: usize| moves[k][1].as_f64().unwrap();
+    assert!(mm(1) > 2.0 * mm(2).max(mm(0)), "{moves:?}");
     assert!(
-        report["warnings"][0]
-            .as_str()
-            .unwrap()
-            .starts_with("view 1"),
+        report["log"]["outline_px"].as_f64().unwrap() < 3.0,
         "{report}"
     );
+    // Moved 20 px (half as far) the views still meet one shape about as well as the method
+    // meets them: no fallback, and the view is named by its outline distance alone when it
+    // stands out.
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&case).unwrap()).unwrap();
+    for p in v["views"][1]["contours"][0]["points"]
+        .as_array_mut()
+        .unwrap()
+    {
+        p[1] = serde_json::json!(p[1].as_f64().unwrap() + 20.0);
+    }
+    let nudged = dir.join("nudged.json");
+    std::fs::write(&nudged, v.to_string()).unwrap();
+    let (err, report) = run(&nudged, "nudged");
+    assert!(report["log"]["fallback"].is_null(), "{report}");
+    assert!(!err.contains("no shape met the views"), "{err}");
 }
 
 #[test]

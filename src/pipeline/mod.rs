@@ -183,7 +183,12 @@ impl SolveLog {
     /// than `VIEW_NOTE_MIN_PX` and `VIEW_NOTE_RATIO` times the worst of the rest): the views do
     /// not agree on one shape, and the usual cause is that view's pose (try `--refine-poses`)
     /// or its annotation. `names` are the views' names. None when the views agree.
+    /// When the result is the `refine-poses` fallback's, the line names instead the view whose
+    /// pose moved most (the views agree only with that correction).
     pub fn view_note(&self, names: &[String]) -> Option<String> {
+        if let Some(note) = self.pose_note(names) {
+            return Some(note);
+        }
         let d = &self.outline_px_per_view;
         if d.len() < 2 || d.iter().any(|x| !x.is_finite()) {
             return None;
@@ -205,6 +210,33 @@ impl SolveLog {
             "view {worst}{name} is {px:.1} px from its outline, the others at most {rest:.1} px: \
              the views do not agree on one shape; check that view's pose (--refine-poses \
              corrects small errors) and its annotation"
+        ))
+    }
+
+    /// The line for a result of the `refine-poses` fallback (`Fallback::RefinePoses`): how far
+    /// the method's own result lay from the outlines, and the view whose pose the refinement
+    /// moved most (by its shift, mm); None for any other result.
+    fn pose_note(&self, names: &[String]) -> Option<String> {
+        if self.fallback != Some(Fallback::RefinePoses.name()) {
+            return None;
+        }
+        let (view, [deg, mm]) = self
+            .pose_corrections
+            .iter()
+            .copied()
+            .enumerate()
+            .max_by(|a, b| a.1[1].total_cmp(&b.1[1]))?;
+        let name = names.get(view).map_or(String::new(), |n| format!(" ({n})"));
+        let was = match &self.guard {
+            Some(GuardFailure::Outlines { outline_px, .. }) => {
+                format!(" (its outlines lay {outline_px:.1} px from the annotations)")
+            }
+            _ => String::new(),
+        };
+        Some(format!(
+            "no shape met the views as their poses were given{was}, so the poses were refined \
+             (as --refine-poses): view {view}{name} moved most, by {mm:.1} mm and {deg:.1} \
+             degrees; check that view's pose and its annotation"
         ))
     }
 
@@ -864,6 +896,30 @@ mod tests {
         assert_eq!(note(&[0.5, 2.9, 0.4]), None);
         assert_eq!(note(&[]), None);
         assert_eq!(note(&[1.0, f64::INFINITY, 1.0]), None);
+        // A result of the refine-poses fallback names the view whose pose moved most.
+        let refined = SolveLog {
+            outline_px_per_view: vec![1.4, 1.5, 1.8],
+            pose_corrections: vec![[0.0, 0.0], [0.7, 6.2], [1.3, 1.1]],
+            fallback: Some("refine-poses"),
+            guard: Some(GuardFailure::Outlines {
+                outline_px: 7.9,
+                max_px: 5.0,
+            }),
+            ..Default::default()
+        };
+        let n = refined.view_note(&names).expect("the moved view is named");
+        assert!(n.contains("lay 7.9 px"), "{n}");
+        assert!(
+            n.contains("view 1 (oblique +20) moved most, by 6.2 mm"),
+            "{n}"
+        );
+        // Companion: the same corrections asked for (--refine-poses, no fallback) name nothing.
+        let asked = SolveLog {
+            fallback: None,
+            guard: None,
+            ..refined
+        };
+        assert_eq!(asked.view_note(&names), None);
     }
     use crate::sim::XrayGeometry;
     use crate::sim::{phantom, PhantomParams};
