@@ -278,20 +278,24 @@ fn a_view_whose_outline_disagrees_with_the_others_is_named_in_a_warning() {
             .len(),
         3
     );
-    // View 1's annotation moved 40 px down: the views cannot meet one shape there.
-    let mut v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&case).unwrap()).unwrap();
-    for p in v["views"][1]["contours"][0]["points"]
-        .as_array_mut()
-        .unwrap()
-    {
-        p[1] = serde_json::json!(p[1].as_f64().unwrap() + 40.0);
-    }
-    let moved = dir.join("moved.json");
-    std::fs::write(&moved, v.to_string()).unwrap();
-    // Its result's outlines lie far from the annotations, so the poses are refined (the
-    // refine-poses fallback), and the warning names the view that moved most.
-    let (err, report) = run(&moved, "moved");
+    // View 1's annotation moved `dy` px down, as a case file named `name`.
+    let moved_by = |dy: f64, name: &str| {
+        let mut v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&case).unwrap()).unwrap();
+        for p in v["views"][1]["contours"][0]["points"]
+            .as_array_mut()
+            .unwrap()
+        {
+            p[1] = serde_json::json!(p[1].as_f64().unwrap() + dy);
+        }
+        let path = dir.join(format!("{name}.json"));
+        std::fs::write(&path, v.to_string()).unwrap();
+        run(&path, name)
+    };
+    // 40 px: the views cannot meet one shape there. Its result's outlines lie far from the
+    // annotations, so the poses are refined (the refine-poses fallback), and the warning names
+    // the view that moved most.
+    let (err, report) = moved_by(40.0, "moved");
     assert_eq!(report["log"]["fallback"], "refine-poses", "{report}");
     assert!(
         err.contains("warning: no shape met the views")
@@ -305,20 +309,9 @@ fn a_view_whose_outline_disagrees_with_the_others_is_named_in_a_warning() {
         report["log"]["outline_px"].as_f64().unwrap() < 3.0,
         "{report}"
     );
-    // Moved 20 px (half as far) the views still meet one shape about as well as the method
-    // meets them: no fallback, and the view is named by its outline distance alone when it
-    // stands out.
-    let mut v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&case).unwrap()).unwrap();
-    for p in v["views"][1]["contours"][0]["points"]
-        .as_array_mut()
-        .unwrap()
-    {
-        p[1] = serde_json::json!(p[1].as_f64().unwrap() + 20.0);
-    }
-    let nudged = dir.join("nudged.json");
-    std::fs::write(&nudged, v.to_string()).unwrap();
-    let (err, report) = run(&nudged, "nudged");
+    // Companion, 20 px (half as far): the views still meet one shape about as well as the
+    // method meets them, so no fallback.
+    let (err, report) = moved_by(20.0, "nudged");
     assert!(report["log"]["fallback"].is_null(), "{report}");
     assert!(!err.contains("no shape met the views"), "{err}");
 }
