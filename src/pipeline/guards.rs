@@ -30,7 +30,7 @@ pub struct GuardParams {
     /// (16 of them, levels 3 and 5 x 2 runs, for the last two); with the realistic protocol's
     /// pose errors (1 degree, 2 mm) and pose refinement at most 4.5 px but for two runs at 6.8
     /// and 7.6 px, cups 9.8 and 5.3 mm off; without refinement a quarter of the runs end above
-    /// 5 px, and refining their poses takes their cup RMS error from 6.2 to 3.4 mm. Above it
+    /// 5 px, and refining their poses takes their cup RMS error from 6.2 to 3.5 mm. Above it
     /// the views' poses or outlines do not agree on one shape (`Fallback::RefinePoses`).
     pub max_outline_px: f64,
 }
