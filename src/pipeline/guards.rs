@@ -24,7 +24,7 @@ pub struct GuardParams {
     /// annotation noise ends at 1-3 px).
     pub max_rms_px: f64,
     /// Largest distance of the result's outlines from the annotations (`SolveLog::outline_px`,
-    /// the mean over all views), pixels (default 5). Measured on the 47 acetabula of
+    /// the RMS over all views), pixels (default 5). Measured on the 47 acetabula of
     /// ../shared/data (srvf, levels 1, 3, 5 x 3 runs, seed 7): with exact poses at most 3.5 px,
     /// whether the annotation has 2 px of noise, 4 px, or 4 px of drift with clicks 30 px apart
     /// (16 of them, levels 3 and 5 x 2 runs, for the last two); with the realistic protocol's
@@ -108,7 +108,7 @@ pub enum GuardFailure {
          px): the views' poses and outlines do not agree on one shape"
     )]
     Outlines {
-        /// The mean distance, pixels (`SolveLog::outline_px`).
+        /// The RMS distance, pixels (`SolveLog::outline_px`).
         outline_px: f64,
         /// The limit, pixels.
         max_px: f64,

@@ -449,15 +449,12 @@ impl Fallback {
     /// graph, which cannot make views whose poses disagree agree); else `FALLBACKS`' order, the
     /// poses last.
     pub fn order(failure: &GuardFailure) -> [Fallback; 4] {
-        match failure {
-            GuardFailure::Outlines { .. } => [
-                Fallback::RefinePoses,
-                Fallback::ShapeOnly,
-                Fallback::IcpNormvec,
-                Fallback::Rigid,
-            ],
-            _ => FALLBACKS,
+        let mut order = FALLBACKS;
+        if matches!(failure, GuardFailure::Outlines { .. }) {
+            // RefinePoses is FALLBACKS' last.
+            order.rotate_right(1);
         }
+        order
     }
 
     /// Its name in logs and tables.

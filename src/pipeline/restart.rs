@@ -29,12 +29,13 @@ pub(super) fn restarting(
     kernels: Kernels,
     limb: &LimbOnce,
 ) -> Result<(Reconstruction, Option<GuardFailure>), ReconError> {
-    // A result's score: the guard it fails (None without guards), then its outline distance;
+    // A result's score: the guard it fails (None without guards), then its outline distance
+    // (`SolveLog::outline_px`, measured once when the result was made);
     // it ranks by (refused or not, distance).
     let score = |rec: &Reconstruction| {
         (
             prm.guards.as_ref().and_then(|g| guard_failure(g, rec)),
-            outline_distance_px(&rec.final_contours, input.observed),
+            rec.log.outline_px,
         )
     };
     let rank = |s: &(Option<GuardFailure>, f64)| (s.0.is_some(), s.1);

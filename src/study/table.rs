@@ -89,7 +89,7 @@ pub struct Row {
     /// "-v"); empty when the run did not restart.
     #[serde(default)]
     pub restart: String,
-    /// How far the result's outlines lie from the annotations (`SolveLog::outline_px`, the mean
+    /// How far the result's outlines lie from the annotations (`SolveLog::outline_px`, the RMS
     /// over all views, pixels); NaN when the run failed. Annotation noise alone leaves 1-3 px.
     #[serde(serialize_with = "six", default = "nan")]
     pub outline_px: f64,
