@@ -317,6 +317,48 @@ fn a_view_whose_outline_disagrees_with_the_others_is_named_in_a_warning() {
 }
 
 #[test]
+fn annotations_given_to_the_wrong_views_are_refused_with_the_reason() {
+    let dir = tmp("swapped");
+    // The example case (its images left out), and the same with the AP view's annotation and
+    // the +20 degree oblique's swapped.
+    let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/case/case.json");
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(example).unwrap()).unwrap();
+    for view in v["views"].as_array_mut().unwrap() {
+        view.as_object_mut().unwrap().remove("image");
+    }
+    let case = dir.join("case.json");
+    std::fs::write(&case, v.to_string()).unwrap();
+    let first = v["views"][0]["contours"].take();
+    v["views"][0]["contours"] = v["views"][1]["contours"].take();
+    v["views"][1]["contours"] = first;
+    let swapped = dir.join("swapped.json");
+    std::fs::write(&swapped, v.to_string()).unwrap();
+    let run = |case: &Path, out: &str| {
+        bin()
+            .arg("reconstruct")
+            .arg(case)
+            .args(["--uncertainty-samples", "2", "--out"])
+            .arg(dir.join(out))
+            .output()
+            .unwrap()
+    };
+    // Swapped: a surface meets all three outlines only by crumpling; refused, nothing written.
+    let o = run(&swapped, "swapped");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("swapped.json") && err.contains("crumpled") && err.contains("wrong view"),
+        "{err}"
+    );
+    assert!(!dir.join("swapped").exists());
+    // Companion: the case as it is gives its result.
+    let o = run(&case, "as-is");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(dir.join("as-is").join("report.json").exists());
+}
+
+#[test]
 fn the_uncertainty_noise_does_not_depend_on_where_an_annotation_starts() {
     let dir = tmp("starts");
     // The example case (its images left out): a start a third of the way round triples its

@@ -33,6 +33,12 @@ pub struct GuardParams {
     /// 5 px, and refining their poses takes their cup RMS error from 6.2 to 3.5 mm. Above it
     /// the views' poses or outlines do not agree on one shape (`Fallback::RefinePoses`).
     pub max_outline_px: f64,
+    /// Largest RMS distance of the surface from its cup sphere, mm (default 3.5). Measured on the
+    /// 47 acetabula of ../shared/data (srvf, levels 1, 3, 5 x 3 runs, seed 7): at most 2.0 mm
+    /// with ideal X-rays and with the realistic protocol, against 4.5-5.5 mm for the example
+    /// case with two views' annotations swapped, a crumpled surface whose outlines still lie
+    /// within 3.5 px of the annotations. Above it the cup sphere stands for no socket.
+    pub max_sphere_rms_mm: f64,
 }
 
 impl Default for GuardParams {
@@ -43,6 +49,7 @@ impl Default for GuardParams {
             max_limb_offset: 0.25,
             max_rms_px: 10.0,
             max_outline_px: 5.0,
+            max_sphere_rms_mm: 3.5,
         }
     }
 }
@@ -67,6 +74,18 @@ pub enum GuardFailure {
     Folded {
         /// Share of the triangles facing the centre.
         folded: f64,
+    },
+    /// The surface lies far from its own cup sphere: crumpled, not a socket.
+    #[error(
+        "the observed surface lies {rms_mm:.1} mm RMS from its cup sphere (above {max_mm:.1} \
+         mm): it is crumpled, as when an annotation is given to the wrong view"
+    )]
+    Rough {
+        /// The RMS distance from the cup sphere of the part of the surface it was fitted to
+        /// (`Sphere::rms`), mm.
+        rms_mm: f64,
+        /// The limit, mm.
+        max_mm: f64,
     },
     /// The cup sphere left the limb sphere behind.
     #[error(
@@ -196,6 +215,14 @@ pub fn first_failure(g: &GuardParams, judged: &Judged) -> Option<GuardFailure> {
             max_px: g.max_outline_px,
         });
     }
+    // Last: a result both crumpled and far from its outlines fails the outlines (whose
+    // fallback refines the poses; see `Fallback::order`).
+    if !(cup.rms <= g.max_sphere_rms_mm) {
+        return Some(GuardFailure::Rough {
+            rms_mm: cup.rms,
+            max_mm: g.max_sphere_rms_mm,
+        });
+    }
     None
 }
 
@@ -242,6 +269,18 @@ mod tests {
             judge(&inside_out, &s, limb, 2.0, 1.5),
             Some(GuardFailure::Folded { .. })
         ));
+        // A crumpled surface: its cup sphere fits it to 4 mm RMS; 3 mm passes.
+        for (rms, rough) in [(4.0, true), (3.0, false), (f64::NAN, true)] {
+            let c = Sphere { rms, ..s };
+            assert_eq!(
+                matches!(
+                    judge(&m, &c, limb, 2.0, 1.5),
+                    Some(GuardFailure::Rough { .. })
+                ),
+                rough,
+                "{rms}"
+            );
+        }
         // A cup 10 mm off the limb sphere.
         let off = Sphere {
             center: [s.center[0] + 10.0, s.center[1], s.center[2]],

@@ -446,13 +446,18 @@ pub const FALLBACKS: [Fallback; 4] = [
 impl Fallback {
     /// The fallbacks in the order they are tried after `failure`: for outlines the result does
     /// not meet, the poses refined first (the other fallbacks change the correspondences or the
-    /// graph, which cannot make views whose poses disagree agree); else `FALLBACKS`' order, the
-    /// poses last.
-    pub fn order(failure: &GuardFailure) -> [Fallback; 4] {
-        let mut order = FALLBACKS;
-        if matches!(failure, GuardFailure::Outlines { .. }) {
+    /// graph, which cannot make views whose poses disagree agree); for a crumpled surface
+    /// (`GuardFailure::Rough`, its outlines met) not the poses at all: refining them bends the
+    /// views to annotations given to the wrong view (the phantom with two views' annotations
+    /// swapped: the refinement turned a third view by 6 degrees and passed); else `FALLBACKS`'
+    /// order, the poses last.
+    pub fn order(failure: &GuardFailure) -> Vec<Fallback> {
+        let mut order = FALLBACKS.to_vec();
+        match failure {
             // RefinePoses is FALLBACKS' last.
-            order.rotate_right(1);
+            GuardFailure::Outlines { .. } => order.rotate_right(1),
+            GuardFailure::Rough { .. } => order.retain(|&f| f != Fallback::RefinePoses),
+            _ => {}
         }
         order
     }
@@ -1017,6 +1022,48 @@ mod tests {
             Fallback::order(&GuardFailure::Folded { folded: 0.5 }),
             FALLBACKS
         );
+        assert!(!Fallback::order(&GuardFailure::Rough {
+            rms_mm: 5.0,
+            max_mm: 3.5
+        })
+        .contains(&Fallback::RefinePoses));
+    }
+
+    #[test]
+    fn annotations_given_to_the_wrong_views_leave_a_crumpled_surface_that_is_refused() {
+        let (_, mut sim) = crate::sim::phantom_case(1, 3).unwrap();
+        let template = Template::standard();
+        // The AP view's annotation and the +20 degree oblique's swapped: a surface can still
+        // meet all three outlines, by crumpling (about 5 mm RMS from its cup sphere, against
+        // 0.5-2 mm for real results); no fallback smooths it, so the run fails with the reason.
+        sim.observed.swap(0, 1);
+        match reconstruct(&sim.input(&template), &ReconParams::default(), Kernels::Cpu) {
+            Err(ReconError::Guard(GuardFailure::Rough { rms_mm, max_mm })) => {
+                assert!(rms_mm > max_mm && max_mm == 3.5, "{rms_mm}")
+            }
+            other => panic!(
+                "expected the crumpled surface refused, got {:?}",
+                other.map(|r| r.log)
+            ),
+        }
+        // The companion: without this guard the crumpled surface is the result, its outlines
+        // met well enough for every other guard.
+        let unguarded = ReconParams {
+            guards: Some(GuardParams {
+                max_sphere_rms_mm: f64::INFINITY,
+                ..Default::default()
+            }),
+            ..Default::default()
+        };
+        let own = reconstruct(&sim.input(&template), &unguarded, Kernels::Cpu).unwrap();
+        assert_eq!((own.log.fallback, own.log.guard), (None, None));
+        assert!(own.sphere.rms > 3.5, "{}", own.sphere.rms);
+        assert!(own.log.outline_px < 5.0, "{}", own.log.outline_px);
+        // The views as they are: the same phantom's result lies well inside the limit.
+        let (_, sim) = crate::sim::phantom_case(1, 3).unwrap();
+        let rec =
+            reconstruct(&sim.input(&template), &ReconParams::default(), Kernels::Cpu).unwrap();
+        assert!(rec.sphere.rms < 2.0, "{}", rec.sphere.rms);
     }
 
     #[test]
