@@ -316,11 +316,8 @@ fn a_view_whose_outline_disagrees_with_the_others_is_named_in_a_warning() {
     assert!(!err.contains("no shape met the views"), "{err}");
 }
 
-#[test]
-fn annotations_given_to_the_wrong_views_are_refused_with_the_reason() {
-    let dir = tmp("swapped");
-    // The example case (its images left out), and the same with the AP view's annotation and
-    // the +20 degree oblique's swapped.
+/// The example case with its images left out, written as DIR/case.json: the file and its JSON.
+fn example_without_images(dir: &Path) -> (PathBuf, serde_json::Value) {
     let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/case/case.json");
     let mut v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(example).unwrap()).unwrap();
@@ -329,6 +326,15 @@ fn annotations_given_to_the_wrong_views_are_refused_with_the_reason() {
     }
     let case = dir.join("case.json");
     std::fs::write(&case, v.to_string()).unwrap();
+    (case, v)
+}
+
+#[test]
+fn annotations_given_to_the_wrong_views_are_refused_with_the_reason() {
+    let dir = tmp("swapped");
+    // The example case (its images left out), and the same with the AP view's annotation and
+    // the +20 degree oblique's swapped.
+    let (case, mut v) = example_without_images(&dir);
     let first = v["views"][0]["contours"].take();
     v["views"][0]["contours"] = v["views"][1]["contours"].take();
     v["views"][1]["contours"] = first;
@@ -363,14 +369,7 @@ fn the_uncertainty_noise_does_not_depend_on_where_an_annotation_starts() {
     let dir = tmp("starts");
     // The example case (its images left out): a start a third of the way round triples its
     // correspondences' reprojection RMS (not every case's does).
-    let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/case/case.json");
-    let mut v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(example).unwrap()).unwrap();
-    for view in v["views"].as_array_mut().unwrap() {
-        view.as_object_mut().unwrap().remove("image");
-    }
-    let case = dir.join("case.json");
-    std::fs::write(&case, v.to_string()).unwrap();
+    let (case, mut v) = example_without_images(&dir);
     let report = |case: &Path, out: &str| -> serde_json::Value {
         let o = bin()
             .arg("reconstruct")
