@@ -25,7 +25,7 @@ pub enum Fallback {
     RefinePoses,
 }
 
-/// The fallbacks, in the order they are tried after any guard but `Outlines` (see
+/// The fallbacks, in the order they are tried after any guard but `Outlines` and `Rough` (see
 /// `Fallback::order`).
 pub const FALLBACKS: [Fallback; 4] = [
     Fallback::ShapeOnly,

@@ -1,7 +1,8 @@
 //! Guards on a result: what the method cannot stand behind is caught before it is returned. A
 //! reconstruction that folds over, leaves the sphere its outlines' limbs define, has a cup no
-//! acetabulum has, ends far from its outlines, or is crumpled is a `GuardFailure`; `reconstruct` then falls
-//! back (see `Fallback`) and reports which fallback it took, or fails with the reason.
+//! acetabulum has, ends far from its outlines, or is crumpled is a `GuardFailure`;
+//! `reconstruct` then falls back (see `Fallback`) and reports which fallback it took, or fails
+//! with the reason.
 
 use crate::geom::{Mesh, Sphere};
 use serde::Serialize;
