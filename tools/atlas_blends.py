@@ -1,0 +1,97 @@
+"""New bone-side acetabula from the pelvis atlas's vertex correspondences, for checking the method
+on acetabula it has not seen (docs/population.md, "Acetabula made from the atlas's correspondences").
+
+The atlas's hemipelves (../shared/data/pelvis-atlas/hemipelves, CC BY 4.0, Han et al., Phys. Med.
+Biol. 64 (2019) 095022) share their vertices across subjects of one side. For each subject A of a
+side and the next subject B in number order (the last with the first), B is moved rigidly onto A
+(least squares over all 5,000 vertices, no scale) and the two are mixed vertex by vertex,
+V = (1 - t) A + t B, with t = 0.5 (between the two: "i<A><B>") for every other pair and t = -0.4 (A
+pushed away from B, a shape beyond the atlas's: "e<A><B>") for the rest. Each mix is cut by the
+atlas's own extract_acetabulum.py, which drops a cut with a radius outside 21-32 mm or too few faces,
+as it drops atlas members. The file names (i0204_lhip.stl, ...) keep the side and give each mix its
+own subject, so leave-one-subject-out studies treat them as new subjects.
+
+Nothing is written into the repository: OUT_DIR is for scratch studies.
+Usage: python3 tools/atlas_blends.py OUT_DIR [ATLAS_DIR]   (ATLAS_DIR: ../shared/data/pelvis-atlas)
+Needs numpy."""
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+MIX = (0.5, -0.4)  # t for even and odd pairs in a side's list
+
+
+def load_vtk(path):
+    words = open(path).read().split()
+    i = words.index("POINTS")
+    n = int(words[i + 1])
+    V = np.array(words[i + 3:i + 3 + 3 * n], float).reshape(n, 3)
+    j = words.index("POLYGONS")
+    m = int(words[j + 1])
+    F = np.array(words[j + 3:j + 3 + 4 * m], int).reshape(m, 4)[:, 1:]
+    return V, F
+
+
+def write_vtk(path, V, F):
+    with open(path, "w") as out:
+        out.write("# vtk DataFile Version 3.0\nmixed hemipelvis\nASCII\nDATASET POLYDATA\n")
+        out.write(f"POINTS {len(V)} float\n")
+        for v in V:
+            out.write(f"{v[0]:.5f} {v[1]:.5f} {v[2]:.5f}\n")
+        out.write(f"POLYGONS {len(F)} {4 * len(F)}\n")
+        for f in F:
+            out.write(f"3 {f[0]} {f[1]} {f[2]}\n")
+
+
+def onto(A, B):
+    """B moved rigidly onto A (Kabsch: the rotation and shift of least squared distance)."""
+    ca, cb = A.mean(0), B.mean(0)
+    U, _, Vt = np.linalg.svd((B - cb).T @ (A - ca))
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    R = (U @ D @ Vt).T
+    return (B - cb) @ R.T + ca
+
+
+def mixes(hemipelves, acetabula):
+    """(name, vertices, faces) of every mix, side by side, of the members whose acetabulum the atlas
+    kept (a25_lhip's correspondence failed: it has no acetabulum and takes no part)."""
+    kept = {f[:-4] for f in os.listdir(acetabula) if f.endswith(".stl")}
+    names = sorted(f[:-4] for f in os.listdir(hemipelves) if f.endswith(".vtk") and f[:-4] in kept)
+    for side in ("lhip", "rhip"):
+        subjects = [n.split("_")[0][1:] for n in names if n.endswith("_" + side)]
+        for k, a in enumerate(subjects):
+            b = subjects[(k + 1) % len(subjects)]
+            VA, F = load_vtk(os.path.join(hemipelves, f"a{a}_{side}.vtk"))
+            VB, FB = load_vtk(os.path.join(hemipelves, f"a{b}_{side}.vtk"))
+            if VA.shape != VB.shape or not np.array_equal(F, FB):
+                sys.exit(f"a{a}_{side} and a{b}_{side} do not share their vertices and faces")
+            t = MIX[k % 2]
+            tag = "i" if t > 0 else "e"
+            yield f"{tag}{a}{b}_{side}", (1 - t) * VA + t * onto(VA, VB), F
+
+
+def main():
+    if len(sys.argv) not in (2, 3):
+        sys.exit(__doc__)
+    out = os.path.abspath(sys.argv[1])
+    here = os.path.dirname(os.path.abspath(__file__))
+    atlas = sys.argv[2] if len(sys.argv) == 3 else os.path.join(here, "..", "..", "shared", "data", "pelvis-atlas")
+    hemipelves = os.path.join(atlas, "hemipelves")
+    extractor = os.path.join(atlas, "extract_acetabulum.py")
+    if not os.path.isdir(hemipelves) or not os.path.isfile(extractor):
+        sys.exit(f"{atlas}: no hemipelves/ folder or extract_acetabulum.py (the shared pelvis atlas)")
+    mixed = os.path.join(out, "hemipelves")
+    os.makedirs(mixed, exist_ok=True)
+    paths = []
+    for name, V, F in mixes(hemipelves, os.path.join(atlas, "acetabula")):
+        path = os.path.join(mixed, name + ".vtk")
+        write_vtk(path, V, F)
+        paths.append(path)
+    # The atlas's own cut, its own rules for what it drops.
+    subprocess.run([sys.executable, extractor, out, *paths], check=True)
+
+
+if __name__ == "__main__":
+    main()
