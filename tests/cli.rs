@@ -364,6 +364,54 @@ fn annotations_given_to_the_wrong_views_are_refused_with_the_reason() {
     assert!(dir.join("as-is").join("report.json").exists());
 }
 
+/// A contour's points, pixels.
+type Rim = Vec<[f64; 2]>;
+
+#[test]
+fn a_rim_joined_on_backwards_is_refused_and_a_dented_one_is_read() {
+    let dir = tmp("crossing");
+    let (_, v) = example_without_images(&dir);
+    // The AP view's closed rim (158 points) changed two ways: a quarter of it pushed 40 % of the
+    // way to its centre (a deep dent, 91 % of its hull), and its second half joined on
+    // backwards (a figure of eight, 22 %).
+    let with_rim = |name: &str, f: fn(&[[f64; 2]]) -> Rim| {
+        let mut v = v.clone();
+        let rim = &mut v["views"][0]["contours"][0]["points"];
+        let p: Rim = serde_json::from_value(rim.clone()).unwrap();
+        *rim = serde_json::to_value(f(&p)).unwrap();
+        let path = dir.join(name);
+        std::fs::write(&path, v.to_string()).unwrap();
+        path
+    };
+    let dented = with_rim("dented.json", |p| {
+        let n = p.len() as f64;
+        let c = p
+            .iter()
+            .fold([0.0, 0.0], |a, q| [a[0] + q[0] / n, a[1] + q[1] / n]);
+        p.iter()
+            .enumerate()
+            .map(|(i, q)| match i {
+                20..60 => [q[0] + 0.4 * (c[0] - q[0]), q[1] + 0.4 * (c[1] - q[1])],
+                _ => *q,
+            })
+            .collect()
+    });
+    let backwards = with_rim("backwards.json", |p| {
+        let h = p.len() / 2;
+        p[..h].iter().chain(p[h..].iter().rev()).copied().collect()
+    });
+    let err = CaseFile::load(&backwards).unwrap_err().to_string();
+    assert!(
+        err.contains("backwards.json")
+            && err.contains("field views[0].contours[0].points = 158 points enclosing")
+            && err.contains("cross itself"),
+        "{err}"
+    );
+    // Companion: a deep dent, as an annotator may trace round a notch, is read.
+    let case = CaseFile::load(&dented).unwrap();
+    assert_eq!(case.observed[0][0].points.len(), 158);
+}
+
 #[test]
 fn the_uncertainty_noise_does_not_depend_on_where_an_annotation_starts() {
     let dir = tmp("starts");

@@ -6,6 +6,6 @@ mod run;
 
 pub use file::{
     Case, CaseError, CaseFile, ContourFile, ContourKind, IntrinsicsFile, TemplateFile, ViewFile,
-    ViewGeometry,
+    ViewGeometry, MIN_HULL_FILL,
 };
 pub use run::{run_case, run_case_with, solve_case, CaseRunError, CaseRunReport};

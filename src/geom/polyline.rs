@@ -138,6 +138,37 @@ pub fn winding_number(p: &[Point2<f64>], about: Point2<f64>) -> i64 {
     (turn / std::f64::consts::TAU).round() as i64
 }
 
+/// Area of the convex hull of `p` (Andrew's monotone chain); 0 for fewer than 3 points or
+/// points on one line. Beside `signed_area` it tells how much of its hull a closed outline
+/// encloses: most of it for a rim, little for points on a line or an outline that crosses
+/// itself (its loops' areas cancel).
+pub fn convex_hull_area(p: &[Point2<f64>]) -> f64 {
+    let mut pts: Vec<Point2<f64>> = p.to_vec();
+    pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    pts.dedup();
+    if pts.len() < 3 {
+        return 0.0;
+    }
+    let cross = |o: &Point2<f64>, a: &Point2<f64>, b: &Point2<f64>| {
+        (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x)
+    };
+    // Lower hull left to right, then upper hull right to left, each turning left only.
+    let mut hull: Vec<Point2<f64>> = Vec::with_capacity(2 * pts.len());
+    for pass in [&pts[..], &pts.iter().rev().copied().collect::<Vec<_>>()[..]] {
+        let floor = hull.len();
+        for q in pass {
+            while hull.len() >= floor + 2
+                && cross(&hull[hull.len() - 2], &hull[hull.len() - 1], q) <= 0.0
+            {
+                hull.pop();
+            }
+            hull.push(*q);
+        }
+        hull.pop(); // the pass's last point starts the next one
+    }
+    signed_area(&hull).abs()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -182,5 +213,29 @@ mod tests {
         let (o, _) = resample_open(&sq, 4);
         assert!((o[3] - Point2::new(0.0, 1.0)).norm() < 1e-12);
         assert!((o[1] - Point2::new(1.0, 0.0)).norm() < 1e-12);
+    }
+
+    /// The hull of an L shape bridges its inner corner; inner points and repeats change nothing.
+    /// Companions: points on one line, and fewer than three, have no hull area.
+    #[test]
+    fn convex_hull_area_bridges_concavities_and_is_zero_on_a_line() {
+        let l = [
+            (0.0, 0.0),
+            (10.0, 0.0),
+            (10.0, 5.0),
+            (5.0, 5.0),
+            (5.0, 10.0),
+            (0.0, 10.0),
+            (2.0, 3.0),
+            (10.0, 0.0),
+        ]
+        .map(|(x, y)| Point2::new(x, y));
+        assert!((convex_hull_area(&l) - 87.5).abs() < 1e-12);
+        assert!((signed_area(&l[..6]) - 75.0).abs() < 1e-12);
+        let line: Vec<Point2<f64>> = (0..20)
+            .map(|i| Point2::new(i as f64, 2.0 * i as f64))
+            .collect();
+        assert_eq!(convex_hull_area(&line), 0.0);
+        assert_eq!(convex_hull_area(&l[..2]), 0.0);
     }
 }

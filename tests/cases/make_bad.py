@@ -74,6 +74,8 @@ case("duplicate_point_contour.json", "1 distinct points", setv(["views", 0, "con
 case("tiny_contour.json", "smaller than 2 pixels", setv(["views", 0, "contours", 0, "points"], [[1000, 1000], [1000.5, 1000], [1000.5, 1000.5], [1000, 1000.5]]))
 case("stray_point.json", "points[5] = [1629.103746225825, 1515.888660477986]: a stray point", lambda d: d["views"][0]["contours"][0]["points"].__setitem__(5, [d["views"][0]["contours"][0]["points"][5][0] + 450, d["views"][0]["contours"][0]["points"][5][1] + 450]))
 case("traced_twice.json", "views[0].contours[0].points = 40 points going 2 times round their centre", lambda d: d["views"][0]["contours"][0].__setitem__("points", d["views"][0]["contours"][0]["points"] * 2))
+case("crossing_contour.json", "views[0].contours[0].points = 20 points enclosing", lambda d: d["views"][0]["contours"][0].__setitem__("points", d["views"][0]["contours"][0]["points"][:10] + d["views"][0]["contours"][0]["points"][10:][::-1]))
+case("collinear_contour.json", "are its points on one line, or does it cross itself", setv(["views", 0, "contours", 0, "points"], [[900 + 10 * i, 800 + 5 * i] for i in range(20)]))
 case("one_view.json", "at least 2 views", lambda d: d.__setitem__("views", d["views"][:1]))
 case("too_many_views.json", "at most 64 views", lambda d: d.__setitem__("views", d["views"] * 22))
 case("zero_width.json", "image size", setv(["views", 0, "width"], 0))
