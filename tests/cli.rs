@@ -413,6 +413,39 @@ fn a_rim_joined_on_backwards_is_refused_and_a_dented_one_is_read() {
 }
 
 #[test]
+fn an_outline_at_another_scale_is_refused_naming_its_view() {
+    let dir = tmp("scale");
+    let (_, v) = example_without_images(&dir);
+    // The AP view's closed rim scaled about its centre: to 0.3 (an annotation at another scale,
+    // or a focal length off by as much), and to 0.7 (within what views of one acetabulum show).
+    let scaled = |f: f64| {
+        let mut v = v.clone();
+        let rim = &mut v["views"][0]["contours"][0]["points"];
+        let p: Rim = serde_json::from_value(rim.clone()).unwrap();
+        let n = p.len() as f64;
+        let c = p
+            .iter()
+            .fold([0.0, 0.0], |a, q| [a[0] + q[0] / n, a[1] + q[1] / n]);
+        let q: Rim = p
+            .iter()
+            .map(|q| [c[0] + f * (q[0] - c[0]), c[1] + f * (q[1] - c[1])])
+            .collect();
+        *rim = serde_json::to_value(q).unwrap();
+        let path = dir.join(format!("scaled{f}.json"));
+        std::fs::write(&path, v.to_string()).unwrap();
+        path
+    };
+    let err = CaseFile::load(&scaled(0.3)).unwrap_err().to_string();
+    assert!(
+        err.contains("field views[0].contours[0].points = an outline of view AP spanning")
+            && err.contains("another scale"),
+        "{err}"
+    );
+    // Companion: 0.7 is read.
+    assert!(CaseFile::load(&scaled(0.7)).is_ok());
+}
+
+#[test]
 fn the_uncertainty_noise_does_not_depend_on_where_an_annotation_starts() {
     let dir = tmp("starts");
     // The example case (its images left out): a start a third of the way round triples its

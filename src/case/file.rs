@@ -2,12 +2,15 @@
 //! and the template's initial placement. Everything is validated on load; an error names the
 //! file, the field and the value.
 
-use crate::geom::{convex_hull_area, signed_area, stray_point, winding_number, Curve};
+use crate::geom::{
+    convex_hull_area, signed_area, stray_point, widest_extent, winding_number, Curve,
+};
 use crate::pipeline::Input;
 use crate::template::{Placement, Template};
 use crate::views::{widest_spread_deg, Camera, Intrinsics, MIN_VIEW_SPREAD_DEG};
 use nalgebra::{Matrix3, Point2, Point3, Rotation3, Unit, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
+use std::cmp::Ordering;
 use std::path::{Path, PathBuf};
 
 /// Intrinsics as written in a case file. A field left out is taken from the view's DICOM image:
@@ -215,6 +218,92 @@ const ABSURD: f64 = 1e7;
 /// draws each) enclose 76 % or more, the example case's 95-97 %; points on a line enclose 0 %, and
 /// an outline whose second half was joined on backwards (a figure of eight) 22 %.
 pub const MIN_HULL_FILL: f64 = 0.5;
+
+/// One acetabulum is seen in every view, so its closed outlines span about as much at the object
+/// in each: a view's widest closed outline may span from half to twice the median of the other
+/// views' (in mm at the template's centre). The outlines simulated from the 78 acetabula of
+/// docs/population.md (levels 1 and 5, five draws each) span at least 0.75 of the widest view's
+/// with the default views (0 and +-20 degrees about z), 0.71 with inlet and outlet views (x
+/// +-30), and 0.56 with views 45-60 degrees apart: a bound for outlines at a wrong scale (a
+/// tiny one, one in millimetres instead of pixels) and a view's k off by a factor, not for
+/// small disagreements (the outline guard is for those).
+pub const MAX_OUTLINE_SPAN_RATIO: f64 = 2.0;
+
+/// The view whose outline spans least like the others' (`MAX_OUTLINE_SPAN_RATIO`), as an error
+/// naming it, if any. Each view is measured by its widest closed outline; a view with open ones
+/// only, by its widest arc, which is a lower bound of the rim's span: it counts among the others,
+/// and is itself refused only for spanning too much.
+fn outline_span_mismatch(path: &Path, case: &Case) -> Option<CaseError> {
+    // (view, contour, px, mm at the object, closed) of each view's widest outline, closed first.
+    let spans: Vec<(usize, usize, f64, f64, bool)> = case
+        .observed
+        .iter()
+        .zip(&case.cameras)
+        .enumerate()
+        .filter_map(|(vi, (curves, cam))| {
+            let per_mm = cam.pixels_per_mm_at(&case.init.center);
+            curves
+                .iter()
+                .enumerate()
+                .map(|(ci, c)| {
+                    let px = widest_extent(&c.points);
+                    (vi, ci, px, px / per_mm, c.closed)
+                })
+                .max_by(|a, b| {
+                    (a.4, a.3)
+                        .partial_cmp(&(b.4, b.3))
+                        .unwrap_or(Ordering::Equal)
+                })
+        })
+        .collect();
+    if spans.len() < 2 {
+        return None;
+    }
+    // (how far off, as |ln ratio|, ratio, the others' median) of every view that is off.
+    let off = |k: usize| {
+        let mut others: Vec<f64> = spans
+            .iter()
+            .enumerate()
+            .filter(|&(j, _)| j != k)
+            .map(|(_, s)| s.3)
+            .collect();
+        others.sort_by(f64::total_cmp);
+        let m = others.len();
+        let median = 0.5 * (others[(m - 1) / 2] + others[m / 2]);
+        let r = spans[k].3 / median;
+        let too_small = spans[k].4 && r < 1.0 / MAX_OUTLINE_SPAN_RATIO;
+        (too_small || r > MAX_OUTLINE_SPAN_RATIO || !r.is_finite()).then_some((
+            r.ln().abs(),
+            r,
+            median,
+        ))
+    };
+    // The view farthest off (the first of equals).
+    let (k, (_, _, median)) = (0..spans.len())
+        .filter_map(|k| off(k).map(|o| (k, o)))
+        .fold(
+            None,
+            |best: Option<(usize, (f64, f64, f64))>, x| match best {
+                Some(b) if !(x.1 .0 > b.1 .0) => Some(b),
+                _ => Some(x),
+            },
+        )?;
+    let (vi, ci, px, mm, _) = spans[k];
+    Some(field_err(
+        path,
+        format!("views[{vi}].contours[{ci}].points"),
+        format!(
+            "an outline of view {} spanning {mm:.1} mm at the object ({px:.0} px), against \
+             {median:.1} mm in the other views",
+            case.names[vi]
+        ),
+        format!(
+            "one acetabulum spans about as much in every view (from 1/{MAX_OUTLINE_SPAN_RATIO:.0} \
+             to {MAX_OUTLINE_SPAN_RATIO:.0} times the others'): is this outline annotated at \
+             another scale, or are this view's k (focal length) or t wrong?"
+        ),
+    ))
+}
 
 /// A view's image as the case names it: where it is, its size, and its DICOM geometry.
 struct ViewImage {
@@ -718,6 +807,9 @@ impl CaseFile {
                     "the views look along the same direction (at least two must differ by {MIN_VIEW_SPREAD_DEG} degrees or more; the paper's differ by 20)"
                 ),
             ));
+        }
+        if let Some(e) = outline_span_mismatch(path, &case) {
+            return Err(e);
         }
         Ok(case)
     }

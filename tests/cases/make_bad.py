@@ -76,6 +76,11 @@ case("stray_point.json", "points[5] = [1629.103746225825, 1515.888660477986]: a 
 case("traced_twice.json", "views[0].contours[0].points = 40 points going 2 times round their centre", lambda d: d["views"][0]["contours"][0].__setitem__("points", d["views"][0]["contours"][0]["points"] * 2))
 case("crossing_contour.json", "views[0].contours[0].points = 20 points enclosing", lambda d: d["views"][0]["contours"][0].__setitem__("points", d["views"][0]["contours"][0]["points"][:10] + d["views"][0]["contours"][0]["points"][10:][::-1]))
 case("collinear_contour.json", "are its points on one line, or does it cross itself", setv(["views", 0, "contours", 0, "points"], [[900 + 10 * i, 800 + 5 * i] for i in range(20)]))
+def shrink(d):
+    pts = d["views"][1]["contours"][0]["points"]
+    cx = sum(x for x, y in pts) / len(pts); cy = sum(y for x, y in pts) / len(pts)
+    d["views"][1]["contours"][0]["points"] = [[cx + 0.3 * (x - cx), cy + 0.3 * (y - cy)] for x, y in pts]
+case("outline_at_another_scale.json", "mm at the object", shrink)
 case("one_view.json", "at least 2 views", lambda d: d.__setitem__("views", d["views"][:1]))
 case("too_many_views.json", "at most 64 views", lambda d: d.__setitem__("views", d["views"] * 22))
 case("zero_width.json", "image size", setv(["views", 0, "width"], 0))
