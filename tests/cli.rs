@@ -1463,6 +1463,18 @@ fn prior_build_makes_a_prior_a_study_leaves_its_subject_out_of_and_bad_input_is_
     let mut cmd = bin();
     cmd.args(["prior", "build"]).arg(dir.join("cm.obj"));
     fails_cleanly(cmd, &dir.join("cm-prior.json"), &["cm.obj", "millimetres?"]);
+    // More modes than the meshes given can carry: the meshes are named as what falls short.
+    let mut cmd = bin();
+    cmd.args(["prior", "build", "--modes", "8"]).arg(&meshes);
+    fails_cleanly(
+        cmd,
+        &dir.join("eight-prior.json"),
+        &[
+            "the meshes given",
+            "needs at least 10 training meshes, got 6",
+            "fewer --modes",
+        ],
+    );
     // A prior file with a bad field, and one with more modes than its meshes can carry, are
     // refused by name, before any run.
     let study_with = |prior: &Path| {

@@ -69,9 +69,14 @@ fn build(args: BuildArgs) -> Result<(), String> {
         .note
         .unwrap_or_else(|| format!("{} meshes given to `acetab prior build`", meshes.len()));
     let file = PriorFile::new(meshes, args.modes, note);
-    let prior = file
-        .prior()
-        .map_err(|e| format!("--out {}: {e}", args.out.display()))?;
+    let prior = file.prior().map_err(|e| match e {
+        // The meshes given are what falls short, not the output.
+        acetab::prior::PriorFileError::Learn {
+            source: source @ acetab::prior::PriorError::TooFewMeshes { .. },
+            ..
+        } => format!("the meshes given: {source} (give more, or fewer --modes)"),
+        e => format!("--out {}: {e}", args.out.display()),
+    })?;
     crate::common::write_out_file(&args.out, file.to_json().as_bytes())?;
     println!(
         "prior of {} meshes ({} subjects), {} mode(s) (SD {}) -> {}",
