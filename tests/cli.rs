@@ -548,6 +548,11 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
             "at least two views from distinct directions",
         ),
         ("--views", "z:0,z:1.5", "2 degrees or more apart"),
+        (
+            "--views",
+            "z:0,z:400,z:-20",
+            "\"400\": the angle must be degrees from -180 to 180",
+        ),
     ] {
         let mut cmd = bin();
         cmd.args(["simulate", "--gt", "phantom", flag, value]);

@@ -85,8 +85,8 @@ impl std::fmt::Display for ViewRotation {
 impl std::str::FromStr for ViewRotation {
     type Err = String;
 
-    /// `AXIS:DEG[+AXIS:DEG...]`, AXIS one of x, y, z, DEG finite degrees (a sign of its own
-    /// allowed: `z:+20`).
+    /// `AXIS:DEG[+AXIS:DEG...]`, AXIS one of x, y, z, DEG degrees from -180 to 180 (a sign of
+    /// its own allowed: `z:+20`; `z:400`, a slip for 40, is refused rather than read as 40).
     fn from_str(s: &str) -> Result<Self, String> {
         // Turns are joined by a '+' that an axis letter follows.
         let mut parts = Vec::new();
@@ -116,8 +116,10 @@ impl std::str::FromStr for ViewRotation {
                     .trim()
                     .parse()
                     .ok()
-                    .filter(|v: &f64| v.is_finite())
-                    .ok_or_else(|| format!("\"{d}\": the angle must be finite degrees"))?;
+                    .filter(|v: &f64| v.abs() <= 180.0)
+                    .ok_or_else(|| {
+                        format!("\"{d}\": the angle must be degrees from -180 to 180")
+                    })?;
                 Ok((axis, deg))
             })
             .collect::<Result<Vec<_>, String>>()?;
@@ -352,8 +354,10 @@ mod tests {
         assert_eq!(v.turns, vec![(BodyAxis::Z, 20.0), (BodyAxis::X, -15.0)]);
         assert_eq!(v.to_string(), "z:20+x:-15");
         let signed: ViewRotation = "z:+20+x:+5".parse().unwrap();
+        // Companion of the refused angles below: the ends of the range are read.
+        assert!("z:180+x:-180".parse::<ViewRotation>().is_ok());
         assert_eq!(signed.turns, vec![(BodyAxis::Z, 20.0), (BodyAxis::X, 5.0)]);
-        for bad in ["20", "w:10", "z:ten", "z:inf", "z:20+"] {
+        for bad in ["20", "w:10", "z:ten", "z:inf", "z:20+", "z:400", "x:-180.5"] {
             assert!(bad.parse::<ViewRotation>().is_err(), "{bad}");
         }
         // z:90 puts the source on the left-right axis; x:90 above the object (inlet at 90).

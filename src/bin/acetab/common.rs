@@ -179,9 +179,19 @@ fn parse_list<T: PartialEq>(
     allowed: &str,
     f: impl Fn(&str) -> Option<T>,
 ) -> Result<Vec<T>, String> {
+    parse_list_why(s, |x| {
+        f(x).ok_or_else(|| format!("cannot read {x:?} (expected {allowed})"))
+    })
+}
+
+/// `parse_list` whose entries say themselves why they cannot be read.
+fn parse_list_why<T: PartialEq>(
+    s: &str,
+    f: impl Fn(&str) -> Result<T, String>,
+) -> Result<Vec<T>, String> {
     let mut list: Vec<T> = Vec::new();
     for x in s.split(',').map(str::trim) {
-        let v = f(x).ok_or_else(|| format!("cannot read {x:?} (expected {allowed})"))?;
+        let v = f(x)?;
         if list.contains(&v) {
             return Err(format!("{x:?} is listed twice"));
         }
@@ -227,8 +237,10 @@ pub struct Views(pub Vec<acetab::sim::ViewRotation>);
 
 /// Parse `--views` ("z:0,z:20,z:-20"; a view may chain turns, "z:20+x:-15").
 pub fn views(s: &str) -> Result<Views, String> {
-    let list = parse_list(s, "AXIS:DEGREES with AXIS x, y or z, e.g. z:20", |x| {
-        x.parse::<acetab::sim::ViewRotation>().ok()
+    let list = parse_list_why(s, |x| {
+        x.parse::<acetab::sim::ViewRotation>().map_err(|e| {
+            format!("cannot read {x:?}: {e} (a view is AXIS:DEGREES, AXIS x, y or z, e.g. z:20)")
+        })
     })?;
     let g = acetab::sim::XrayGeometry {
         views: list.clone(),
