@@ -6,6 +6,6 @@ mod run;
 
 pub use file::{
     Case, CaseError, CaseFile, ContourFile, ContourKind, IntrinsicsFile, TemplateFile, ViewFile,
-    ViewGeometry, MIN_HULL_FILL,
+    ViewGeometry, MAX_OUTLINE_SPAN_RATIO, MIN_HULL_FILL,
 };
 pub use run::{run_case, run_case_with, solve_case, CaseRunError, CaseRunReport};
