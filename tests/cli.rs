@@ -443,6 +443,24 @@ fn an_outline_at_another_scale_is_refused_naming_its_view() {
     );
     // Companion: 0.7 is read.
     assert!(CaseFile::load(&scaled(0.7)).is_ok());
+    // Scaled to half it is read too (on the bound), and no shape meets all three outlines: the
+    // refusal gives each view's outline distance, by the views' names.
+    let o = bin()
+        .arg("reconstruct")
+        .arg(scaled(0.5))
+        .args(["--uncertainty-samples", "2", "--out"])
+        .arg(dir.join("half"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("the result was refused: ")
+            && err.contains("; its outlines lay from the annotations: view 0 (AP) ")
+            && err.contains(", view 2 (oblique -20) "),
+        "{err}"
+    );
+    assert!(!dir.join("half").exists());
 }
 
 #[test]

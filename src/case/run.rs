@@ -221,9 +221,15 @@ pub fn solve_case(
     kernels: Kernels,
     up: &UncertaintyParams,
 ) -> Result<(Reconstruction, CupReport), CaseRunError> {
-    let recon_err = |source| CaseRunError::Recon {
-        path: path.to_path_buf(),
-        source,
+    let recon_err = |mut source: ReconError| {
+        // A refusal names a view that disagrees by the case's own view names.
+        if let ReconError::Guard(refusal) = &mut source {
+            refusal.names = case.names.clone();
+        }
+        CaseRunError::Recon {
+            path: path.to_path_buf(),
+            source,
+        }
     };
     let template = Template::standard();
     let rec = reconstruct(&case.input(&template), prm, kernels).map_err(recon_err)?;

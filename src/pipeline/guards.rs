@@ -229,11 +229,124 @@ pub fn first_failure(g: &GuardParams, judged: &Judged) -> Option<GuardFailure> {
     None
 }
 
+/// `SolveLog::view_note`: a view is named when its outline distance is above this (pixels) ...
+pub const VIEW_NOTE_MIN_PX: f64 = 3.0;
+/// ... and this many times the worst of the other views'.
+pub const VIEW_NOTE_RATIO: f64 = 2.0;
+
+/// The view whose outline lies far worse than the others' (more than `VIEW_NOTE_MIN_PX` and
+/// `VIEW_NOTE_RATIO` times the worst of the rest), from the per-view outline distances: (view,
+/// its distance, the worst of the rest). None when the views agree or a distance is not finite.
+pub fn odd_view(d: &[f64]) -> Option<(usize, f64, f64)> {
+    if d.len() < 2 || d.iter().any(|x| !x.is_finite()) {
+        return None;
+    }
+    let (worst, &px) = d.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
+    let rest = d
+        .iter()
+        .enumerate()
+        .filter(|&(k, _)| k != worst)
+        .map(|(_, &x)| x)
+        .fold(0.0_f64, f64::max);
+    (px > VIEW_NOTE_MIN_PX && px > VIEW_NOTE_RATIO * rest).then_some((worst, px, rest))
+}
+
+/// A result the guards refused after every fallback: the first failure (the method as asked
+/// for), and how far each view's outline lay from its annotation in that result. The message
+/// gives those distances, and names a view far off the others (`odd_view`): where one view's
+/// annotation or pose is wrong, its distance is usually the largest.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Refusal {
+    /// The guard the method as asked for failed.
+    pub failure: GuardFailure,
+    /// That result's `SolveLog::outline_px_per_view` (empty when it had none, as when its
+    /// vertices were not finite).
+    pub outline_px_per_view: Vec<f64>,
+    /// The views' names, where the caller knows them (a case file); else "view k" alone.
+    pub names: Vec<String>,
+}
+
+impl std::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.failure)?;
+        let d = &self.outline_px_per_view;
+        if d.is_empty() || d.iter().any(|x| !x.is_finite()) {
+            return Ok(());
+        }
+        let name = |k: usize| {
+            self.names
+                .get(k)
+                .map_or(format!("view {k}"), |n| format!("view {k} ({n})"))
+        };
+        let each: Vec<String> = d
+            .iter()
+            .enumerate()
+            .map(|(k, px)| format!("{} {px:.1} px", name(k)))
+            .collect();
+        write!(
+            f,
+            "; its outlines lay from the annotations: {}",
+            each.join(", ")
+        )?;
+        if let Some((k, _, _)) = odd_view(d) {
+            write!(
+                f,
+                "; {} is far off the others: check its annotation and pose",
+                name(k)
+            )?;
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::geom::fit_sphere;
     use crate::template::hemisphere;
+
+    /// A refusal gives each view's outline distance and names the view far off the others (the
+    /// example case's AP rim scaled to half: 21.1 px against 5.5 and 7.6), by its name where it
+    /// has one. Companions: views within a factor of two of each other name none; a distance
+    /// that is not finite, or none, leave the failure's message alone.
+    #[test]
+    fn a_refusal_gives_the_views_outline_distances_and_names_one_far_off() {
+        let failure = GuardFailure::Cup {
+            diameter_mm: 200.4,
+            lo: 30.0,
+            hi: 80.0,
+        };
+        let refusal = |d: &[f64], names: &[&str]| {
+            Refusal {
+                failure: failure.clone(),
+                outline_px_per_view: d.to_vec(),
+                names: names.iter().map(|n| n.to_string()).collect(),
+            }
+            .to_string()
+        };
+        assert_eq!(
+            refusal(&[21.1, 5.5, 7.6], &["AP", "+20", "-20"]),
+            format!(
+                "{failure}; its outlines lay from the annotations: view 0 (AP) 21.1 px, view 1 \
+                 (+20) 5.5 px, view 2 (-20) 7.6 px; view 0 (AP) is far off the others: check its \
+                 annotation and pose"
+            )
+        );
+        assert!(refusal(&[2.0, 9.0, 3.0], &[]).ends_with(
+            "view 0 2.0 px, view 1 9.0 px, view 2 3.0 px; view 1 is far off the others: check \
+             its annotation and pose"
+        ));
+        assert_eq!(
+            refusal(&[16.5, 8.2, 10.1], &["AP", "+20", "-20"]),
+            format!(
+                "{failure}; its outlines lay from the annotations: view 0 (AP) 16.5 px, view 1 \
+                 (+20) 8.2 px, view 2 (-20) 10.1 px"
+            )
+        );
+        for d in [&[21.1, f64::NAN, 7.6][..], &[]] {
+            assert_eq!(refusal(d, &["AP"]), failure.to_string(), "{d:?}");
+        }
+    }
 
     #[test]
     fn each_guard_catches_its_failure_and_passes_a_good_cup() {

@@ -21,7 +21,10 @@ pub use cup::{
     REGION_MIN_COVERAGE,
 };
 pub use fallback::{params_used, Fallback, FALLBACKS};
-pub use guards::{first_failure, folded_share, GuardFailure, GuardParams, Judged};
+pub use guards::{
+    first_failure, folded_share, odd_view, GuardFailure, GuardParams, Judged, Refusal,
+    VIEW_NOTE_MIN_PX, VIEW_NOTE_RATIO,
+};
 pub use params::{CupEstimator, CupParams, DeformationParams, PlacementParams, ReconParams};
 pub use restart::outline_distance_px;
 pub use uncertainty::{cup_report, CupReport, SizeProbability, UncertaintyParams};
@@ -105,7 +108,7 @@ pub enum ReconError {
     Template(#[from] TemplateError),
     /// The result failed a guard and no fallback passed (see `reconstruct`).
     #[error("the result was refused: {0}")]
-    Guard(GuardFailure),
+    Guard(Refusal),
     /// A setting outside what the method can run with (see `ReconParams::validate`).
     #[error("setting {field} = {value}: must be {expected}")]
     Param {
@@ -117,11 +120,6 @@ pub enum ReconError {
         expected: &'static str,
     },
 }
-
-/// `SolveLog::view_note`: a view is named when its outline distance is above this (pixels) ...
-pub const VIEW_NOTE_MIN_PX: f64 = 3.0;
-/// ... and this many times the worst of the other views'.
-pub const VIEW_NOTE_RATIO: f64 = 2.0;
 
 /// What the solver did.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
@@ -191,20 +189,7 @@ impl SolveLog {
         if let Some(note) = self.pose_note(names) {
             return Some(note);
         }
-        let d = &self.outline_px_per_view;
-        if d.len() < 2 || d.iter().any(|x| !x.is_finite()) {
-            return None;
-        }
-        let (worst, &px) = d.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
-        let rest = d
-            .iter()
-            .enumerate()
-            .filter(|&(k, _)| k != worst)
-            .map(|(_, &x)| x)
-            .fold(0.0_f64, f64::max);
-        if px <= VIEW_NOTE_MIN_PX || px <= VIEW_NOTE_RATIO * rest {
-            return None;
-        }
+        let (worst, px, rest) = odd_view(&self.outline_px_per_view)?;
         let name = names
             .get(worst)
             .map_or(String::new(), |n| format!(" ({n})"));
@@ -364,7 +349,8 @@ impl<'a> Input<'a> {
 /// Reconstruct: the method's stages in order, each kernel on `kernels` (`Kernels::Cpu`, or the
 /// caller's GPU). With `prm.guards`, a result that fails a guard is not returned: the fallbacks
 /// (`FALLBACKS`) are tried in turn, and the first that passes is returned with the fallback
-/// and the failure in its log; when none does, the error names the first failure.
+/// and the failure in its log; when none does, the error (`Refusal`) names the first failure,
+/// and the view whose outline disagreed with the others in that result, if one did.
 pub fn reconstruct(
     input: &Input,
     prm: &ReconParams,
@@ -378,26 +364,30 @@ pub fn reconstruct(
         return restarting(input, prm, kernels, &limb).map(|(rec, _)| rec);
     }
     // `restarting` judged its result by the guards already.
-    let guarded = |r: Result<(Reconstruction, Option<GuardFailure>), ReconError>| match r? {
-        (rec, None) => Ok(rec),
-        (_, Some(failure)) => Err(ReconError::Guard(failure)),
-    };
-    let failure = match guarded(restarting(input, prm, kernels, &limb)) {
-        Ok(rec) => return Ok(rec),
-        Err(ReconError::Guard(f)) => f,
-        Err(ReconError::NonFiniteVertex { vertex }) => GuardFailure::NonFiniteVertex { vertex },
-        Err(ReconError::NonFinitePose { view }) => GuardFailure::NonFinitePose { view },
+    let (failure, outline_px_per_view) = match restarting(input, prm, kernels, &limb) {
+        Ok((rec, None)) => return Ok(rec),
+        Ok((rec, Some(f))) => (f, rec.log.outline_px_per_view),
+        Err(ReconError::NonFiniteVertex { vertex }) => {
+            (GuardFailure::NonFiniteVertex { vertex }, Vec::new())
+        }
+        Err(ReconError::NonFinitePose { view }) => {
+            (GuardFailure::NonFinitePose { view }, Vec::new())
+        }
         Err(e) => return Err(e),
     };
     for fb in Fallback::order(&failure) {
         let Some(p) = fb.params(prm) else { continue };
-        if let Ok(mut rec) = guarded(restarting(input, &p, kernels, &limb)) {
+        if let Ok((mut rec, None)) = restarting(input, &p, kernels, &limb) {
             rec.log.fallback = Some(fb.name());
             rec.log.guard = Some(failure);
             return Ok(rec);
         }
     }
-    Err(ReconError::Guard(failure))
+    Err(ReconError::Guard(Refusal {
+        failure,
+        outline_px_per_view,
+        names: Vec::new(),
+    }))
 }
 
 /// The first guard `rec` fails under `g`, if any.
@@ -937,7 +927,10 @@ mod tests {
         // 0.5-2 mm for real results); no fallback smooths it, so the run fails with the reason.
         sim.observed.swap(0, 1);
         match reconstruct(&sim.input(&template), &ReconParams::default(), Kernels::Cpu) {
-            Err(ReconError::Guard(GuardFailure::Rough { rms_mm, max_mm })) => {
+            Err(ReconError::Guard(Refusal {
+                failure: GuardFailure::Rough { rms_mm, max_mm },
+                ..
+            })) => {
                 assert!(rms_mm > max_mm && max_mm == 3.5, "{rms_mm}")
             }
             other => panic!(
@@ -978,7 +971,10 @@ mod tests {
             ..Default::default()
         };
         match reconstruct(&sim.input(&template), &strict, Kernels::Cpu) {
-            Err(ReconError::Guard(GuardFailure::Reprojection { max_px, .. })) => {
+            Err(ReconError::Guard(Refusal {
+                failure: GuardFailure::Reprojection { max_px, .. },
+                ..
+            })) => {
                 assert_eq!(max_px, 0.1)
             }
             other => panic!("expected a guard failure, got {:?}", other.map(|r| r.log)),
