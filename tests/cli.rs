@@ -367,6 +367,29 @@ fn annotations_given_to_the_wrong_views_are_refused_with_the_reason() {
 /// A contour's points, pixels.
 type Rim = Vec<[f64; 2]>;
 
+/// The example case `v` with its AP view's closed rim changed by `f`, written as `dir/name`.
+fn with_ap_rim(
+    dir: &Path,
+    v: &serde_json::Value,
+    name: &str,
+    f: impl Fn(&[[f64; 2]]) -> Rim,
+) -> PathBuf {
+    let mut v = v.clone();
+    let rim = &mut v["views"][0]["contours"][0]["points"];
+    let p: Rim = serde_json::from_value(rim.clone()).unwrap();
+    *rim = serde_json::to_value(f(&p)).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, v.to_string()).unwrap();
+    path
+}
+
+/// The mean of a rim's points.
+fn rim_centre(p: &[[f64; 2]]) -> [f64; 2] {
+    let n = p.len() as f64;
+    p.iter()
+        .fold([0.0, 0.0], |a, q| [a[0] + q[0] / n, a[1] + q[1] / n])
+}
+
 #[test]
 fn a_rim_joined_on_backwards_is_refused_and_a_dented_one_is_read() {
     let dir = tmp("crossing");
@@ -374,20 +397,8 @@ fn a_rim_joined_on_backwards_is_refused_and_a_dented_one_is_read() {
     // The AP view's closed rim (158 points) changed two ways: a quarter of it pushed 40 % of the
     // way to its centre (a deep dent, 91 % of its hull), and its second half joined on
     // backwards (a figure of eight, 22 %).
-    let with_rim = |name: &str, f: fn(&[[f64; 2]]) -> Rim| {
-        let mut v = v.clone();
-        let rim = &mut v["views"][0]["contours"][0]["points"];
-        let p: Rim = serde_json::from_value(rim.clone()).unwrap();
-        *rim = serde_json::to_value(f(&p)).unwrap();
-        let path = dir.join(name);
-        std::fs::write(&path, v.to_string()).unwrap();
-        path
-    };
-    let dented = with_rim("dented.json", |p| {
-        let n = p.len() as f64;
-        let c = p
-            .iter()
-            .fold([0.0, 0.0], |a, q| [a[0] + q[0] / n, a[1] + q[1] / n]);
+    let dented = with_ap_rim(&dir, &v, "dented.json", |p| {
+        let c = rim_centre(p);
         p.iter()
             .enumerate()
             .map(|(i, q)| match i {
@@ -396,7 +407,7 @@ fn a_rim_joined_on_backwards_is_refused_and_a_dented_one_is_read() {
             })
             .collect()
     });
-    let backwards = with_rim("backwards.json", |p| {
+    let backwards = with_ap_rim(&dir, &v, "backwards.json", |p| {
         let h = p.len() / 2;
         p[..h].iter().chain(p[h..].iter().rev()).copied().collect()
     });
@@ -419,21 +430,12 @@ fn an_outline_at_another_scale_is_refused_naming_its_view() {
     // The AP view's closed rim scaled about its centre: to 0.3 (an annotation at another scale,
     // or a focal length off by as much), and to 0.7 (within what views of one acetabulum show).
     let scaled = |f: f64| {
-        let mut v = v.clone();
-        let rim = &mut v["views"][0]["contours"][0]["points"];
-        let p: Rim = serde_json::from_value(rim.clone()).unwrap();
-        let n = p.len() as f64;
-        let c = p
-            .iter()
-            .fold([0.0, 0.0], |a, q| [a[0] + q[0] / n, a[1] + q[1] / n]);
-        let q: Rim = p
-            .iter()
-            .map(|q| [c[0] + f * (q[0] - c[0]), c[1] + f * (q[1] - c[1])])
-            .collect();
-        *rim = serde_json::to_value(q).unwrap();
-        let path = dir.join(format!("scaled{f}.json"));
-        std::fs::write(&path, v.to_string()).unwrap();
-        path
+        with_ap_rim(&dir, &v, &format!("scaled{f}.json"), |p| {
+            let c = rim_centre(p);
+            p.iter()
+                .map(|q| [c[0] + f * (q[0] - c[0]), c[1] + f * (q[1] - c[1])])
+                .collect()
+        })
     };
     let err = CaseFile::load(&scaled(0.3)).unwrap_err().to_string();
     assert!(

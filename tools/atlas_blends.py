@@ -14,6 +14,7 @@ own subject, so leave-one-subject-out studies treat them as new subjects.
 Nothing is written into the repository: OUT_DIR is for scratch studies.
 Usage: python3 tools/atlas_blends.py OUT_DIR [ATLAS_DIR]   (ATLAS_DIR: ../shared/data/pelvis-atlas)
 Needs numpy."""
+import importlib.util
 import os
 import subprocess
 import sys
@@ -23,15 +24,13 @@ import numpy as np
 MIX = (0.5, -0.4)  # t for even and odd pairs in a side's list
 
 
-def load_vtk(path):
-    words = open(path).read().split()
-    i = words.index("POINTS")
-    n = int(words[i + 1])
-    V = np.array(words[i + 3:i + 3 + 3 * n], float).reshape(n, 3)
-    j = words.index("POLYGONS")
-    m = int(words[j + 1])
-    F = np.array(words[j + 3:j + 3 + 4 * m], int).reshape(m, 4)[:, 1:]
-    return V, F
+def extractor(atlas):
+    """The atlas's own extract_acetabulum.py as a module: its VTK reader, and the cut it makes."""
+    spec = importlib.util.spec_from_file_location(
+        "extract_acetabulum", os.path.join(atlas, "extract_acetabulum.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def write_vtk(path, V, F):
@@ -54,9 +53,11 @@ def onto(A, B):
     return (B - cb) @ R.T + ca
 
 
-def mixes(hemipelves, acetabula):
+def mixes(atlas):
     """(name, vertices, faces) of every mix, side by side, of the members whose acetabulum the atlas
     kept (a25_lhip's correspondence failed: it has no acetabulum and takes no part)."""
+    load_vtk = extractor(atlas).load_vtk
+    hemipelves, acetabula = (os.path.join(atlas, d) for d in ("hemipelves", "acetabula"))
     kept = {f[:-4] for f in os.listdir(acetabula) if f.endswith(".stl")}
     names = sorted(f[:-4] for f in os.listdir(hemipelves) if f.endswith(".vtk") and f[:-4] in kept)
     for side in ("lhip", "rhip"):
@@ -79,18 +80,18 @@ def main():
     here = os.path.dirname(os.path.abspath(__file__))
     atlas = sys.argv[2] if len(sys.argv) == 3 else os.path.join(here, "..", "..", "shared", "data", "pelvis-atlas")
     hemipelves = os.path.join(atlas, "hemipelves")
-    extractor = os.path.join(atlas, "extract_acetabulum.py")
-    if not os.path.isdir(hemipelves) or not os.path.isfile(extractor):
+    script = os.path.join(atlas, "extract_acetabulum.py")
+    if not os.path.isdir(hemipelves) or not os.path.isfile(script):
         sys.exit(f"{atlas}: no hemipelves/ folder or extract_acetabulum.py (the shared pelvis atlas)")
     mixed = os.path.join(out, "hemipelves")
     os.makedirs(mixed, exist_ok=True)
     paths = []
-    for name, V, F in mixes(hemipelves, os.path.join(atlas, "acetabula")):
+    for name, V, F in mixes(atlas):
         path = os.path.join(mixed, name + ".vtk")
         write_vtk(path, V, F)
         paths.append(path)
     # The atlas's own cut, its own rules for what it drops.
-    subprocess.run([sys.executable, extractor, out, *paths], check=True)
+    subprocess.run([sys.executable, script, out, *paths], check=True)
 
 
 if __name__ == "__main__":

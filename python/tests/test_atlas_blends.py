@@ -38,11 +38,11 @@ def test_onto_does_not_undo_a_scaling_too():
 def atlas_mixes():
     if not (ATLAS / "hemipelves").is_dir():
         pytest.skip(f"{ATLAS} is absent: the mixes are made from the shared pelvis atlas")
-    return atlas_blends.mixes(str(ATLAS / "hemipelves"), str(ATLAS / "acetabula"))
+    return atlas_blends.mixes(str(ATLAS))
 
 
 def member(name):
-    return atlas_blends.load_vtk(str(ATLAS / "hemipelves" / f"{name}.vtk"))
+    return atlas_blends.extractor(str(ATLAS)).load_vtk(str(ATLAS / "hemipelves" / f"{name}.vtk"))
 
 
 def members_of(mix_name):

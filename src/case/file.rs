@@ -238,10 +238,10 @@ fn outline_span_mismatch(path: &Path, case: &Case) -> Option<CaseError> {
     let spans: Vec<(usize, usize, f64, f64, bool)> = case
         .observed
         .iter()
-        .zip(&case.cameras)
+        .zip(&case.geometry)
         .enumerate()
-        .filter_map(|(vi, (curves, cam))| {
-            let per_mm = cam.pixels_per_mm_at(&case.init.center);
+        .filter_map(|(vi, (curves, g))| {
+            let per_mm = g.px_per_mm_at_object;
             curves
                 .iter()
                 .enumerate()
@@ -737,7 +737,8 @@ impl CaseFile {
                 // nothing, and an outline that crosses itself (parts joined in the wrong order)
                 // little, its loops' areas cancelling.
                 if closed {
-                    let (inside, hull) = (signed_area(&pts).abs(), convex_hull_area(&pts));
+                    let area = signed_area(&pts);
+                    let (inside, hull) = (area.abs(), convex_hull_area(&pts));
                     if !(hull > 0.0 && inside >= MIN_HULL_FILL * hull) {
                         return Err(field_err(
                             path,
@@ -755,9 +756,9 @@ impl CaseFile {
                             ),
                         ));
                     }
-                }
-                if closed && signed_area(&pts) < 0.0 {
-                    pts.reverse(); // all closed curves run the same way as model contours
+                    if area < 0.0 {
+                        pts.reverse(); // all closed curves run the same way as model contours
+                    }
                 }
                 curves.push(Curve {
                     points: pts,

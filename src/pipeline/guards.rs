@@ -251,6 +251,13 @@ pub fn odd_view(d: &[f64]) -> Option<(usize, f64, f64)> {
     (px > VIEW_NOTE_MIN_PX && px > VIEW_NOTE_RATIO * rest).then_some((worst, px, rest))
 }
 
+/// How a message names view `k`: "view k (its name)", or "view k" where `names` has none.
+pub fn view_label(names: &[String], k: usize) -> String {
+    names
+        .get(k)
+        .map_or(format!("view {k}"), |n| format!("view {k} ({n})"))
+}
+
 /// A result the guards refused after every fallback: the first failure (the method as asked
 /// for), and how far each view's outline lay from its annotation in that result. The message
 /// gives those distances, and names a view far off the others (`odd_view`): where one view's
@@ -273,11 +280,7 @@ impl std::fmt::Display for Refusal {
         if d.is_empty() || d.iter().any(|x| !x.is_finite()) {
             return Ok(());
         }
-        let name = |k: usize| {
-            self.names
-                .get(k)
-                .map_or(format!("view {k}"), |n| format!("view {k} ({n})"))
-        };
+        let name = |k: usize| view_label(&self.names, k);
         let each: Vec<String> = d
             .iter()
             .enumerate()

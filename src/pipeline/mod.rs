@@ -22,7 +22,7 @@ pub use cup::{
 };
 pub use fallback::{params_used, Fallback, FALLBACKS};
 pub use guards::{
-    first_failure, folded_share, odd_view, GuardFailure, GuardParams, Judged, Refusal,
+    first_failure, folded_share, odd_view, view_label, GuardFailure, GuardParams, Judged, Refusal,
     VIEW_NOTE_MIN_PX, VIEW_NOTE_RATIO,
 };
 pub use params::{CupEstimator, CupParams, DeformationParams, PlacementParams, ReconParams};
@@ -190,13 +190,11 @@ impl SolveLog {
             return Some(note);
         }
         let (worst, px, rest) = odd_view(&self.outline_px_per_view)?;
-        let name = names
-            .get(worst)
-            .map_or(String::new(), |n| format!(" ({n})"));
         Some(format!(
-            "view {worst}{name} is {px:.1} px from its outline, the others at most {rest:.1} px: \
+            "{} is {px:.1} px from its outline, the others at most {rest:.1} px: \
              the views do not agree on one shape; check that view's pose (--refine-poses \
-             corrects small errors) and its annotation"
+             corrects small errors) and its annotation",
+            view_label(names, worst)
         ))
     }
 
@@ -213,7 +211,6 @@ impl SolveLog {
             .copied()
             .enumerate()
             .max_by(|a, b| a.1[1].total_cmp(&b.1[1]))?;
-        let name = names.get(view).map_or(String::new(), |n| format!(" ({n})"));
         let was = match &self.guard {
             Some(GuardFailure::Outlines { outline_px, .. }) => {
                 format!(" (its outlines lay {outline_px:.1} px from the annotations)")
@@ -222,8 +219,9 @@ impl SolveLog {
         };
         Some(format!(
             "no shape met the views as their poses were given{was}, so the poses were refined \
-             (as --refine-poses): view {view}{name} moved most, by {mm:.1} mm and {deg:.1} \
-             degrees; check that view's pose and its annotation"
+             (as --refine-poses): {} moved most, by {mm:.1} mm and {deg:.1} degrees; check \
+             that view's pose and its annotation",
+            view_label(names, view)
         ))
     }
 
