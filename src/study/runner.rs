@@ -241,6 +241,9 @@ fn run_prepared(
     row.fallback = rec.log.fallback.unwrap_or_default().to_string();
     row.restart = rec.log.restart.unwrap_or_default().to_string();
     row.outline_px = rec.log.outline_px;
+    if let Some(largest) = largest_pose_correction(&rec.log.pose_corrections) {
+        (row.pose_turn_deg, row.pose_shift_mm) = (largest[0], largest[1]);
+    }
     // The cup's orientation: the report's when the run resampled (it fits the same rim), else
     // fitted here.
     let mut orientation = None;
@@ -314,6 +317,15 @@ pub fn run_study(
     }
     ex.sort_by_key(|e| e.task.method);
     Ok((rows, ex))
+}
+
+/// The largest turn (degrees) and the largest shift (mm) any view's pose correction has, each
+/// over the views on its own; None when no pose was refined.
+fn largest_pose_correction(corrections: &[[f64; 2]]) -> Option<[f64; 2]> {
+    corrections
+        .iter()
+        .copied()
+        .reduce(|a, b| [a[0].max(b[0]), a[1].max(b[1])])
 }
 
 #[cfg(test)]
@@ -409,5 +421,16 @@ mod tests {
         assert_eq!(srvf.seed, icp.seed);
         assert_ne!(run_seed(1, 4, 2), run_seed(1, 4, 1));
         assert_ne!(run_seed(1, 4, 2), run_seed(2, 4, 2));
+    }
+
+    /// The largest turn and the largest shift are each taken over the views on their own (the
+    /// reference view's zero correction included); companion: no refinement gives none, not
+    /// zeros.
+    #[test]
+    fn the_largest_pose_correction_takes_turn_and_shift_apart() {
+        let c = [[0.0, 0.0], [6.6, 2.0], [1.5, 14.3]];
+        assert_eq!(largest_pose_correction(&c), Some([6.6, 14.3]));
+        assert_ne!(largest_pose_correction(&c), Some([1.5, 14.3]));
+        assert_eq!(largest_pose_correction(&[]), None);
     }
 }

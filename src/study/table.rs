@@ -93,6 +93,13 @@ pub struct Row {
     /// over all views, pixels); NaN when the run failed. Annotation noise alone leaves 1-3 px.
     #[serde(serialize_with = "six", default = "nan")]
     pub outline_px: f64,
+    /// The largest turn the pose refinement gave a view (`SolveLog::pose_corrections`), degrees;
+    /// NaN when the run refined no poses or failed.
+    #[serde(serialize_with = "six", default = "nan")]
+    pub pose_turn_deg: f64,
+    /// The largest shift it gave a view, mm; NaN as above.
+    #[serde(serialize_with = "six", default = "nan")]
+    pub pose_shift_mm: f64,
 }
 
 /// The columns runs.csv gained with the cup's orientation: a file without them still reads (NaN).
@@ -101,6 +108,9 @@ const ORIENTATION_COLUMNS: usize = 4;
 const RESTART_COLUMNS: usize = 1;
 /// The column runs.csv gained after the restarts (`outline_px`): a file without it reads (NaN).
 const OUTLINE_COLUMNS: usize = 1;
+/// The columns runs.csv gained after the outline distance (`pose_turn_deg`, `pose_shift_mm`): a file
+/// without them reads (NaN).
+const POSE_COLUMNS: usize = 2;
 
 fn nan() -> f64 {
     f64::NAN
@@ -137,6 +147,8 @@ impl Row {
             anteversion_err_deg: f64::NAN,
             restart: String::new(),
             outline_px: f64::NAN,
+            pose_turn_deg: f64::NAN,
+            pose_shift_mm: f64::NAN,
         }
     }
 
@@ -278,13 +290,14 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
         other => perr(1, format!("{other:?}")),
     })?;
     let full = header();
-    // Files written before the outline column, before the restart column too, or before the
-    // orientation columns as well, have the header without them.
+    // Files written before the pose columns, before the outline column too, before the
+    // restart column as well, or before the orientation columns, have the header without them.
     let prefix = |n: usize| -> csv::StringRecord { full.iter().take(n).collect() };
     let older = [
-        full.len() - OUTLINE_COLUMNS,
-        full.len() - OUTLINE_COLUMNS - RESTART_COLUMNS,
-        full.len() - OUTLINE_COLUMNS - RESTART_COLUMNS - ORIENTATION_COLUMNS,
+        full.len() - POSE_COLUMNS,
+        full.len() - POSE_COLUMNS - OUTLINE_COLUMNS,
+        full.len() - POSE_COLUMNS - OUTLINE_COLUMNS - RESTART_COLUMNS,
+        full.len() - POSE_COLUMNS - OUTLINE_COLUMNS - RESTART_COLUMNS - ORIENTATION_COLUMNS,
     ];
     let want = match rd.headers() {
         Ok(h) if *h == full => full.clone(),
@@ -725,6 +738,7 @@ mod tests {
             row(StudyMethod::Srvf, 1, 0, 0.5),
             row(StudyMethod::Icp, 1, 0, 2.0),
         ];
+        (r1[0].outline_px, r1[0].pose_turn_deg, r1[0].pose_shift_mm) = (1.25, 0.8, 3.5);
         r1[1].error = "solver: boom, twice".into();
         r1[1].mae_mm = f64::NAN;
         write_csv(&r1, &a.join("runs.csv")).unwrap();
@@ -774,12 +788,21 @@ mod tests {
                 })
                 .collect()
         };
-        // A file from before the outline column reads, its outline distances NaN.
-        std::fs::write(b.join("runs.csv"), drop_last(&good, OUTLINE_COLUMNS)).unwrap();
+        // A file from before the pose columns reads, its pose corrections NaN.
+        std::fs::write(b.join("runs.csv"), drop_last(&good, POSE_COLUMNS)).unwrap();
+        let back = read_csv(&b.join("runs.csv")).unwrap();
+        assert!(
+            back[0].pose_shift_mm.is_nan()
+                && back[0].pose_turn_deg.is_nan()
+                && back[0].outline_px == 1.25
+        );
+        // One from before the outline column too, its outline distances NaN.
+        let no_outline = drop_last(&good, POSE_COLUMNS + OUTLINE_COLUMNS);
+        std::fs::write(b.join("runs.csv"), no_outline).unwrap();
         let back = read_csv(&b.join("runs.csv")).unwrap();
         assert!(back[0].outline_px.is_nan() && back[0].mae_mm == 0.5);
-        // One from before the restart column too, its restarts empty.
-        let no_restart = drop_last(&good, OUTLINE_COLUMNS + RESTART_COLUMNS);
+        // One from before the restart column as well, its restarts empty.
+        let no_restart = drop_last(&good, POSE_COLUMNS + OUTLINE_COLUMNS + RESTART_COLUMNS);
         std::fs::write(b.join("runs.csv"), &no_restart).unwrap();
         let back = read_csv(&b.join("runs.csv")).unwrap();
         assert!(back[0].restart.is_empty() && back[0].mae_mm == 0.5);
@@ -787,7 +810,7 @@ mod tests {
         // of that is still refused.
         let old = drop_last(
             &good,
-            OUTLINE_COLUMNS + RESTART_COLUMNS + ORIENTATION_COLUMNS,
+            POSE_COLUMNS + OUTLINE_COLUMNS + RESTART_COLUMNS + ORIENTATION_COLUMNS,
         );
         std::fs::write(b.join("runs.csv"), &old).unwrap();
         let back = read_csv(&b.join("runs.csv")).unwrap();
