@@ -1,7 +1,7 @@
 //! A study's ground truth from its name: `phantom` (the built-in one) or a mesh file, checked to
 //! be an acetabulum in millimetres before any run.
 
-use crate::geom::{fit_sphere, Mesh};
+use crate::geom::{fit_sphere, opening_axis, quantile_sorted, Mesh, Sphere};
 use crate::io::read_mesh;
 use crate::sim::{ground_truth_surface, phantom, PhantomParams};
 use std::path::Path;
@@ -9,6 +9,17 @@ use std::path::Path;
 /// Sphere radii (mm) an acetabulum can have; a truth outside them is refused (in metres or
 /// centimetres it would run, but the solver's tolerances and the guards are in millimetres).
 pub const PLAUSIBLE_RADIUS_MM: (f64, f64) = (15.0, 60.0);
+
+/// Largest angle from the dome's pole (the 99th percentile over the vertices) a socket may
+/// reach, degrees: the 47 acetabula of ../shared/data reach 83-110, the deep ones made from
+/// them (docs/population.md, "Shallow, deep and flattened acetabula") 121; a whole sphere (a
+/// femoral head given by mistake) reaches 167, a cube 157.
+pub const MAX_COVERAGE_DEG: f64 = 140.0;
+
+/// Largest RMS distance of the surface (its triangles' centres, weighted by area) from its
+/// sphere, mm: the acetabula of ../shared/data and those made from them are within 1.3; a cube
+/// is 12.5 from its sphere.
+pub const MAX_SPHERE_RMS_MM: f64 = 4.0;
 
 /// The truth cannot be used; the message names it (as `--gt NAME`) and says why.
 #[derive(Debug, thiserror::Error)]
@@ -21,7 +32,9 @@ pub struct TruthError {
 }
 
 /// The truth `gt` (a mesh file or `phantom`). A surface no sphere fits, one whose sphere's
-/// radius is outside `PLAUSIBLE_RADIUS_MM`, or one the simulated views cannot see is refused.
+/// radius is outside `PLAUSIBLE_RADIUS_MM`, one that covers more of its sphere than a socket
+/// (`MAX_COVERAGE_DEG`) or lies far from it (`MAX_SPHERE_RMS_MM`), or one the simulated views
+/// cannot see is refused.
 pub fn load_truth(gt: &str) -> Result<Mesh, TruthError> {
     let err = |reason: String| TruthError {
         gt: gt.to_string(),
@@ -33,9 +46,9 @@ pub fn load_truth(gt: &str) -> Result<Mesh, TruthError> {
         let mesh = read_mesh(Path::new(gt)).map_err(|e| err(e.to_string()))?;
         ground_truth_surface(&mesh).map_err(|e| err(e.to_string()))?
     };
-    let r = fit_sphere(&truth.vertices)
-        .map_err(|e| err(format!("ground truth sphere fit: {e}")))?
-        .radius;
+    let sphere =
+        fit_sphere(&truth.vertices).map_err(|e| err(format!("ground truth sphere fit: {e}")))?;
+    let r = sphere.radius;
     let (lo, hi) = PLAUSIBLE_RADIUS_MM;
     if !(lo..=hi).contains(&r) {
         return Err(err(format!(
@@ -43,5 +56,130 @@ pub fn load_truth(gt: &str) -> Result<Mesh, TruthError> {
              acetabulum: is the mesh in millimetres?"
         )));
     }
+    let coverage = coverage_deg(&truth, &sphere);
+    if !(coverage <= MAX_COVERAGE_DEG) {
+        return Err(err(format!(
+            "the surface reaches {coverage:.0} degrees from its dome's pole (an acetabulum \
+             about 80-120, at most {MAX_COVERAGE_DEG:.0}): a whole sphere or a femoral head is \
+             not a socket"
+        )));
+    }
+    let rms = surface_sphere_rms_mm(&truth, &sphere);
+    if !(rms <= MAX_SPHERE_RMS_MM) {
+        return Err(err(format!(
+            "the surface lies {rms:.1} mm RMS from its fitted sphere (radius {r:.1} mm; an \
+             acetabulum within about 1.3, at most {MAX_SPHERE_RMS_MM:.0}): it is not a socket"
+        )));
+    }
     Ok(truth)
+}
+
+/// How far round its sphere a surface reaches: the 99th percentile over its vertices of the
+/// angle from the dome's pole (opposite the opening axis), degrees.
+fn coverage_deg(mesh: &Mesh, sphere: &Sphere) -> f64 {
+    let c = sphere.center_point();
+    let pole = -opening_axis(&mesh.vertices, &c).into_inner();
+    let mut angles: Vec<f64> = mesh
+        .vertices
+        .iter()
+        .filter_map(|v| (v - c).try_normalize(1e-12))
+        .map(|d| d.dot(&pole).clamp(-1.0, 1.0).acos().to_degrees())
+        .collect();
+    angles.sort_by(f64::total_cmp);
+    quantile_sorted(&angles, 0.99)
+}
+
+/// RMS distance of a surface from `sphere`: its triangles' centres, weighted by their areas, mm.
+fn surface_sphere_rms_mm(mesh: &Mesh, sphere: &Sphere) -> f64 {
+    let c = sphere.center_point();
+    let (mut sum, mut area) = (0.0, 0.0);
+    for t in &mesh.triangles {
+        let [a, b, d] = t.map(|i| mesh.vertices[i as usize]);
+        let w = 0.5 * (b - a).cross(&(d - a)).norm();
+        let mid = nalgebra::Point3::from((a.coords + b.coords + d.coords) / 3.0);
+        sum += w * ((mid - c).norm() - sphere.radius).powi(2);
+        area += w;
+    }
+    (sum / area).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::write_stl_binary;
+    use crate::template::hemisphere;
+    use nalgebra::Point3;
+
+    /// A whole sphere: the hemisphere and its mirror image through the equator.
+    fn whole_sphere(r: f64) -> Mesh {
+        let h = hemisphere(r, 600);
+        let n = h.vertices.len() as u32;
+        let mut vertices = h.vertices.clone();
+        vertices.extend(h.vertices.iter().map(|p| Point3::new(p.x, p.y, -p.z)));
+        let mut triangles = h.triangles.clone();
+        triangles.extend(h.triangles.iter().map(|t| [t[0] + n, t[2] + n, t[1] + n]));
+        Mesh::new(vertices, triangles).unwrap()
+    }
+
+    /// A cube of side `a`: its eight corners lie on one sphere, its faces far inside it.
+    fn cube(a: f64) -> Mesh {
+        let v: Vec<Point3<f64>> = (0..8)
+            .map(|k| {
+                Point3::new(
+                    (k & 1) as f64 * a,
+                    (k >> 1 & 1) as f64 * a,
+                    (k >> 2) as f64 * a,
+                )
+            })
+            .collect();
+        let f = [
+            [0, 2, 3],
+            [0, 3, 1],
+            [4, 5, 7],
+            [4, 7, 6],
+            [0, 1, 5],
+            [0, 5, 4],
+            [2, 6, 7],
+            [2, 7, 3],
+            [0, 4, 6],
+            [0, 6, 2],
+            [1, 3, 7],
+            [1, 7, 5],
+        ];
+        Mesh::new(v, f.to_vec()).unwrap()
+    }
+
+    /// A hemisphere is a socket; a whole sphere (a femoral head given by mistake) reaches too
+    /// far round its sphere and a cube lies too far from its sphere, each refused with the
+    /// reason and the file named; the companions pass: a hemisphere reaches 90 degrees and lies
+    /// on its sphere.
+    #[test]
+    fn a_whole_sphere_or_a_cube_is_not_taken_for_a_socket() {
+        let h = hemisphere(25.0, 600);
+        let s = fit_sphere(&h.vertices).unwrap();
+        assert!(
+            (coverage_deg(&h, &s) - 90.0).abs() < 3.0,
+            "{}",
+            coverage_deg(&h, &s)
+        );
+        assert!(surface_sphere_rms_mm(&h, &s) < 0.5);
+        let dir = tempfile::tempdir().unwrap();
+        let write = |name: &str, m: &Mesh| {
+            let p = dir.path().join(name);
+            write_stl_binary(m, &p).unwrap();
+            p.to_string_lossy().into_owned()
+        };
+        assert!(load_truth(&write("cap.stl", &h)).is_ok());
+        let e = load_truth(&write("head.stl", &whole_sphere(25.0))).unwrap_err();
+        assert!(
+            e.to_string().contains("head.stl") && e.reason.contains("not a socket"),
+            "{e}"
+        );
+        assert!(e.reason.contains("degrees from its dome's pole"), "{e}");
+        let e = load_truth(&write("cube.stl", &cube(40.0))).unwrap_err();
+        assert!(
+            e.to_string().contains("cube.stl") && e.reason.contains("mm RMS"),
+            "{e}"
+        );
+    }
 }
