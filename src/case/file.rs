@@ -205,7 +205,7 @@ fn field_err(
     CaseError::Field {
         path: path.to_path_buf(),
         field: field.into(),
-        value: value.to_string(),
+        value: crate::io::shown(&value.to_string()),
         reason: reason.into(),
     }
 }

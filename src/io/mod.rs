@@ -4,6 +4,7 @@
 mod atomic;
 mod dicom;
 mod mesh_file;
+mod shown;
 
 pub use atomic::{check_writable, fill_dir_atomically, out_in_use, write_atomic};
 pub use dicom::{
@@ -14,6 +15,7 @@ pub use mesh_file::{
     read_mesh, write_mesh, write_obj, write_ply, write_ply_with, write_stl_ascii, write_stl_binary,
     MeshIoError, Rgb,
 };
+pub use shown::shown;
 
 /// An X-ray for drawing: a DICOM file's pixels (`read_dicom_image`) or a PNG or JPEG.
 pub fn read_xray_image(path: &std::path::Path) -> Result<image::DynamicImage, String> {

@@ -214,7 +214,7 @@ impl CupCalibration {
         let field = |field, value: f64, expected| CalibrationError::Field {
             path: path.to_path_buf(),
             field,
-            value: value.to_string(),
+            value: crate::io::shown(&value.to_string()),
             expected,
         };
         if c.cup_estimator().is_none() {

@@ -228,7 +228,7 @@ impl ReconParams {
         fn bad(field: &'static str, value: impl ToString, expected: &'static str) -> ReconError {
             ReconError::Param {
                 field,
-                value: value.to_string(),
+                value: crate::io::shown(&value.to_string()),
                 expected,
             }
         }

@@ -186,7 +186,7 @@ fn resampled_diameters(
     if let Some(n) = up.noise_px.filter(|n| !(n.is_finite() && *n >= 0.0)) {
         return Err(ReconError::Param {
             field: "uncertainty noise_px",
-            value: n.to_string(),
+            value: crate::io::shown(&n.to_string()),
             expected: "finite and >= 0",
         });
     }
@@ -214,7 +214,7 @@ fn resampled_diameters(
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(up.seed);
     let normal = Normal::new(0.0, noise_px).map_err(|_| ReconError::Param {
         field: "uncertainty noise_px",
-        value: noise_px.to_string(),
+        value: crate::io::shown(&noise_px.to_string()),
         expected: "a finite SD (the fit's outline distance was not finite)",
     })?;
     // Every resample's draws first, in the order they were always drawn (its contour jitter,
@@ -297,7 +297,7 @@ pub fn cup_report(
     if !(up.model_sd_mm.is_finite() && up.model_sd_mm >= 0.0) {
         return Err(ReconError::Param {
             field: "uncertainty model_sd_mm",
-            value: up.model_sd_mm.to_string(),
+            value: crate::io::shown(&up.model_sd_mm.to_string()),
             expected: "a finite SD >= 0",
         });
     }

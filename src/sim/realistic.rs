@@ -76,26 +76,56 @@ impl Default for RealisticErrors {
     }
 }
 
+/// Largest pose error SDs the protocol takes, degrees and mm: beyond them a view is another
+/// view, not an error of one.
+pub const MAX_POSE_DEG: f64 = 30.0;
+/// See `MAX_POSE_DEG`.
+pub const MAX_POSE_MM: f64 = 100.0;
+/// Largest annotation drift or jitter SD, px: an outline is a few hundred px across.
+pub const MAX_NOISE_PX: f64 = 100.0;
+
 impl RealisticErrors {
-    /// The first setting no draw can be made with: SDs that are not finite and >= 0, a
-    /// magnification SD of 0.2 or more (a focal length could turn negative), a left-out share
-    /// outside [0, 0.6], a correlation length that is not finite and > 0.
+    /// The first setting no draw can be made with: SDs that are not finite and >= 0, or beyond
+    /// what could still be one view's error (`MAX_POSE_DEG`, `MAX_POSE_MM`, `MAX_NOISE_PX`: a
+    /// pose SD of 1e300 degrees ran every run into "cannot be projected" without naming the
+    /// setting), a magnification SD of 0.2 or more (a focal length could turn negative), a
+    /// left-out share outside [0, 0.6], a correlation length that is not finite and > 0.
     pub fn validate(&self) -> Result<(), SimError> {
         let bad = |field, value: f64, expected| {
             Err(SimError::Setting {
                 field,
-                value: value.to_string(),
+                value: crate::io::shown(&value.to_string()),
                 expected,
             })
         };
-        for (field, v) in [
-            ("realistic pose_deg", self.pose_deg),
-            ("realistic pose_mm", self.pose_mm),
-            ("realistic drift_px", self.drift_px),
-            ("realistic jitter_px", self.jitter_px),
+        for (field, v, max, expected) in [
+            (
+                "realistic pose_deg",
+                self.pose_deg,
+                MAX_POSE_DEG,
+                "an SD of 0 to 30 degrees",
+            ),
+            (
+                "realistic pose_mm",
+                self.pose_mm,
+                MAX_POSE_MM,
+                "an SD of 0 to 100 mm",
+            ),
+            (
+                "realistic drift_px",
+                self.drift_px,
+                MAX_NOISE_PX,
+                "an SD of 0 to 100 px",
+            ),
+            (
+                "realistic jitter_px",
+                self.jitter_px,
+                MAX_NOISE_PX,
+                "an SD of 0 to 100 px",
+            ),
         ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return bad(field, v, "a finite SD >= 0");
+            if !(v.is_finite() && (0.0..=max).contains(&v)) {
+                return bad(field, v, expected);
             }
         }
         if !(self.magnification.is_finite() && (0.0..0.2).contains(&self.magnification)) {
@@ -524,12 +554,41 @@ mod tests {
                 drift_length_px: 0.0,
                 ..ok.clone()
             },
+            // Finite but beyond any one view's error: named, not run into unprojectable views.
+            RealisticErrors {
+                pose_deg: 1e300,
+                ..ok.clone()
+            },
+            RealisticErrors {
+                pose_mm: 101.0,
+                ..ok.clone()
+            },
+            RealisticErrors {
+                drift_px: 1e9,
+                ..ok.clone()
+            },
         ] {
             assert!(matches!(
                 s.realistic_case(&truth, &bad, &level, 1),
                 Err(SimError::Setting { .. })
             ));
         }
+        let e = RealisticErrors {
+            pose_deg: 1e300,
+            ..ok.clone()
+        };
+        let msg = e.validate().unwrap_err().to_string();
+        assert!(
+            msg.contains("pose_deg = 1e300") && msg.contains("0 to 30 degrees"),
+            "{msg}"
+        );
         assert!(s.realistic_case(&truth, &ok, &level, 1).is_ok());
+        // Companion: the largest errors taken still make a case.
+        let edge = RealisticErrors {
+            pose_deg: MAX_POSE_DEG,
+            pose_mm: MAX_POSE_MM,
+            ..ok.clone()
+        };
+        assert!(edge.validate().is_ok());
     }
 }

@@ -114,7 +114,7 @@ pub(super) fn gaussian(field: &'static str, sd: f64) -> Result<Normal<f64>, SimE
         .filter(|_| sd.is_finite() && sd >= 0.0)
         .ok_or(SimError::Setting {
             field,
-            value: sd.to_string(),
+            value: crate::io::shown(&sd.to_string()),
             expected: "a finite SD >= 0",
         })
 }
@@ -188,7 +188,7 @@ pub fn perturb(
     if !(level.scale.is_finite() && level.scale >= 1.0) {
         return Err(SimError::Setting {
             field: "noise level scale",
-            value: level.scale.to_string(),
+            value: crate::io::shown(&level.scale.to_string()),
             expected: "finite and >= 1",
         });
     }

@@ -140,7 +140,7 @@ pub fn run_pose_study(truth: &Mesh, cfg: &PoseStudy) -> Result<Vec<PoseRow>, Sim
         if !(v.is_finite() && v >= 0.0) {
             return Err(SimError::Setting {
                 field,
-                value: v.to_string(),
+                value: crate::io::shown(&v.to_string()),
                 expected: "finite and >= 0",
             });
         }
@@ -148,7 +148,7 @@ pub fn run_pose_study(truth: &Mesh, cfg: &PoseStudy) -> Result<Vec<PoseRow>, Sim
     if let Some((field, v)) = cfg.pose.invalid() {
         return Err(SimError::Setting {
             field,
-            value: v.to_string(),
+            value: crate::io::shown(&v.to_string()),
             expected: "finite and > 0",
         });
     }

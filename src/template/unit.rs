@@ -80,14 +80,14 @@ impl Template {
         if !(polar > 0.0 && polar < 180.0) {
             return Err(TemplateError::Setting {
                 field: "polar_deg",
-                value: polar.to_string(),
+                value: crate::io::shown(&polar.to_string()),
                 expected: "in (0, 180) degrees",
             });
         }
         if p.vertices > MAX_TEMPLATE_VERTICES {
             return Err(TemplateError::Setting {
                 field: "vertices",
-                value: p.vertices.to_string(),
+                value: crate::io::shown(&p.vertices.to_string()),
                 expected: "at most 200,000",
             });
         }
