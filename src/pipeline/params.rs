@@ -219,6 +219,9 @@ impl Default for ReconParams {
     }
 }
 
+/// Largest energy weight `ReconParams::validate` takes (see there).
+pub const MAX_WEIGHT: f64 = 1e6;
+
 impl ReconParams {
     /// Check the settings a reconstruction cannot run with: a non-finite or negative weight,
     /// tolerance or scale, a normal-angle test that is not an angle. `reconstruct` calls it
@@ -249,6 +252,29 @@ impl ReconParams {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(bad(field, v, "finite and >= 0"));
             }
+        }
+        // The energy's weights (published 1, 10, 100): beyond MAX_WEIGHT a solve loses its
+        // precision (w_obs = 1e300 drove the surface behind the camera), and without the
+        // outlines' weight the result is the start, whatever the X-rays show.
+        for (field, v) in [
+            ("weights.rot", self.weights.rot),
+            ("weights.reg", self.weights.reg),
+            ("weights.obs", self.weights.obs),
+        ] {
+            if v > MAX_WEIGHT {
+                return Err(bad(
+                    field,
+                    v,
+                    "at most 1e6 (the published weights: 1, 10, 100)",
+                ));
+            }
+        }
+        if self.weights.obs <= 0.0 {
+            return Err(bad(
+                "weights.obs",
+                self.weights.obs,
+                "> 0: with no weight on the outlines the result is the start",
+            ));
         }
         for (field, v) in [
             ("lm.lambda0", self.lm.lambda0),
@@ -338,6 +364,9 @@ mod tests {
                 Box::new(|p| p.placement.limb_scale_mm = -1.0),
             ),
             ("weights.obs", Box::new(|p| p.weights.obs = f64::NAN)),
+            ("weights.obs", Box::new(|p| p.weights.obs = 0.0)),
+            ("weights.obs", Box::new(|p| p.weights.obs = 1e300)),
+            ("weights.rot", Box::new(|p| p.weights.rot = 2e6)),
             (
                 "placement.restart_above_px",
                 Box::new(|p| p.placement.restart_above_px = f64::NAN),
@@ -407,6 +436,8 @@ mod tests {
         edge.correspond.srvf.anchor = 0.0;
         edge.placement.restart_above_px = f64::INFINITY;
         edge.placement.restart_tilts = 4;
+        (edge.weights.rot, edge.weights.reg) = (0.0, MAX_WEIGHT);
+        edge.weights.obs = MAX_WEIGHT;
         assert!(edge.validate().is_ok());
     }
 }
