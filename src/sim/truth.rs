@@ -11,9 +11,9 @@ use std::path::Path;
 pub const PLAUSIBLE_RADIUS_MM: (f64, f64) = (15.0, 60.0);
 
 /// Largest angle from the dome's pole (the 99th percentile over the vertices) a socket may
-/// reach, degrees: the 47 acetabula of ../shared/data reach 83-110, the deep ones made from
-/// them (docs/population.md, "Shallow, deep and flattened acetabula") 121; a whole sphere (a
-/// femoral head given by mistake) reaches 167, a cube 157.
+/// reach, degrees: no vertex of the 47 acetabula of ../shared/data lies farther than 110 from
+/// it, none of the deep ones made from them (docs/population.md, "Shallow, deep and flattened
+/// acetabula") farther than 121; a whole sphere (a femoral head given by mistake) reaches 171.
 pub const MAX_COVERAGE_DEG: f64 = 140.0;
 
 /// Largest RMS distance of the surface (its triangles' centres, weighted by area) from its
