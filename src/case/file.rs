@@ -234,24 +234,37 @@ pub const MAX_OUTLINE_SPAN_RATIO: f64 = 2.0;
 /// only, by its widest arc, which is a lower bound of the rim's span: it counts among the others,
 /// and is itself refused only for spanning too much.
 fn outline_span_mismatch(path: &Path, case: &Case) -> Option<CaseError> {
-    // (view, contour, px, mm at the object, closed) of each view's widest outline, closed first.
-    let spans: Vec<(usize, usize, f64, f64, bool)> = case
+    /// A view's widest outline: where it is, its span in px and in mm at the object.
+    struct Span {
+        view: usize,
+        contour: usize,
+        px: f64,
+        mm: f64,
+        closed: bool,
+    }
+    // Each view's widest outline, closed ones first.
+    let spans: Vec<Span> = case
         .observed
         .iter()
         .zip(&case.geometry)
         .enumerate()
-        .filter_map(|(vi, (curves, g))| {
-            let per_mm = g.px_per_mm_at_object;
+        .filter_map(|(view, (curves, g))| {
             curves
                 .iter()
                 .enumerate()
-                .map(|(ci, c)| {
+                .map(|(contour, c)| {
                     let px = widest_extent(&c.points);
-                    (vi, ci, px, px / per_mm, c.closed)
+                    Span {
+                        view,
+                        contour,
+                        px,
+                        mm: px / g.px_per_mm_at_object,
+                        closed: c.closed,
+                    }
                 })
                 .max_by(|a, b| {
-                    (a.4, a.3)
-                        .partial_cmp(&(b.4, b.3))
+                    (a.closed, a.mm)
+                        .partial_cmp(&(b.closed, b.mm))
                         .unwrap_or(Ordering::Equal)
                 })
         })
@@ -259,43 +272,40 @@ fn outline_span_mismatch(path: &Path, case: &Case) -> Option<CaseError> {
     if spans.len() < 2 {
         return None;
     }
-    // (how far off, as |ln ratio|, ratio, the others' median) of every view that is off.
+    // (how far off, as |ln ratio|, the others' median) of view k when it is off.
     let off = |k: usize| {
         let mut others: Vec<f64> = spans
             .iter()
             .enumerate()
             .filter(|&(j, _)| j != k)
-            .map(|(_, s)| s.3)
+            .map(|(_, s)| s.mm)
             .collect();
         others.sort_by(f64::total_cmp);
         let m = others.len();
         let median = 0.5 * (others[(m - 1) / 2] + others[m / 2]);
-        let r = spans[k].3 / median;
-        let too_small = spans[k].4 && r < 1.0 / MAX_OUTLINE_SPAN_RATIO;
-        (too_small || r > MAX_OUTLINE_SPAN_RATIO || !r.is_finite()).then_some((
-            r.ln().abs(),
-            r,
-            median,
-        ))
+        let r = spans[k].mm / median;
+        let too_small = spans[k].closed && r < 1.0 / MAX_OUTLINE_SPAN_RATIO;
+        (too_small || r > MAX_OUTLINE_SPAN_RATIO || !r.is_finite())
+            .then_some((r.ln().abs(), median))
     };
-    // The view farthest off (the first of equals).
-    let (k, (_, _, median)) = (0..spans.len())
+    // The view farthest off (the first of equals; a NaN distance never displaces one).
+    let (k, (_, median)) = (0..spans.len())
         .filter_map(|k| off(k).map(|o| (k, o)))
-        .fold(
-            None,
-            |best: Option<(usize, (f64, f64, f64))>, x| match best {
-                Some(b) if !(x.1 .0 > b.1 .0) => Some(b),
-                _ => Some(x),
-            },
-        )?;
-    let (vi, ci, px, mm, _) = spans[k];
+        .reduce(|best, x| if x.1 .0 > best.1 .0 { x } else { best })?;
+    let Span {
+        view,
+        contour,
+        px,
+        mm,
+        ..
+    } = spans[k];
     Some(field_err(
         path,
-        format!("views[{vi}].contours[{ci}].points"),
+        format!("views[{view}].contours[{contour}].points"),
         format!(
             "an outline of view {} spanning {mm:.1} mm at the object ({px:.0} px), against \
              {median:.1} mm in the other views",
-            case.names[vi]
+            case.names[view]
         ),
         format!(
             "one acetabulum spans about as much in every view (from 1/{MAX_OUTLINE_SPAN_RATIO:.0} \

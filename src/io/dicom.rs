@@ -163,7 +163,7 @@ fn positive_values(
     let bad = |value: String, reason: &str| DicomError::Tag {
         path: path.to_path_buf(),
         tag: label.into(),
-        value,
+        value: super::shown(&value),
         reason: reason.into(),
     };
     let v = e.to_multi_float64().map_err(|err| {

@@ -194,7 +194,7 @@ impl PriorFile {
         let field = |field: String, value: String, expected: String| PriorFileError::Field {
             path: path.to_path_buf(),
             field,
-            value,
+            value: crate::io::shown(&value),
             expected,
         };
         if f.format != FORMAT {

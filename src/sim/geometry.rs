@@ -146,7 +146,7 @@ impl XrayGeometry {
     pub fn validate(&self) -> Result<(), GeometryError> {
         let bad = |field, value: String, expected| GeometryError {
             field,
-            value,
+            value: crate::io::shown(&value),
             expected,
         };
         for (field, v) in [

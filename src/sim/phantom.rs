@@ -90,7 +90,7 @@ impl PhantomParams {
     pub fn validate(&self) -> Result<(), PhantomError> {
         let bad = |field, value: String, expected| PhantomError {
             field,
-            value,
+            value: crate::io::shown(&value),
             expected,
         };
         let finite = [

@@ -1,9 +1,10 @@
 //! A study's ground truth from its name: `phantom` (the built-in one) or a mesh file, checked to
 //! be an acetabulum in millimetres before any run.
 
-use crate::geom::{fit_sphere, opening_axis, quantile_sorted, Mesh, Sphere};
+use crate::geom::{quantile_sorted, Mesh, Sphere};
 use crate::io::read_mesh;
-use crate::sim::{ground_truth_surface, phantom, PhantomParams};
+use crate::sim::{fit_placement, ground_truth_surface, phantom, PhantomParams};
+use crate::template::Placement;
 use std::path::Path;
 
 /// Sphere radii (mm) an acetabulum can have; a truth outside them is refused (in metres or
@@ -46,8 +47,8 @@ pub fn load_truth(gt: &str) -> Result<Mesh, TruthError> {
         let mesh = read_mesh(Path::new(gt)).map_err(|e| err(e.to_string()))?;
         ground_truth_surface(&mesh).map_err(|e| err(e.to_string()))?
     };
-    let sphere =
-        fit_sphere(&truth.vertices).map_err(|e| err(format!("ground truth sphere fit: {e}")))?;
+    let (placement, sphere) =
+        fit_placement(&truth).map_err(|e| err(format!("ground truth sphere fit: {e}")))?;
     let r = sphere.radius;
     let (lo, hi) = PLAUSIBLE_RADIUS_MM;
     if !(lo..=hi).contains(&r) {
@@ -56,7 +57,7 @@ pub fn load_truth(gt: &str) -> Result<Mesh, TruthError> {
              acetabulum: is the mesh in millimetres?"
         )));
     }
-    let coverage = coverage_deg(&truth, &sphere);
+    let coverage = coverage_deg(&truth, &placement);
     if !(coverage <= MAX_COVERAGE_DEG) {
         return Err(err(format!(
             "the surface reaches {coverage:.0} degrees from its dome's pole (an acetabulum \
@@ -74,11 +75,11 @@ pub fn load_truth(gt: &str) -> Result<Mesh, TruthError> {
     Ok(truth)
 }
 
-/// How far round its sphere a surface reaches: the 99th percentile over its vertices of the
-/// angle from the dome's pole (opposite the opening axis), degrees.
-fn coverage_deg(mesh: &Mesh, sphere: &Sphere) -> f64 {
-    let c = sphere.center_point();
-    let pole = -opening_axis(&mesh.vertices, &c).into_inner();
+/// How far round its fitted hemisphere (`fit_placement`) a surface reaches: the 99th percentile
+/// over its vertices of the angle from the dome's pole (opposite the opening axis), degrees.
+fn coverage_deg(mesh: &Mesh, placement: &Placement) -> f64 {
+    let c = placement.center;
+    let pole = -placement.axis.into_inner();
     let mut angles: Vec<f64> = mesh
         .vertices
         .iter()
@@ -156,11 +157,11 @@ mod tests {
     #[test]
     fn a_whole_sphere_or_a_cube_is_not_taken_for_a_socket() {
         let h = hemisphere(25.0, 600);
-        let s = fit_sphere(&h.vertices).unwrap();
+        let (p, s) = fit_placement(&h).unwrap();
         assert!(
-            (coverage_deg(&h, &s) - 90.0).abs() < 3.0,
+            (coverage_deg(&h, &p) - 90.0).abs() < 3.0,
             "{}",
-            coverage_deg(&h, &s)
+            coverage_deg(&h, &p)
         );
         assert!(surface_sphere_rms_mm(&h, &s) < 0.5);
         let dir = tempfile::tempdir().unwrap();
