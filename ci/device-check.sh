@@ -26,6 +26,22 @@ cores=$(nproc)
 log "commit $(cat target/device/commit 2>/dev/null || git rev-parse --short=12 HEAD 2>/dev/null), $cores cores"
 command -v nvidia-smi >/dev/null && nvidia-smi -L | tee -a "$out/check.log"
 ls /usr/share/vulkan/icd.d /etc/vulkan/icd.d 2>/dev/null | tee -a "$out/check.log"
+# Where the NVIDIA driver is mounted under /usr/local/nvidia (container hosts), its Vulkan ICD and
+# EGL vendor files are not where the loaders look: point them there, unless set already.
+nv=/usr/local/nvidia
+if [ -z "${VK_DRIVER_FILES:-}" ] && ! ls /usr/share/vulkan/icd.d/nvidia* /etc/vulkan/icd.d/nvidia* >/dev/null 2>&1 \
+  && [ -f "$nv/share/vulkan/icd.d/nvidia_icd.json" ]; then
+  export VK_DRIVER_FILES=$nv/share/vulkan/icd.d/nvidia_icd.json
+  log "Vulkan ICD: $VK_DRIVER_FILES"
+fi
+if [ -z "${__EGL_VENDOR_LIBRARY_FILENAMES:-}" ] && [ -f "$nv/share/glvnd/egl_vendor.d/10_nvidia.json" ] \
+  && ! ls /usr/share/glvnd/egl_vendor.d/*nvidia* >/dev/null 2>&1; then
+  export __EGL_VENDOR_LIBRARY_FILENAMES=$nv/share/glvnd/egl_vendor.d/10_nvidia.json
+  log "EGL vendor: $__EGL_VENDOR_LIBRARY_FILENAMES"
+fi
+for d in "$nv/lib64" "$nv/lib"; do
+  [ -d "$d" ] && export LD_LIBRARY_PATH="${LD_LIBRARY_PATH:+$LD_LIBRARY_PATH:}$d"
+done
 if [ "${QUICK:-0}" = 1 ]; then
   meshes=1000,10000; batches=1,64,256; runs=8; repeats=2; study_batches=1,4
 else
