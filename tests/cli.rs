@@ -1163,7 +1163,7 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
             "--protocol",
             "realistic",
             "--realistic",
-            "left_out=0,pose_deg=0.5,click_px=12",
+            "left_out=0,pose_deg=0.5,click_px=12,raster_px=2",
             "--uncertainty-samples",
             "0",
         ],
@@ -1177,6 +1177,7 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
     assert_eq!(p["pose_deg"], 0.5, "{p}");
     assert_eq!(p["pose_mm"], 2.0, "{p}");
     assert_eq!(p["click_px"], 12.0, "{p}");
+    assert_eq!(p["raster_px"], 2.0, "{p}");
     for (args, needle, code) in [
         (
             vec!["--protocol", "realistic", "--realistic", "left=0"],
@@ -1191,6 +1192,11 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
         (
             vec!["--protocol", "realistic", "--realistic", "click_px=-5"],
             "click_px",
+            2,
+        ),
+        (
+            vec!["--protocol", "realistic", "--realistic", "raster_px=1e9"],
+            "raster_px = 1000000000",
             2,
         ),
         (

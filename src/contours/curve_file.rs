@@ -56,13 +56,17 @@ pub fn read_curve_csv(path: &Path) -> Result<Vec<Point2<f64>>, CurveFileError> {
     })?;
     let mut pts = Vec::new();
     let mut skipped = 0;
+    // A byte-order mark (spreadsheets write one) would make the first point a "header".
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
     for (i, line) in text.lines().enumerate() {
         let t = line.trim();
         if t.is_empty() {
             continue;
         }
+        // Fields as spreadsheets and data frames write them: quoted or not.
         let f: Vec<&str> = t
             .split([',', ';', '\t', ' '])
+            .map(unquoted)
             .filter(|s| !s.is_empty())
             .collect();
         let err = |reason: &str| CurveFileError::Line {
@@ -91,6 +95,17 @@ pub fn read_curve_csv(path: &Path) -> Result<Vec<Point2<f64>>, CurveFileError> {
         });
     }
     Ok(pts)
+}
+
+/// A field without the double or single quotes around it, if it has a pair.
+fn unquoted(field: &str) -> &str {
+    let f = field.trim();
+    for q in ['"', '\''] {
+        if let Some(inner) = f.strip_prefix(q).and_then(|r| r.strip_suffix(q)) {
+            return inner.trim();
+        }
+    }
+    f
 }
 
 #[cfg(test)]
@@ -124,6 +139,22 @@ mod tests {
             read_curve_csv(&p),
             Err(CurveFileError::TooFew { count: 1, .. })
         ));
+        // As spreadsheets write them: a byte-order mark before the first point (which stays a
+        // point, not a header), quoted fields, CRLF line ends.
+        std::fs::write(&p, "\u{feff}0,0\r\n\"1\",\"0\"\r\n'1';'1'\r\n").unwrap();
+        let q = read_curve_csv(&p).unwrap();
+        assert_eq!(
+            q,
+            vec![
+                Point2::new(0.0, 0.0),
+                Point2::new(1.0, 0.0),
+                Point2::new(1.0, 1.0)
+            ]
+        );
+        // Companion: a quoted word is still not a number, and named.
+        std::fs::write(&p, "0,0\n\"1\",\"zero\"\n1,1\n").unwrap();
+        let e = read_curve_csv(&p).unwrap_err().to_string();
+        assert!(e.contains("line 2") && e.contains("not a number"), "{e}");
         // Lines of words only: said to have been read as a header, not silently empty.
         std::fs::write(&p, "a,b\nc,d\n").unwrap();
         let e = read_curve_csv(&p).unwrap_err().to_string();

@@ -59,6 +59,12 @@ pub struct RealisticErrors {
     /// replaced by points this far apart (a polygon, as a rim clicked point by point), before
     /// the drift and jitter. 0 (the default) keeps the outline's own points, a few px apart.
     pub click_px: f64,
+    /// The annotation as a segmentation mask's boundary gives it: the traced line (after the
+    /// drift and jitter) read off a grid of this pitch, px, as the chain of cells it passes
+    /// through, each cell's centre once, consecutive ones 8-neighbours (a staircase; 1: the
+    /// image's own pixels, 4: a mask made at a quarter of the resolution). 0 (the default)
+    /// keeps the traced points.
+    pub raster_px: f64,
 }
 
 impl Default for RealisticErrors {
@@ -72,6 +78,7 @@ impl Default for RealisticErrors {
             drift_length_px: 20.0,
             jitter_px: 1.0,
             click_px: 0.0,
+            raster_px: 0.0,
         }
     }
 }
@@ -143,6 +150,13 @@ impl RealisticErrors {
                 "realistic click_px",
                 self.click_px,
                 "a finite distance >= 0 (0: the outline's own points)",
+            );
+        }
+        if !(self.raster_px.is_finite() && (0.0..=MAX_NOISE_PX).contains(&self.raster_px)) {
+            return bad(
+                "realistic raster_px",
+                self.raster_px,
+                "a grid pitch of 0 to 100 px (0: the traced points)",
             );
         }
         if !(self.drift_length_px.is_finite() && self.drift_length_px > 0.0) {
@@ -234,7 +248,7 @@ fn annotate(
     let drift_x = smooth_process(&s, total, closed, e.drift_px, e.drift_length_px, rng);
     let drift_y = smooth_process(&s, total, closed, e.drift_px, e.drift_length_px, rng);
     let jitter = rand_distr::Normal::new(0.0, e.jitter_px).expect("validated SD");
-    let points = kept
+    let points: Vec<Point2<f64>> = kept
         .iter()
         .enumerate()
         .map(|(i, p)| {
@@ -244,7 +258,58 @@ fn annotate(
             )
         })
         .collect();
+    let points = if e.raster_px > 0.0 {
+        pixel_chain(&points, closed, e.raster_px)
+    } else {
+        points
+    };
+    if points.len() < MIN_KEPT_POINTS {
+        return Err(crate::contours::ContourError::TooFewPoints {
+            count: points.len(),
+        });
+    }
     Ok(Curve { points, closed })
+}
+
+/// The traced line `pts` as the boundary of a mask on a grid of pitch `pitch` px (cell centres
+/// on whole multiples of it) gives it: the cells the line passes through, in order along it,
+/// each as its centre; a step straight back into the cell just left drops the cell it came from
+/// (the line wandered along a cell border), and a closed line's last cells that repeat its
+/// first are dropped. The line is read every quarter cell, so consecutive cells are
+/// 8-neighbours: a staircase.
+fn pixel_chain(pts: &[Point2<f64>], closed: bool, pitch: f64) -> Vec<Point2<f64>> {
+    let cell = |p: Point2<f64>| ((p.x / pitch).round() as i64, (p.y / pitch).round() as i64);
+    let mut chain: Vec<(i64, i64)> = Vec::with_capacity(pts.len());
+    let mut push = |c: (i64, i64)| {
+        let n = chain.len();
+        if chain.last() == Some(&c) {
+        } else if n >= 2 && chain[n - 2] == c {
+            chain.pop();
+        } else {
+            chain.push(c);
+        }
+    };
+    let n = pts.len();
+    if let Some(&first) = pts.first() {
+        push(cell(first));
+    }
+    let segments = if closed { n } else { n.saturating_sub(1) };
+    for i in 0..segments {
+        let (a, b) = (pts[i], pts[(i + 1) % n]);
+        let samples = ((b - a).norm() / (0.25 * pitch)).ceil().max(1.0) as usize;
+        for k in 1..=samples {
+            push(cell(a + (b - a) * (k as f64 / samples as f64)));
+        }
+    }
+    if closed {
+        while chain.len() > 1 && chain.last() == chain.first() {
+            chain.pop();
+        }
+    }
+    chain
+        .into_iter()
+        .map(|(x, y)| Point2::new(x as f64 * pitch, y as f64 * pitch))
+        .collect()
 }
 
 /// The outline `pts` as an annotator clicks it: points evenly spaced along its arc length,
@@ -452,6 +517,7 @@ mod tests {
             drift_length_px: 20.0,
             jitter_px: 0.0,
             click_px: 0.0,
+            raster_px: 0.0,
         };
         let exact = s.realistic_case(&truth, &none, &level, 11).unwrap();
         for v in 0..s.cameras.len() {
@@ -525,6 +591,83 @@ mod tests {
                 .unwrap_err()
                 .to_string();
             assert!(err.contains("click_px"), "{err}");
+        }
+    }
+
+    /// A mask's boundary: with `raster_px` every annotation point is the centre of a grid cell,
+    /// consecutive points (round the closed outline) are 8-neighbours, every point lies within
+    /// half a cell's diagonal of the outline and every outline point within a cell of the
+    /// chain. The companions: without it the points are off the grid; a pitch below 0, above
+    /// 100 px or not finite is refused naming the setting.
+    #[test]
+    fn a_mask_boundary_is_a_staircase_of_grid_cells_along_the_outline() {
+        let (truth, s) = setup();
+        let level = NoiseLevel::level(1).unwrap();
+        let exact = RealisticErrors {
+            pose_deg: 0.0,
+            pose_mm: 0.0,
+            magnification: 0.0,
+            left_out: 0.0,
+            drift_px: 0.0,
+            jitter_px: 0.0,
+            ..RealisticErrors::default()
+        };
+        let on_grid = |p: &Point2<f64>, pitch: f64| {
+            (p.x / pitch).fract() == 0.0 && (p.y / pitch).fract() == 0.0
+        };
+        for pitch in [1.0, 4.0] {
+            let e = RealisticErrors {
+                raster_px: pitch,
+                ..exact.clone()
+            };
+            let case = s.realistic_case(&truth, &e, &level, 5).unwrap();
+            for v in 0..s.cameras.len() {
+                let c = &case.observed[v][0];
+                assert!(c.closed);
+                let n = c.points.len();
+                let outline = &s.outlines[v];
+                let length = crate::geom::polyline_length(outline, true);
+                assert!(
+                    n as f64 > 0.7 * length / pitch,
+                    "view {v}: {n} cells over {length:.0} px"
+                );
+                for (i, p) in c.points.iter().enumerate() {
+                    assert!(on_grid(p, pitch), "view {v}: {p:?}");
+                    let d = (c.points[(i + 1) % n] - p) / pitch;
+                    assert!(
+                        d.x.abs() <= 1.0 && d.y.abs() <= 1.0 && d.norm() > 0.0,
+                        "view {v}: step {d:?} at {i}"
+                    );
+                }
+                let far = |from: &[Point2<f64>], to: &[Point2<f64>]| {
+                    let segs = crate::geom::Segments::new(to, true);
+                    let mut hint = 0;
+                    from.iter()
+                        .map(|p| segs.distance(p, &mut hint))
+                        .fold(0.0, f64::max)
+                };
+                assert!(far(&c.points, outline) <= 0.5 * std::f64::consts::SQRT_2 * pitch + 1e-9);
+                assert!(far(outline, &c.points) <= pitch);
+            }
+        }
+        // Companion: the traced points, off the grid.
+        let traced = s.realistic_case(&truth, &exact, &level, 5).unwrap();
+        let off = traced.observed[0][0]
+            .points
+            .iter()
+            .filter(|p| !on_grid(p, 1.0))
+            .count();
+        assert!(off > traced.observed[0][0].points.len() / 2, "{off}");
+        for bad in [-1.0, 101.0, f64::NAN] {
+            let e = RealisticErrors {
+                raster_px: bad,
+                ..exact.clone()
+            };
+            let err = s
+                .realistic_case(&truth, &e, &level, 5)
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("raster_px"), "{err}");
         }
     }
 

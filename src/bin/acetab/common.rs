@@ -275,10 +275,11 @@ pub fn realistic(s: &str) -> Result<Box<Realistic>, String> {
             "drift_length_px" => &mut e.drift_length_px,
             "jitter_px" => &mut e.jitter_px,
             "click_px" => &mut e.click_px,
+            "raster_px" => &mut e.raster_px,
             other => {
                 return Err(format!(
                     "{other:?} is not a setting; expected pose_deg, pose_mm, magnification, \
-                     left_out, drift_px, drift_length_px, jitter_px or click_px"
+                     left_out, drift_px, drift_length_px, jitter_px, click_px or raster_px"
                 ))
             }
         };

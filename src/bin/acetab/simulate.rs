@@ -52,8 +52,11 @@ pub struct SimulateArgs {
     /// The realistic protocol's errors, KEY=VALUE over the defaults above: pose_deg, pose_mm,
     /// magnification (relative SD), left_out (share of each outline), drift_px,
     /// drift_length_px, jitter_px, click_px (the annotation as clicks this far apart along the
-    /// outline; 0, the default, keeps the outline's own points); e.g. "left_out=0" for whole
-    /// outlines, "click_px=20" for a rim clicked every 20 px. Needs --protocol realistic.
+    /// outline; 0, the default, keeps the outline's own points), raster_px (the annotation as a
+    /// segmentation mask's boundary: the cells of a grid this fine that the traced line passes
+    /// through, a staircase; 0, the default, keeps the traced points); e.g. "left_out=0" for
+    /// whole outlines, "click_px=20" for a rim clicked every 20 px, "raster_px=1" for an outline
+    /// read off a mask pixel by pixel. Needs --protocol realistic.
     #[arg(long, value_parser = crate::common::realistic)]
     pub realistic: Option<Box<crate::common::Realistic>>,
     /// Refine small per-view pose corrections with the deformation (as `acetab reconstruct
