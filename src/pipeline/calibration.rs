@@ -78,6 +78,19 @@ pub enum CalibrationError {
         /// The estimator used.
         used: &'static str,
     },
+    /// The training runs give a bias or an SD no calibration file may hold (`parse` would
+    /// refuse it): their cup errors are not those of a method on acetabula.
+    #[error("the training runs' cup errors give {field} = {value}, which must be {expected}: they are not errors of a cup on acetabula (the largest is {largest} mm); look for a broken study among them")]
+    Learned {
+        /// The learned field.
+        field: &'static str,
+        /// Its value.
+        value: String,
+        /// What it must be.
+        expected: &'static str,
+        /// The largest |cup error| among the runs.
+        largest: String,
+    },
     /// Too few runs to learn from.
     #[error("{runs} runs with a cup SD to learn from; at least {min} are needed")]
     TooFewRuns {
@@ -211,12 +224,6 @@ impl CupCalibration {
                 path: path.to_path_buf(),
                 reason: e.to_string(),
             })?;
-        let field = |field, value: f64, expected| CalibrationError::Field {
-            path: path.to_path_buf(),
-            field,
-            value: crate::io::shown(&value.to_string()),
-            expected,
-        };
         if c.cup_estimator().is_none() {
             return Err(CalibrationError::Field {
                 path: path.to_path_buf(),
@@ -225,20 +232,34 @@ impl CupCalibration {
                 expected: "a cup estimator (observed-part or prior-region)",
             });
         }
-        if !(c.bias_mm.is_finite() && c.bias_mm.abs() <= 10.0) {
-            return Err(field("bias_mm", c.bias_mm, "finite, within +-10 mm"));
+        if let Some((field, value, expected)) = c.unusable() {
+            return Err(CalibrationError::Field {
+                path: path.to_path_buf(),
+                field,
+                value: crate::io::shown(&value.to_string()),
+                expected,
+            });
         }
-        if !(c.model_sd_mm.is_finite() && (0.0..=20.0).contains(&c.model_sd_mm)) {
-            return Err(field("model_sd_mm", c.model_sd_mm, "finite, 0 to 20 mm"));
+        Ok(c)
+    }
+
+    /// The first number a calibration cannot be used with (field, value, what it must be): a
+    /// bias beyond +-10 mm, a model SD outside 0-20 mm, a coverage that is not a share.
+    fn unusable(&self) -> Option<(&'static str, f64, &'static str)> {
+        if !(self.bias_mm.is_finite() && self.bias_mm.abs() <= 10.0) {
+            return Some(("bias_mm", self.bias_mm, "finite, within +-10 mm"));
         }
-        if !(c.training_coverage.is_finite() && (0.0..=1.0).contains(&c.training_coverage)) {
-            return Err(field(
+        if !(self.model_sd_mm.is_finite() && (0.0..=20.0).contains(&self.model_sd_mm)) {
+            return Some(("model_sd_mm", self.model_sd_mm, "finite, 0 to 20 mm"));
+        }
+        if !(self.training_coverage.is_finite() && (0.0..=1.0).contains(&self.training_coverage)) {
+            return Some((
                 "training_coverage",
-                c.training_coverage,
+                self.training_coverage,
                 "a share, 0 to 1",
             ));
         }
-        Ok(c)
+        None
     }
 
     /// Learn the calibration of `estimator` from training runs' (cup error, resampled SD) pairs,
@@ -281,14 +302,30 @@ impl CupCalibration {
             .iter()
             .filter(|(e, sd)| e.abs() <= (sd * sd + s * s).sqrt() + 1e-12)
             .count();
-        Ok(CupCalibration {
+        let learned = CupCalibration {
             estimator: estimator.name().to_string(),
             bias_mm,
             model_sd_mm: s,
             learned_from,
             runs: pairs.len(),
             training_coverage: covered as f64 / pairs.len() as f64,
-        })
+        };
+        // Never write a file that reading it back would refuse.
+        match learned.unusable() {
+            None => Ok(learned),
+            Some((field, value, expected)) => {
+                let largest = pairs
+                    .iter()
+                    .map(|(e, _)| (e + bias_mm).abs())
+                    .fold(0.0, f64::max);
+                Err(CalibrationError::Learned {
+                    field,
+                    value: crate::io::shown(&value.to_string()),
+                    expected,
+                    largest: crate::io::shown(&format!("{largest:.1}")),
+                })
+            }
+        }
     }
 
     /// This calibration as pretty JSON.
@@ -365,6 +402,26 @@ mod tests {
         let nb = CupCalibration::learn(&shifted, CupEstimator::PriorRegion, false, String::new())
             .unwrap();
         assert!(nb.model_sd_mm > b.model_sd_mm + 0.2, "{nb:?} {b:?}");
+        // Training errors no acetabulum gives (a broken study's cups of 1e300 mm) are refused,
+        // naming the field, instead of written into a file that reading back would refuse.
+        let broken: Vec<(f64, f64)> = pairs.iter().map(|(e, sd)| (e + 1e300, *sd)).collect();
+        let e = CupCalibration::learn(&broken, CupEstimator::ObservedPart, true, String::new())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("bias_mm = 1.") && e.contains("e300") && e.contains("+-10 mm"),
+            "{e}"
+        );
+        let wide: Vec<(f64, f64)> = pairs.iter().map(|(e, sd)| (40.0 * e, *sd)).collect();
+        let e = CupCalibration::learn(&wide, CupEstimator::ObservedPart, false, String::new())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("model_sd_mm") && e.contains("0 to 20 mm"), "{e}");
+        // Companion: errors at the edge (a bias of 9 mm) are still learned.
+        let edge: Vec<(f64, f64)> = centred.iter().map(|(e, sd)| (e + 9.0, *sd)).collect();
+        let ok =
+            CupCalibration::learn(&edge, CupEstimator::ObservedPart, true, String::new()).unwrap();
+        assert!((ok.bias_mm - 9.0).abs() < 1e-9, "{ok:?}");
     }
 
     #[test]
