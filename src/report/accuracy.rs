@@ -42,6 +42,62 @@ pub fn accuracy_from(samples: &[nalgebra::Point3<f64>], recon: &Mesh) -> Accurac
     }
 }
 
+/// `accuracy_from` with the reconstruction's position taken out: the translation that brings it
+/// nearest the truth and the mean distance after it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shifted {
+    /// Length of the translation, mm.
+    pub shift_mm: f64,
+    /// Mean distance from the samples to the reconstruction moved by it, mm.
+    pub mae_mm: f64,
+}
+
+/// Every how many of the samples the translation is fitted to.
+const SHIFT_SAMPLE_STEP: usize = 20;
+/// Rounds of the fit at most, and the move below which it stops, mm.
+const SHIFT_ROUNDS: usize = 50;
+/// See `SHIFT_ROUNDS`.
+const SHIFT_TOL_MM: f64 = 1e-3;
+
+/// The frame error taken out of `accuracy_from`: the translation t of `recon` that minimises the
+/// mean squared distance from the truth's `samples` (every `SHIFT_SAMPLE_STEP`-th) to it,
+/// found from no shift by moving it, round after round, by the samples' mean offset from their
+/// closest points (translation-only ICP), and the mean distance from every sample to the
+/// reconstruction so moved. A result displaced as a whole, as views with uncertain poses leave
+/// it along their depth, keeps its shape error and sheds the displacement. NaN for a mesh the
+/// closest-point queries cannot take.
+pub fn shifted_accuracy(samples: &[nalgebra::Point3<f64>], recon: &Mesh) -> Shifted {
+    let none = Shifted {
+        shift_mm: f64::NAN,
+        mae_mm: f64::NAN,
+    };
+    let Some(q) = super::SurfaceQuery::new(recon) else {
+        return none;
+    };
+    let fit: Vec<&nalgebra::Point3<f64>> = samples.iter().step_by(SHIFT_SAMPLE_STEP).collect();
+    if fit.is_empty() {
+        return none;
+    }
+    let mut t = nalgebra::Vector3::zeros();
+    for _ in 0..SHIFT_ROUNDS {
+        // On the reconstruction moved by t, p's closest point is the closest to p - t, plus t.
+        let step = fit
+            .iter()
+            .map(|&p| p - (q.closest_point(&(p - t)) + t))
+            .sum::<nalgebra::Vector3<f64>>()
+            / fit.len() as f64;
+        t += step;
+        if !(step.norm() >= SHIFT_TOL_MM) {
+            break;
+        }
+    }
+    let d: Vec<f64> = samples.iter().map(|p| q.distance(&(p - t))).collect();
+    Shifted {
+        shift_mm: t.norm(),
+        mae_mm: DistanceStats::from(&d).mean,
+    }
+}
+
 /// Per vertex of `recon`, its distance to the truth's surface, mm; NaN where no truth surface lies
 /// under the vertex (its closest truth point is on the truth's border: parts the truth does not
 /// cover), rather than the distance to the truth's edge.
@@ -109,5 +165,33 @@ mod tests {
         // part an error of millimetres.
         let raw = crate::report::surface_distance(&recon.vertices, &truth);
         assert!(raw.iter().cloned().fold(0.0, f64::max) > 5.0);
+    }
+
+    /// A result moved as a whole sheds the move: its shifted MAE is the unmoved one's and the
+    /// shift is the move. The companion: a result of another size keeps its error (a
+    /// translation cannot make a sphere smaller), moved or not.
+    #[test]
+    fn the_shift_takes_out_a_displacement_and_not_a_wrong_size() {
+        let truth = spherical_cap(25.0, 3000, 80f64.to_radians());
+        let samples = accuracy_samples(&truth);
+        let moved = |m: &Mesh, by: nalgebra::Vector3<f64>| {
+            m.with_vertices(m.vertices.iter().map(|p| p + by).collect())
+        };
+        let by = nalgebra::Vector3::new(3.0, -2.0, 4.0);
+        let shifted = moved(&truth, by);
+        assert!(accuracy_from(&samples, &shifted).mae_mm > 2.0);
+        let s = shifted_accuracy(&samples, &shifted);
+        assert!(s.mae_mm < 0.05, "{s:?}");
+        assert!((s.shift_mm - by.norm()).abs() < 0.05, "{s:?}");
+        // Companion: 10 % larger, then moved the same way.
+        let larger = spherical_cap(27.5, 3000, 80f64.to_radians());
+        let alone = shifted_accuracy(&samples, &larger);
+        let both = shifted_accuracy(&samples, &moved(&larger, by));
+        assert!(alone.mae_mm > 0.5, "{alone:?}");
+        assert!(
+            (both.mae_mm - alone.mae_mm).abs() < 0.05,
+            "{both:?} {alone:?}"
+        );
+        assert!(alone.mae_mm <= accuracy_from(&samples, &larger).mae_mm + 1e-9);
     }
 }

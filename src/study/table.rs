@@ -100,6 +100,14 @@ pub struct Row {
     /// The largest shift it gave a view, mm; NaN as above.
     #[serde(serialize_with = "six", default = "nan")]
     pub pose_shift_mm: f64,
+    /// How far the result lies displaced as a whole: the length of the translation that brings
+    /// it nearest the truth (`report::shifted_accuracy`), mm; NaN when the run failed.
+    #[serde(serialize_with = "six", default = "nan")]
+    pub frame_shift_mm: f64,
+    /// `mae_mm` after that translation: the shape's error without the displacement, mm; NaN as
+    /// above.
+    #[serde(serialize_with = "six", default = "nan")]
+    pub shifted_mae_mm: f64,
 }
 
 /// The columns runs.csv gained with the cup's orientation: a file without them still reads (NaN).
@@ -111,6 +119,9 @@ const OUTLINE_COLUMNS: usize = 1;
 /// The columns runs.csv gained after the outline distance (`pose_turn_deg`, `pose_shift_mm`): a file
 /// without them reads (NaN).
 const POSE_COLUMNS: usize = 2;
+/// The columns runs.csv gained after the pose corrections (`frame_shift_mm`,
+/// `shifted_mae_mm`): a file without them reads (NaN).
+const SHIFT_COLUMNS: usize = 2;
 
 fn nan() -> f64 {
     f64::NAN
@@ -149,6 +160,8 @@ impl Row {
             outline_px: f64::NAN,
             pose_turn_deg: f64::NAN,
             pose_shift_mm: f64::NAN,
+            frame_shift_mm: f64::NAN,
+            shifted_mae_mm: f64::NAN,
         }
     }
 
@@ -290,15 +303,23 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
         other => perr(1, format!("{other:?}")),
     })?;
     let full = header();
-    // Files written before the pose columns, before the outline column too, before the
-    // restart column as well, or before the orientation columns, have the header without them.
+    // Files written before the shift columns, before the pose columns too, before the outline
+    // column as well, before the restart column, or before the orientation columns, have the
+    // header without them.
     let prefix = |n: usize| -> csv::StringRecord { full.iter().take(n).collect() };
-    let older = [
-        full.len() - POSE_COLUMNS,
-        full.len() - POSE_COLUMNS - OUTLINE_COLUMNS,
-        full.len() - POSE_COLUMNS - OUTLINE_COLUMNS - RESTART_COLUMNS,
-        full.len() - POSE_COLUMNS - OUTLINE_COLUMNS - RESTART_COLUMNS - ORIENTATION_COLUMNS,
-    ];
+    let older: Vec<usize> = [
+        SHIFT_COLUMNS,
+        POSE_COLUMNS,
+        OUTLINE_COLUMNS,
+        RESTART_COLUMNS,
+        ORIENTATION_COLUMNS,
+    ]
+    .iter()
+    .scan(full.len(), |n, k| {
+        *n -= k;
+        Some(*n)
+    })
+    .collect();
     let want = match rd.headers() {
         Ok(h) if *h == full => full.clone(),
         Ok(h) if older.iter().any(|&n| *h == prefix(n)) => h.clone(),
@@ -739,6 +760,7 @@ mod tests {
             row(StudyMethod::Icp, 1, 0, 2.0),
         ];
         (r1[0].outline_px, r1[0].pose_turn_deg, r1[0].pose_shift_mm) = (1.25, 0.8, 3.5);
+        (r1[0].frame_shift_mm, r1[0].shifted_mae_mm) = (2.5, 0.375);
         r1[1].error = "solver: boom, twice".into();
         r1[1].mae_mm = f64::NAN;
         write_csv(&r1, &a.join("runs.csv")).unwrap();
@@ -788,21 +810,33 @@ mod tests {
                 })
                 .collect()
         };
-        // A file from before the pose columns reads, its pose corrections NaN.
-        std::fs::write(b.join("runs.csv"), drop_last(&good, POSE_COLUMNS)).unwrap();
+        // A file from before the shift columns reads, its shifts NaN.
+        std::fs::write(b.join("runs.csv"), drop_last(&good, SHIFT_COLUMNS)).unwrap();
+        let back = read_csv(&b.join("runs.csv")).unwrap();
+        assert!(
+            back[0].frame_shift_mm.is_nan()
+                && back[0].shifted_mae_mm.is_nan()
+                && back[0].pose_shift_mm == 3.5
+        );
+        // One from before the pose columns too, its pose corrections NaN.
+        let no_pose = drop_last(&good, SHIFT_COLUMNS + POSE_COLUMNS);
+        std::fs::write(b.join("runs.csv"), no_pose).unwrap();
         let back = read_csv(&b.join("runs.csv")).unwrap();
         assert!(
             back[0].pose_shift_mm.is_nan()
                 && back[0].pose_turn_deg.is_nan()
                 && back[0].outline_px == 1.25
         );
-        // One from before the outline column too, its outline distances NaN.
-        let no_outline = drop_last(&good, POSE_COLUMNS + OUTLINE_COLUMNS);
+        // One from before the outline column as well, its outline distances NaN.
+        let no_outline = drop_last(&good, SHIFT_COLUMNS + POSE_COLUMNS + OUTLINE_COLUMNS);
         std::fs::write(b.join("runs.csv"), no_outline).unwrap();
         let back = read_csv(&b.join("runs.csv")).unwrap();
         assert!(back[0].outline_px.is_nan() && back[0].mae_mm == 0.5);
         // One from before the restart column as well, its restarts empty.
-        let no_restart = drop_last(&good, POSE_COLUMNS + OUTLINE_COLUMNS + RESTART_COLUMNS);
+        let no_restart = drop_last(
+            &good,
+            SHIFT_COLUMNS + POSE_COLUMNS + OUTLINE_COLUMNS + RESTART_COLUMNS,
+        );
         std::fs::write(b.join("runs.csv"), &no_restart).unwrap();
         let back = read_csv(&b.join("runs.csv")).unwrap();
         assert!(back[0].restart.is_empty() && back[0].mae_mm == 0.5);
@@ -810,7 +844,7 @@ mod tests {
         // of that is still refused.
         let old = drop_last(
             &good,
-            POSE_COLUMNS + OUTLINE_COLUMNS + RESTART_COLUMNS + ORIENTATION_COLUMNS,
+            SHIFT_COLUMNS + POSE_COLUMNS + OUTLINE_COLUMNS + RESTART_COLUMNS + ORIENTATION_COLUMNS,
         );
         std::fs::write(b.join("runs.csv"), &old).unwrap();
         let back = read_csv(&b.join("runs.csv")).unwrap();
