@@ -75,6 +75,9 @@ pub struct PlacementParams {
     /// (`pipeline::outline_distance_px`, an RMS in pixels), the method is run again from
     /// `restart_tilts` starts whose axis is the given one tilted by `restart_tilt_deg`, and the
     /// result whose outlines lie nearest is kept (see `pipeline::reconstruct`). Infinite: never.
+    /// With pose refinement (`ReconParams::pose`) the trigger is `REFINED_RESTART_SHARE` of this:
+    /// views free to move meet their outlines at least as closely, and a wrong turn of the cap
+    /// they cannot undo leaves 3-4 px (docs/population.md, "Restarts with the poses refined").
     pub restart_above_px: f64,
     /// How many tilted starts a restart tries (0 to 4: tilts about two perpendicular directions,
     /// each way).
@@ -85,6 +88,22 @@ pub struct PlacementParams {
     /// limb sphere (with `pose`, or without `limb_start`), run it again from the given axis on
     /// the limb sphere (default on; `pipeline::Reconstruction`'s log says so).
     pub limb_restart: bool,
+}
+
+/// With pose refinement the restarts' trigger is this share of `restart_above_px` (3 px of the
+/// default 4).
+pub const REFINED_RESTART_SHARE: f64 = 0.75;
+
+impl PlacementParams {
+    /// The outline distance (px) above which a result restarts: `restart_above_px`, or with pose
+    /// refinement (`refined`) `REFINED_RESTART_SHARE` of it.
+    pub fn restart_trigger_px(&self, refined: bool) -> f64 {
+        if refined {
+            REFINED_RESTART_SHARE * self.restart_above_px
+        } else {
+            self.restart_above_px
+        }
+    }
 }
 
 impl Default for PlacementParams {
@@ -349,6 +368,21 @@ impl ReconParams {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The restarts fire above 4 px, and above 3 px with the poses refined; a trigger set to
+    /// infinity (no restarts) stays infinite either way (the companion).
+    #[test]
+    fn restarts_fire_sooner_with_the_poses_refined() {
+        let p = PlacementParams::default();
+        assert_eq!(p.restart_trigger_px(false), 4.0);
+        assert_eq!(p.restart_trigger_px(true), 3.0);
+        let never = PlacementParams {
+            restart_above_px: f64::INFINITY,
+            ..p
+        };
+        assert!(never.restart_trigger_px(true).is_infinite());
+        assert!(never.restart_trigger_px(false).is_infinite());
+    }
 
     #[test]
     fn the_defaults_pass_and_each_unusable_setting_is_named() {

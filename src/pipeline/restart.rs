@@ -12,7 +12,7 @@ use crate::template::Placement;
 use nalgebra::{Rotation3, Unit, Vector3};
 
 /// The method from the given start and, when its model outlines lie farther than
-/// `placement.restart_above_px` from the observed ones (`outline_distance_px`), from tilted
+/// `placement.restart_trigger_px` from the observed ones (`outline_distance_px`), from tilted
 /// starts too (`tilted_starts`); the result whose outlines lie nearest is kept, the trials in
 /// its log. A stage A that settled on a wrong turn of the cap leaves a result whose outlines
 /// cannot follow the observed ones (stretches of them left several noise SDs away); from a start
@@ -69,7 +69,8 @@ pub(super) fn restarting(
         source: kept_first,
         rms_px: best_score.1,
     });
-    if best_score.0.is_none() && !(best_score.1 > prm.placement.restart_above_px) {
+    let trigger = prm.placement.restart_trigger_px(prm.pose.is_some());
+    if best_score.0.is_none() && !(best_score.1 > trigger) {
         let mut first = first;
         if kept_first == LIMB_SPHERE {
             first.log.restarts = trials;
