@@ -283,8 +283,10 @@ fn pixel_chain(pts: &[Point2<f64>], closed: bool, pitch: f64) -> Vec<Point2<f64>
     let mut push = |c: (i64, i64)| {
         let n = chain.len();
         if chain.last() == Some(&c) {
-        } else if n >= 2 && chain[n - 2] == c {
-            chain.pop();
+            return; // still in the same cell
+        }
+        if n >= 2 && chain[n - 2] == c {
+            chain.pop(); // straight back: the cell just left was a wander along the border
         } else {
             chain.push(c);
         }
