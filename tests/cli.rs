@@ -765,6 +765,20 @@ fn merge_joins_shards_and_refuses_to_overwrite_one_or_read_a_bad_cell() {
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("shards 0/2 of 2 are missing"), "{err}");
     assert!(!dir.join("gap").exists());
+    // Every shard there, but one cut short (its runs.csv only the header): refused, naming
+    // the runs it lacks, nothing written.
+    std::fs::create_dir_all(dir.join("s1cut")).unwrap();
+    std::fs::copy(dir.join("s1/summary.json"), dir.join("s1cut/summary.json")).unwrap();
+    let header = all.lines().next().unwrap().to_string() + "\n";
+    std::fs::write(dir.join("s1cut/runs.csv"), header).unwrap();
+    let o = merge(&["s0", "s1cut"], &dir.join("cut"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("1 of the study's 2 runs") && err.contains("srvf level 1 run 1"),
+        "{err}"
+    );
+    assert!(!dir.join("cut").exists());
     // One mesh given relatively to one shard and absolutely to the other: the same study.
     let mesh = dir.join("m.obj");
     acetab::io::write_obj(&phantom(&PhantomParams::default()).mesh, &mesh).unwrap();

@@ -16,5 +16,8 @@ mod task;
 pub use method::StudyMethod;
 pub use outputs::{write_examples, write_tables};
 pub use runner::{run_one, run_study, tasks, ExampleRun, StudyConfig};
-pub use table::{merge_dirs, merge_meta, read_csv, summarize, write_csv, Row, StudyError, Summary};
+pub use table::{
+    check_complete, merge_dirs, merge_meta, read_csv, summarize, write_csv, Row, StudyError,
+    Summary,
+};
 pub use task::{run_seed, Task};

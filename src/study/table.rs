@@ -242,6 +242,60 @@ pub enum StudyError {
         /// The shards present.
         present: String,
     },
+    /// The shards hold fewer runs than their study's settings make (a shard whose runs were
+    /// lost or cut short).
+    #[error("the shards hold {held} of the study's {expected} runs (levels x runs x methods in summary.json); missing: {first}; run the shards again")]
+    Incomplete {
+        /// Runs the shards hold.
+        held: usize,
+        /// Runs the study makes.
+        expected: usize,
+        /// The first missing runs, named.
+        first: String,
+    },
+}
+
+/// Every run the study of merged settings `meta` (summary.json's `study`, as `merge_meta` gives
+/// it) makes, levels x runs x methods, must be among `rows`; a study whose settings do not say
+/// (an older summary.json) is not checked.
+pub fn check_complete(rows: &[Row], meta: &serde_json::Value) -> Result<(), StudyError> {
+    let (Some(levels), Some(runs), Some(methods)) = (
+        meta.get("levels").and_then(|v| v.as_array()),
+        meta.get("runs").and_then(|v| v.as_u64()),
+        meta.get("methods").and_then(|v| v.as_array()),
+    ) else {
+        return Ok(());
+    };
+    let held: std::collections::BTreeSet<(StudyMethod, u32, usize)> =
+        rows.iter().map(|r| r.key()).collect();
+    let mut missing = Vec::new();
+    let mut expected = 0;
+    for m in methods
+        .iter()
+        .filter_map(|m| m.as_str().and_then(StudyMethod::from_name))
+    {
+        for l in levels.iter().filter_map(|l| l.as_u64()) {
+            for r in 0..runs as usize {
+                expected += 1;
+                if !held.contains(&(m, l as u32, r)) {
+                    missing.push(format!("{} level {l} run {r}", m.name()));
+                }
+            }
+        }
+    }
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let more = missing.len().saturating_sub(3);
+    let mut first = missing[..missing.len().min(3)].join(", ");
+    if more > 0 {
+        first += &format!(" and {more} more");
+    }
+    Err(StudyError::Incomplete {
+        held: expected - missing.len(),
+        expected,
+        first,
+    })
 }
 
 fn six<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
@@ -856,6 +910,33 @@ mod tests {
             .collect();
         std::fs::write(b.join("runs.csv"), short).unwrap();
         assert!(read_csv(&b.join("runs.csv")).is_err());
+    }
+
+    /// A merge whose shards hold every run of their study passes; one that lacks runs (a shard
+    /// cut short: its runs.csv only a header) is refused, naming the first missing ones; an
+    /// older summary.json without the settings is not checked.
+    #[test]
+    fn a_merge_missing_runs_of_its_study_is_refused() {
+        let meta = serde_json::json!({"levels": [1, 3], "runs": 2, "methods": ["srvf", "icp"]});
+        let all: Vec<Row> = [StudyMethod::Srvf, StudyMethod::Icp]
+            .into_iter()
+            .flat_map(|m| {
+                [1, 3]
+                    .into_iter()
+                    .flat_map(move |l| (0..2).map(move |r| row(m, l, r, 0.5)))
+            })
+            .collect();
+        assert_eq!(all.len(), 8);
+        assert!(check_complete(&all, &meta).is_ok());
+        let cut: Vec<Row> = all.iter().filter(|r| r.run == 0).cloned().collect();
+        let e = check_complete(&cut, &meta).unwrap_err().to_string();
+        assert!(
+            e.contains("4 of the study's 8 runs")
+                && e.contains("srvf level 1 run 1")
+                && e.contains("1 more"),
+            "{e}"
+        );
+        assert!(check_complete(&cut, &serde_json::json!({"seed": 3})).is_ok());
     }
 
     #[test]

@@ -2,7 +2,7 @@
 
 use crate::common::{io_msg, print_summary_as};
 use acetab::io::fill_dir_atomically;
-use acetab::study::{merge_dirs, merge_meta, write_tables};
+use acetab::study::{check_complete, merge_dirs, merge_meta, write_tables};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -43,6 +43,7 @@ pub fn run(args: MergeArgs) -> Result<(), String> {
     crate::common::check_out(&out, force)?;
     let rows = merge_dirs(&dirs).map_err(|e| e.to_string())?;
     let meta = merge_meta(&dirs).map_err(|e| e.to_string())?;
+    check_complete(&rows, &meta).map_err(|e| e.to_string())?;
     fill_dir_atomically(
         &out,
         |d| {
