@@ -33,7 +33,27 @@ pub fn accuracy_samples(truth: &Mesh) -> Vec<nalgebra::Point3<f64>> {
 
 /// `accuracy` from samples drawn once by `accuracy_samples`.
 pub fn accuracy_from(samples: &[nalgebra::Point3<f64>], recon: &Mesh) -> Accuracy {
-    let s = DistanceStats::from(&surface_distance(samples, recon));
+    accuracy_of(&surface_distance(samples, recon))
+}
+
+/// `accuracy_from` and `shifted_accuracy` together, on one closest-point structure of `recon`
+/// (what a study measures of every run).
+pub fn accuracy_and_shift(samples: &[nalgebra::Point3<f64>], recon: &Mesh) -> (Accuracy, Shifted) {
+    match super::SurfaceQuery::new(recon) {
+        Some(q) => {
+            let d: Vec<f64> = samples.iter().map(|p| q.distance(p)).collect();
+            (accuracy_of(&d), shift_on(&q, samples))
+        }
+        None => (
+            accuracy_of(&vec![f64::INFINITY; samples.len()]),
+            Shifted::NONE,
+        ),
+    }
+}
+
+/// The statistics of truth -> reconstruction distances `d`.
+fn accuracy_of(d: &[f64]) -> Accuracy {
+    let s = DistanceStats::from(d);
     Accuracy {
         mae_mm: s.mean,
         sd_mm: s.sd,
@@ -52,6 +72,14 @@ pub struct Shifted {
     pub mae_mm: f64,
 }
 
+impl Shifted {
+    /// What a reconstruction the closest-point queries cannot take gives.
+    const NONE: Shifted = Shifted {
+        shift_mm: f64::NAN,
+        mae_mm: f64::NAN,
+    };
+}
+
 /// Every how many of the samples the translation is fitted to.
 const SHIFT_SAMPLE_STEP: usize = 20;
 /// Rounds of the fit at most, and the move below which it stops, mm.
@@ -67,16 +95,14 @@ const SHIFT_TOL_MM: f64 = 1e-3;
 /// it along their depth, keeps its shape error and sheds the displacement. NaN for a mesh the
 /// closest-point queries cannot take.
 pub fn shifted_accuracy(samples: &[nalgebra::Point3<f64>], recon: &Mesh) -> Shifted {
-    let none = Shifted {
-        shift_mm: f64::NAN,
-        mae_mm: f64::NAN,
-    };
-    let Some(q) = super::SurfaceQuery::new(recon) else {
-        return none;
-    };
+    super::SurfaceQuery::new(recon).map_or(Shifted::NONE, |q| shift_on(&q, samples))
+}
+
+/// `shifted_accuracy` on the closest-point structure `q` of the reconstruction.
+fn shift_on(q: &super::SurfaceQuery, samples: &[nalgebra::Point3<f64>]) -> Shifted {
     let fit: Vec<&nalgebra::Point3<f64>> = samples.iter().step_by(SHIFT_SAMPLE_STEP).collect();
     if fit.is_empty() {
-        return none;
+        return Shifted::NONE;
     }
     let mut t = nalgebra::Vector3::zeros();
     for _ in 0..SHIFT_ROUNDS {

@@ -10,8 +10,8 @@ pub mod plots;
 mod provenance;
 
 pub use accuracy::{
-    accuracy, accuracy_from, accuracy_samples, shifted_accuracy, vertex_errors, write_error_ply,
-    write_errors_ply, Accuracy, Shifted,
+    accuracy, accuracy_and_shift, accuracy_from, accuracy_samples, shifted_accuracy, vertex_errors,
+    write_error_ply, write_errors_ply, Accuracy, Shifted,
 };
 pub use cup::{CupCatalogue, CupSize};
 pub use metrics::{

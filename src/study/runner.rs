@@ -7,7 +7,7 @@ use crate::engine::Kernels;
 use crate::geom::pool_map;
 use crate::geom::Mesh;
 use crate::pipeline::{cup_report, reconstruct, ReconParams, Reconstruction, UncertaintyParams};
-use crate::report::{accuracy_from, accuracy_samples, shifted_accuracy};
+use crate::report::{accuracy_and_shift, accuracy_samples};
 use crate::report::{DistanceStats, InteriorQuery};
 use crate::sim::XrayGeometry;
 use crate::sim::{NoiseLevel, Protocol, SimCase, SimError, SimSetup};
@@ -223,8 +223,7 @@ fn run_prepared(
         }
     };
     row.seconds = start.elapsed().as_secs_f64();
-    let acc = accuracy_from(&prep.samples, &rec.mesh);
-    let shifted = shifted_accuracy(&prep.samples, &rec.mesh);
+    let (acc, shifted) = accuracy_and_shift(&prep.samples, &rec.mesh);
     (row.frame_shift_mm, row.shifted_mae_mm) = (shifted.shift_mm, shifted.mae_mm);
     row.mae_mm = acc.mae_mm;
     row.sd_mm = acc.sd_mm;
