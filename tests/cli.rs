@@ -1129,6 +1129,201 @@ fn calibrate_learns_the_model_sd_leaves_a_subject_out_and_names_bad_input() {
     fails_cleanly(cmd, &dir.join("study"), &["--calibration", "bad.json"]);
 }
 
+/// A study folder `dir` of srvf runs with these (cup, truth) diameters and resampled SDs `sd`,
+/// and a summary.json whose study holds `study` (its truth's path `gt`, a correction made).
+fn study_with(dir: &Path, cups: &[(f64, f64)], sd: f64, study: serde_json::Value) {
+    let rows: Vec<acetab::study::Row> = cups
+        .iter()
+        .enumerate()
+        .map(|(k, &(cup, truth))| {
+            let t = acetab::study::Task {
+                method: acetab::study::StudyMethod::Srvf,
+                level: 1,
+                run: k,
+                seed: k as u64,
+            };
+            let mut r = acetab::study::Row::failed(&t, "");
+            r.gt_cup_diameter_mm = truth;
+            r.cup_diameter_mm = cup;
+            r.cup_sd_mm = sd;
+            r
+        })
+        .collect();
+    std::fs::create_dir_all(dir).unwrap();
+    acetab::study::write_csv(&rows, &dir.join("runs.csv")).unwrap();
+    let summary = serde_json::json!({ "study": study });
+    std::fs::write(dir.join("summary.json"), summary.to_string()).unwrap();
+}
+
+#[test]
+fn calibrate_learns_a_shrink_with_each_source_of_truths_weighing_the_same() {
+    let dir = tmp("calibrate-shrink");
+    let pop = dir.join("pop");
+    // Two sources of truths (the folders their meshes came from): 120 runs of bone-side
+    // acetabula 3 mm too large, 40 of shells 1 mm too large, each with +-3 mm of error that
+    // does not follow the truth (truths 42-60 mm).
+    let runs = |n: usize, offset: f64| -> Vec<(f64, f64)> {
+        (0..n)
+            .map(|k| {
+                let truth = 42.0 + (k * 7 % 19) as f64;
+                let noise = if k % 2 == 0 { 3.0 } else { -3.0 };
+                (truth + offset + noise, truth)
+            })
+            .collect()
+    };
+    let gt = |source: &str, name: &str| serde_json::json!({ "gt": format!("/data/{source}/{name}.stl") });
+    study_with(
+        &pop.join("b1_lhip"),
+        &runs(60, 3.0),
+        0.3,
+        gt("bone", "b1_lhip"),
+    );
+    study_with(
+        &pop.join("b2_rhip"),
+        &runs(60, 3.0),
+        0.3,
+        gt("bone", "b2_rhip"),
+    );
+    study_with(
+        &pop.join("c1_lhip"),
+        &runs(40, 1.0),
+        0.3,
+        gt("shells", "c1_lhip"),
+    );
+    let learn = |pop: &Path, extra: &[&str], out: &Path| {
+        bin()
+            .args(["calibrate", "--study"])
+            .arg(pop)
+            .args(extra)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let first = dir.join("shrink.json");
+    let o = learn(&pop, &["--shrink"], &first);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("shrink 0."));
+    let cal = acetab::pipeline::CupCalibration::read(&first).unwrap();
+    // Each source weighs half: the bias is 2 mm, not the pooled 2.5; the shrink takes off the
+    // part of the spread that is noise.
+    assert!((cal.bias_mm - 2.0).abs() < 1e-9, "{cal:?}");
+    assert!(cal.shrink > 0.1 && cal.shrink < 0.5, "{cal:?}");
+    assert!(cal.learned_from.contains("2 sources of truths"), "{cal:?}");
+    // A study calibrated leave-one-subject-out with --calibrate-shrink gets the calibration
+    // `--leave-out SUBJECT --shrink` learns (here subject c1: the bone-side source alone).
+    let without_c1 = dir.join("without-c1.json");
+    assert!(learn(&pop, &["--shrink", "--leave-out", "c1"], &without_c1)
+        .status
+        .success());
+    let loso = acetab::pipeline::CupCalibration::read(&without_c1).unwrap();
+    assert!(
+        loso.shrink > 0.0 && (loso.bias_mm - 3.0).abs() < 1e-9,
+        "{loso:?}"
+    );
+    let mesh = dir.join("c1_lhip.obj");
+    acetab::io::write_obj(&phantom(&PhantomParams::default()).mesh, &mesh).unwrap();
+    let o = bin()
+        .args(["simulate", "--gt"])
+        .arg(&mesh)
+        .args(ONE_RUN.split(' '))
+        .args([
+            "--uncertainty-samples",
+            "2",
+            "--calibrate-shrink",
+            "--calibrate-loso",
+        ])
+        .arg(&pop)
+        .arg("--out")
+        .arg(dir.join("loso"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("loso/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["study"]["cup_shrink"], loso.shrink, "{summary}");
+    assert_eq!(summary["study"]["cup_shrink_to_mm"], loso.shrink_to_mm);
+    assert_eq!(summary["study"]["cup_bias_mm"], loso.bias_mm);
+    // --calibrate-shrink alone is refused.
+    let o = bin()
+        .args(["simulate", "--gt", "phantom", "--calibrate-shrink", "--out"])
+        .arg(dir.join("alone"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!dir.join("alone").exists());
+    // Companion: without --shrink, no shrink.
+    let plain = dir.join("plain.json");
+    assert!(learn(&pop, &[], &plain).status.success());
+    let p = acetab::pipeline::CupCalibration::read(&plain).unwrap();
+    assert_eq!((p.shrink, p.shrink_to_mm), (0.0, 0.0));
+    assert!((p.bias_mm - 2.0).abs() < 1e-9, "{p:?}");
+    // The same studies made with that calibration (their cups corrected, their resampled SDs
+    // shrunk with them, the correction in summary.json) give the same calibration back: the
+    // correction a study made is undone before learning.
+    let again = dir.join("again");
+    let mut cup = acetab::pipeline::CupParams::default();
+    cal.correct(&mut cup);
+    for (name, n, offset, source) in [
+        ("b1_lhip", 60, 3.0, "bone"),
+        ("b2_rhip", 60, 3.0, "bone"),
+        ("c1_lhip", 40, 1.0, "shells"),
+    ] {
+        let corrected: Vec<(f64, f64)> = runs(n, offset)
+            .iter()
+            .map(|&(c, t)| (cup.corrected(c), t))
+            .collect();
+        let mut study = gt(source, name);
+        study["cup_bias_mm"] = cal.bias_mm.into();
+        study["cup_shrink"] = cal.shrink.into();
+        study["cup_shrink_to_mm"] = cal.shrink_to_mm.into();
+        study_with(
+            &again.join(name),
+            &corrected,
+            0.3 * (1.0 - cal.shrink),
+            study,
+        );
+    }
+    let second = dir.join("second.json");
+    assert!(learn(&again, &["--shrink"], &second).status.success());
+    let cal2 = acetab::pipeline::CupCalibration::read(&second).unwrap();
+    for (a, b) in [
+        (cal.bias_mm, cal2.bias_mm),
+        (cal.shrink, cal2.shrink),
+        (cal.shrink_to_mm, cal2.shrink_to_mm),
+        (cal.model_sd_mm, cal2.model_sd_mm),
+    ] {
+        // runs.csv keeps six decimals.
+        assert!((a - b).abs() < 1e-5, "{cal:?} {cal2:?}");
+    }
+    // Companion: the corrected studies read as if uncorrected give another calibration.
+    for name in ["b1_lhip", "b2_rhip", "c1_lhip"] {
+        std::fs::write(again.join(name).join("summary.json"), "{}").unwrap();
+    }
+    let third = dir.join("third.json");
+    assert!(learn(&again, &["--shrink"], &third).status.success());
+    let cal3 = acetab::pipeline::CupCalibration::read(&third).unwrap();
+    assert!(
+        (cal3.shrink_to_mm - cal.shrink_to_mm).abs() > 0.5,
+        "{cal3:?}"
+    );
+    // A shrink outside 0-0.9 in a study's summary is named; --shrink with --no-bias is refused.
+    std::fs::write(
+        again.join("b1_lhip/summary.json"),
+        r#"{"study": {"cup_shrink": 1.5}}"#,
+    )
+    .unwrap();
+    let o = learn(&again, &["--shrink"], &dir.join("bad.json"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("cup_shrink = 1.5"), "{err}");
+    assert!(!dir.join("bad.json").exists());
+    let o = learn(&pop, &["--shrink", "--no-bias"], &dir.join("bad.json"));
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!dir.join("bad.json").exists());
+}
+
 /// A one-run study of the phantom with `extra` flags written to `out`, which must succeed; its
 /// summary.json.
 fn phantom_study(extra: &[&str], out: &Path) -> serde_json::Value {

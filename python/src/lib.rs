@@ -159,10 +159,14 @@ impl ReconOptions {
         )?;
         let mut prm = ReconParams {
             method: method_of(&self.method)?,
-            cup: CupParams {
-                catalogue,
-                estimator,
-                bias_mm: cal.bias_mm,
+            cup: {
+                let mut cup = CupParams {
+                    catalogue,
+                    estimator,
+                    ..Default::default()
+                };
+                cal.correct(&mut cup);
+                cup
             },
             contour_source,
             pose: self.refine_poses.then(acetab::solve::PoseParams::default),
@@ -443,10 +447,13 @@ fn simulate_json(py: Python<'_>, options_json: &str) -> PyResult<String> {
                 shape_prior: shape_prior(&o.prior)?,
                 ..Default::default()
             },
-            cup: CupParams {
-                estimator,
-                bias_mm: cal.bias_mm,
-                ..Default::default()
+            cup: {
+                let mut cup = CupParams {
+                    estimator,
+                    ..Default::default()
+                };
+                cal.correct(&mut cup);
+                cup
             },
             ..Default::default()
         },

@@ -6,7 +6,7 @@
 //! acetabula whose cup is known: a model-error SD added in quadrature, chosen so that 68 % of
 //! the training runs' errors lie within the total SD (`learn_model_sd`).
 
-use super::params::CupEstimator;
+use super::params::{CupEstimator, CupParams, MAX_SHRINK};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -25,6 +25,16 @@ pub struct CupCalibration {
     /// from every cup (`CupParams::bias_mm`); 0 in files without the field.
     #[serde(default)]
     pub bias_mm: f64,
+    /// The share of a fitted diameter's departure from `shrink_to_mm` taken off
+    /// (`CupParams::shrink`): where the estimate's error is large against the spread of the
+    /// population's cups (open outlines, uncertain poses), the least-squares line from estimate to
+    /// truth is flatter than 1, and the cup is pulled toward the training cups by that much. 0 in
+    /// files without the field.
+    #[serde(default)]
+    pub shrink: f64,
+    /// The diameter the shrink pulls toward, mm: the training runs' mean fitted diameter.
+    #[serde(default)]
+    pub shrink_to_mm: f64,
     /// Model-error SD of the cup diameter, mm, added in quadrature to the resampled SD (learned
     /// on the errors less the bias).
     pub model_sd_mm: f64,
@@ -105,6 +115,31 @@ fn observed_part() -> String {
     CupEstimator::ObservedPart.name().to_string()
 }
 
+/// One training run of a calibration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrainingRun {
+    /// The estimator's diameter before any bias or shrink, mm.
+    pub fitted_mm: f64,
+    /// The truth's cup diameter, mm.
+    pub truth_mm: f64,
+    /// The resampled SD of the diameter (without any model error), mm.
+    pub resample_sd_mm: f64,
+    /// Which source of truths the run's acetabulum came from (a population: runs of each source
+    /// weigh the same in the bias and the shrink).
+    pub source: usize,
+}
+
+/// What a calibration learns besides the model-error SD.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Learn {
+    /// Only the model-error SD (no bias, no shrink).
+    SdOnly,
+    /// The bias too.
+    Bias,
+    /// The bias and the shrink.
+    BiasAndShrink,
+}
+
 /// Fewest training runs a calibration is learned from.
 pub const MIN_TRAINING_RUNS: usize = 20;
 
@@ -162,6 +197,8 @@ impl CupCalibration {
         CupCalibration {
             estimator: estimator.name().to_string(),
             bias_mm: 0.0,
+            shrink: 0.0,
+            shrink_to_mm: 0.0,
             model_sd_mm: 0.0,
             learned_from: "none".into(),
             runs: 0,
@@ -246,8 +283,14 @@ impl CupCalibration {
     /// The first number a calibration cannot be used with (field, value, what it must be): a
     /// bias beyond +-10 mm, a model SD outside 0-20 mm, a coverage that is not a share.
     fn unusable(&self) -> Option<(&'static str, f64, &'static str)> {
-        if !(self.bias_mm.is_finite() && self.bias_mm.abs() <= 10.0) {
-            return Some(("bias_mm", self.bias_mm, "finite, within +-10 mm"));
+        let correction = CupParams {
+            bias_mm: self.bias_mm,
+            shrink: self.shrink,
+            shrink_to_mm: self.shrink_to_mm,
+            ..Default::default()
+        };
+        if let Some(bad) = correction.invalid_correction() {
+            return Some(bad);
         }
         if !(self.model_sd_mm.is_finite() && (0.0..=20.0).contains(&self.model_sd_mm)) {
             return Some(("model_sd_mm", self.model_sd_mm, "finite, 0 to 20 mm"));
@@ -262,34 +305,85 @@ impl CupCalibration {
         None
     }
 
-    /// Learn the calibration of `estimator` from training runs' (cup error, resampled SD) pairs,
-    /// the errors those of the estimator without a bias: with `bias`, the bias is their mean
-    /// (else 0), and the model-error SD is the smallest s >= 0 with at least
-    /// `NOMINAL_COVERAGE` of the runs' |error - bias| <= sqrt(sd^2 + s^2). Pairs with a
-    /// non-finite member are skipped.
+    /// `cup` with this calibration's bias and shrink.
+    pub fn correct(&self, cup: &mut CupParams) {
+        cup.bias_mm = self.bias_mm;
+        cup.shrink = self.shrink;
+        cup.shrink_to_mm = self.shrink_to_mm;
+    }
+
+    /// Learn the calibration of `estimator` from training runs (`TrainingRun`: what the
+    /// estimator fitted, before any correction, and the truth). With `Learn::Bias` the bias is
+    /// the runs' mean error; with `Learn::BiasAndShrink` also the shrink: one minus the slope of
+    /// the least-squares line from fitted diameter to truth (kept within 0 to `MAX_SHRINK`),
+    /// about the runs' mean fitted diameter (`shrink_to_mm`). In both, every source of truths
+    /// weighs the same, however many runs it holds, so that the largest collection of
+    /// acetabula does not set the correction for the others. The model-error SD is then the
+    /// smallest s >= 0 with at least `NOMINAL_COVERAGE` of the runs' corrected errors within
+    /// sqrt(sd^2 + s^2), sd the resampled SD as the correction scales it. Runs with a non-finite
+    /// member are skipped.
     pub fn learn(
-        pairs: &[(f64, f64)],
+        runs: &[TrainingRun],
         estimator: CupEstimator,
-        bias: bool,
+        what: Learn,
         learned_from: String,
     ) -> Result<Self, CalibrationError> {
-        let pairs: Vec<(f64, f64)> = pairs
+        let runs: Vec<TrainingRun> = runs
             .iter()
             .copied()
-            .filter(|(e, sd)| e.is_finite() && sd.is_finite() && *sd >= 0.0)
+            .filter(|r| {
+                r.fitted_mm.is_finite()
+                    && r.truth_mm.is_finite()
+                    && r.resample_sd_mm.is_finite()
+                    && r.resample_sd_mm >= 0.0
+            })
             .collect();
-        if pairs.len() < MIN_TRAINING_RUNS {
+        if runs.len() < MIN_TRAINING_RUNS {
             return Err(CalibrationError::TooFewRuns {
-                runs: pairs.len(),
+                runs: runs.len(),
                 min: MIN_TRAINING_RUNS,
             });
         }
-        let bias_mm = if bias {
-            pairs.iter().map(|(e, _)| e).sum::<f64>() / pairs.len() as f64
-        } else {
-            0.0
+        // Each source's runs share one unit of weight.
+        let mut per_source = std::collections::BTreeMap::<usize, usize>::new();
+        for r in &runs {
+            *per_source.entry(r.source).or_default() += 1;
+        }
+        let sources = per_source.len() as f64;
+        let weight = |r: &TrainingRun| 1.0 / (sources * per_source[&r.source] as f64);
+        let mean =
+            |f: &dyn Fn(&TrainingRun) -> f64| runs.iter().map(|r| weight(r) * f(r)).sum::<f64>();
+        let (bias_mm, shrink, shrink_to_mm) = match what {
+            Learn::SdOnly => (0.0, 0.0, 0.0),
+            Learn::Bias => (mean(&|r| r.fitted_mm - r.truth_mm), 0.0, 0.0),
+            Learn::BiasAndShrink => {
+                let (mf, mt) = (mean(&|r| r.fitted_mm), mean(&|r| r.truth_mm));
+                let var = mean(&|r| (r.fitted_mm - mf).powi(2));
+                let cov = mean(&|r| (r.fitted_mm - mf) * (r.truth_mm - mt));
+                let shrink = if var > 0.0 {
+                    (1.0 - cov / var).clamp(0.0, MAX_SHRINK)
+                } else {
+                    0.0
+                };
+                (mean(&|r| r.fitted_mm - r.truth_mm), shrink, mf)
+            }
         };
-        let pairs: Vec<(f64, f64)> = pairs.iter().map(|(e, sd)| (e - bias_mm, *sd)).collect();
+        let correction = CupParams {
+            bias_mm,
+            shrink,
+            shrink_to_mm,
+            ..Default::default()
+        };
+        // (corrected error, resampled SD as the correction scales it)
+        let pairs: Vec<(f64, f64)> = runs
+            .iter()
+            .map(|r| {
+                (
+                    correction.corrected(r.fitted_mm) - r.truth_mm,
+                    (1.0 - shrink) * r.resample_sd_mm,
+                )
+            })
+            .collect();
         // Each run is covered once s^2 >= e^2 - sd^2: the answer is that quantile.
         let mut need: Vec<f64> = pairs
             .iter()
@@ -305,6 +399,8 @@ impl CupCalibration {
         let learned = CupCalibration {
             estimator: estimator.name().to_string(),
             bias_mm,
+            shrink,
+            shrink_to_mm,
             model_sd_mm: s,
             learned_from,
             runs: pairs.len(),
@@ -314,9 +410,9 @@ impl CupCalibration {
         match learned.unusable() {
             None => Ok(learned),
             Some((field, value, expected)) => {
-                let largest = pairs
+                let largest = runs
                     .iter()
-                    .map(|(e, _)| (e + bias_mm).abs())
+                    .map(|r| (r.fitted_mm - r.truth_mm).abs())
                     .fold(0.0, f64::max);
                 Err(CalibrationError::Learned {
                     field,
@@ -337,6 +433,27 @@ impl CupCalibration {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Training runs of one source whose errors and resampled SDs are `pairs` (truth 50 mm).
+    fn runs(pairs: &[(f64, f64)]) -> Vec<TrainingRun> {
+        pairs
+            .iter()
+            .map(|&(e, sd)| TrainingRun {
+                fitted_mm: 50.0 + e,
+                truth_mm: 50.0,
+                resample_sd_mm: sd,
+                source: 0,
+            })
+            .collect()
+    }
+
+    fn what(bias: bool) -> Learn {
+        if bias {
+            Learn::Bias
+        } else {
+            Learn::SdOnly
+        }
+    }
 
     #[test]
     fn the_shipped_calibrations_parse() {
@@ -370,8 +487,13 @@ mod tests {
             let z = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
             pairs.push((1.2 * z, 0.2));
         }
-        let c = CupCalibration::learn(&pairs, CupEstimator::ObservedPart, false, "test".into())
-            .unwrap();
+        let c = CupCalibration::learn(
+            &runs(&pairs),
+            CupEstimator::ObservedPart,
+            what(false),
+            "test".into(),
+        )
+        .unwrap();
         let total = (c.model_sd_mm.powi(2) + 0.04).sqrt();
         assert!((total - 1.2).abs() < 0.08, "total SD {total}");
         assert!((c.training_coverage - NOMINAL_COVERAGE).abs() < 0.01);
@@ -380,48 +502,191 @@ mod tests {
         assert!((alone - NOMINAL_COVERAGE).abs() > 0.3, "{alone}");
         // Too few runs, or none finite, are refused.
         assert!(matches!(
-            CupCalibration::learn(&pairs[..5], CupEstimator::ObservedPart, true, String::new()),
+            CupCalibration::learn(
+                &runs(&pairs[..5]),
+                CupEstimator::ObservedPart,
+                what(true),
+                String::new()
+            ),
             Err(CalibrationError::TooFewRuns { runs: 5, .. })
         ));
         let nan = vec![(f64::NAN, 0.2); 50];
-        assert!(
-            CupCalibration::learn(&nan, CupEstimator::ObservedPart, true, String::new()).is_err()
-        );
+        assert!(CupCalibration::learn(
+            &runs(&nan),
+            CupEstimator::ObservedPart,
+            what(true),
+            String::new()
+        )
+        .is_err());
         // With the bias: errors shifted by +0.8 mm give the same model SD and a bias of 0.8
         // (the sample's own mean); without it the shift inflates the SD (the companion).
         let mean = pairs.iter().map(|(e, _)| e).sum::<f64>() / pairs.len() as f64;
         let shifted: Vec<(f64, f64)> = pairs.iter().map(|(e, sd)| (e + 0.8, *sd)).collect();
-        let b = CupCalibration::learn(&shifted, CupEstimator::PriorRegion, true, String::new())
-            .unwrap();
+        let b = CupCalibration::learn(
+            &runs(&shifted),
+            CupEstimator::PriorRegion,
+            what(true),
+            String::new(),
+        )
+        .unwrap();
         assert!((b.bias_mm - (mean + 0.8)).abs() < 1e-9, "{b:?}");
         assert_eq!(b.cup_estimator(), Some(CupEstimator::PriorRegion));
         let centred: Vec<(f64, f64)> = pairs.iter().map(|(e, sd)| (e - mean, *sd)).collect();
-        let c0 = CupCalibration::learn(&centred, CupEstimator::ObservedPart, false, String::new())
-            .unwrap();
+        let c0 = CupCalibration::learn(
+            &runs(&centred),
+            CupEstimator::ObservedPart,
+            what(false),
+            String::new(),
+        )
+        .unwrap();
         assert!((b.model_sd_mm - c0.model_sd_mm).abs() < 1e-9);
-        let nb = CupCalibration::learn(&shifted, CupEstimator::PriorRegion, false, String::new())
-            .unwrap();
+        let nb = CupCalibration::learn(
+            &runs(&shifted),
+            CupEstimator::PriorRegion,
+            what(false),
+            String::new(),
+        )
+        .unwrap();
         assert!(nb.model_sd_mm > b.model_sd_mm + 0.2, "{nb:?} {b:?}");
         // Training errors no acetabulum gives (a broken study's cups of 1e300 mm) are refused,
         // naming the field, instead of written into a file that reading back would refuse.
         let broken: Vec<(f64, f64)> = pairs.iter().map(|(e, sd)| (e + 1e300, *sd)).collect();
-        let e = CupCalibration::learn(&broken, CupEstimator::ObservedPart, true, String::new())
-            .unwrap_err()
-            .to_string();
+        let e = CupCalibration::learn(
+            &runs(&broken),
+            CupEstimator::ObservedPart,
+            what(true),
+            String::new(),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(
             e.contains("bias_mm = 1.") && e.contains("e300") && e.contains("+-10 mm"),
             "{e}"
         );
         let wide: Vec<(f64, f64)> = pairs.iter().map(|(e, sd)| (40.0 * e, *sd)).collect();
-        let e = CupCalibration::learn(&wide, CupEstimator::ObservedPart, false, String::new())
-            .unwrap_err()
-            .to_string();
+        let e = CupCalibration::learn(
+            &runs(&wide),
+            CupEstimator::ObservedPart,
+            what(false),
+            String::new(),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("model_sd_mm") && e.contains("0 to 20 mm"), "{e}");
         // Companion: errors at the edge (a bias of 9 mm) are still learned.
         let edge: Vec<(f64, f64)> = centred.iter().map(|(e, sd)| (e + 9.0, *sd)).collect();
-        let ok =
-            CupCalibration::learn(&edge, CupEstimator::ObservedPart, true, String::new()).unwrap();
+        let ok = CupCalibration::learn(
+            &runs(&edge),
+            CupEstimator::ObservedPart,
+            what(true),
+            String::new(),
+        )
+        .unwrap();
         assert!((ok.bias_mm - 9.0).abs() < 1e-9, "{ok:?}");
+    }
+
+    /// Runs of `source` whose truths spread 42-60 mm and whose fitted diameters are `fit(truth)`.
+    fn spread(n: usize, source: usize, fit: impl Fn(f64) -> f64) -> Vec<TrainingRun> {
+        (0..n)
+            .map(|k| {
+                let truth = 42.0 + (k * 7 % 19) as f64;
+                TrainingRun {
+                    fitted_mm: fit(truth),
+                    truth_mm: truth,
+                    resample_sd_mm: 0.5,
+                    source,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_shrink_is_one_less_the_slope_from_fitted_to_truth() {
+        // An estimator that doubles each cup's departure from 50 mm and adds 1 mm: the line from
+        // fitted to truth has slope 1/2, so half the departure is taken off, and every corrected
+        // cup is its truth.
+        let runs = spread(60, 0, |t| 51.0 + 2.0 * (t - 50.0));
+        let c = CupCalibration::learn(
+            &runs,
+            CupEstimator::ObservedPart,
+            Learn::BiasAndShrink,
+            "t".into(),
+        )
+        .unwrap();
+        assert!((c.shrink - 0.5).abs() < 1e-12, "{c:?}");
+        let mut cup = CupParams::default();
+        c.correct(&mut cup);
+        for r in &runs {
+            assert!(
+                (cup.corrected(r.fitted_mm) - r.truth_mm).abs() < 1e-9,
+                "{c:?} {r:?}"
+            );
+        }
+        // The resampled SD shrinks with the cup: covering the (zero) errors needs no model SD.
+        assert!(c.model_sd_mm < 1e-9, "{c:?}");
+        // Companion: the bias alone leaves the doubled departures, which the model SD must cover.
+        let b = CupCalibration::learn(&runs, CupEstimator::ObservedPart, Learn::Bias, "t".into())
+            .unwrap();
+        assert_eq!((b.shrink, b.shrink_to_mm), (0.0, 0.0));
+        assert!(b.model_sd_mm > 3.0, "{b:?}");
+        // An estimator that halves the departures would need a slope of 2: a shrink never
+        // stretches, so it stays 0 (and the bias is the mean error).
+        let flat = spread(60, 0, |t| 50.0 + 0.5 * (t - 50.0));
+        let f = CupCalibration::learn(
+            &flat,
+            CupEstimator::ObservedPart,
+            Learn::BiasAndShrink,
+            "t".into(),
+        )
+        .unwrap();
+        assert_eq!(f.shrink, 0.0, "{f:?}");
+    }
+
+    #[test]
+    fn every_source_of_truths_weighs_the_same_in_the_bias() {
+        // 200 runs of one source 3 mm too large, 20 of another 1 mm too large: the bias is 2 mm,
+        // not the pooled 2.8.
+        let mut runs = spread(200, 0, |t| t + 3.0);
+        runs.extend(spread(20, 1, |t| t + 1.0));
+        for what in [Learn::Bias, Learn::BiasAndShrink] {
+            let c =
+                CupCalibration::learn(&runs, CupEstimator::ObservedPart, what, "t".into()).unwrap();
+            assert!((c.bias_mm - 2.0).abs() < 1e-9, "{c:?}");
+        }
+        // Companion: the same runs as one source give the pooled mean.
+        let pooled: Vec<TrainingRun> = runs
+            .iter()
+            .map(|r| TrainingRun { source: 0, ..*r })
+            .collect();
+        let c = CupCalibration::learn(&pooled, CupEstimator::ObservedPart, Learn::Bias, "t".into())
+            .unwrap();
+        assert!(
+            (c.bias_mm - (200.0 * 3.0 + 20.0) / 220.0).abs() < 1e-9,
+            "{c:?}"
+        );
+    }
+
+    #[test]
+    fn a_calibration_with_a_bad_shrink_is_refused() {
+        let ok = CupCalibration::shipped_ideal().to_json();
+        for (field, value) in [
+            ("shrink", "0.95"),
+            ("shrink", "-0.1"),
+            ("shrink_to_mm", "1e9"),
+        ] {
+            let mut v: serde_json::Value = serde_json::from_str(&ok).unwrap();
+            v[field] = serde_json::from_str(value).unwrap();
+            let e = CupCalibration::parse(&v.to_string(), Path::new("c.json"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(field) && e.contains("c.json"), "{e}");
+        }
+        // Companion: a shrink at the edge is read.
+        let mut v: serde_json::Value = serde_json::from_str(&ok).unwrap();
+        v["shrink"] = serde_json::json!(MAX_SHRINK);
+        v["shrink_to_mm"] = serde_json::json!(52.0);
+        let c = CupCalibration::parse(&v.to_string(), Path::new("c.json")).unwrap();
+        assert_eq!((c.shrink, c.shrink_to_mm), (MAX_SHRINK, 52.0));
     }
 
     #[test]

@@ -18,7 +18,8 @@ const MIN_SPHERE_VERTICES: usize = 30;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CupSpheres {
     /// The cup: the estimator's sphere (`observed_part_sphere` or `prior_region_sphere`), or the
-    /// whole surface's when too few vertices lie in its part; its radius less half the bias.
+    /// whole surface's when too few vertices lie in its part; its diameter corrected
+    /// (`CupParams::corrected`).
     pub cup: Sphere,
     /// The sphere fitted (robustly) to every vertex.
     pub surface: Sphere,
@@ -29,8 +30,8 @@ pub struct CupSpheres {
 pub type PriorRegion<'a> = (&'a ShapePrior, Point3<f64>);
 
 /// The cup estimator `cup` of `mesh` under the correspondences `obs` (with their robust
-/// weights): its part's sphere, falling back to the whole surface's, the diameter less
-/// `cup.bias_mm`. `region` is needed by `CupEstimator::PriorRegion` (without it, the whole
+/// weights): its part's sphere, falling back to the whole surface's, the diameter corrected by
+/// the calibration's bias and shrink (`CupParams::corrected`). `region` is needed by `CupEstimator::PriorRegion` (without it, the whole
 /// surface's sphere).
 pub fn cup_spheres(
     mesh: &Mesh,
@@ -44,7 +45,8 @@ pub fn cup_spheres(
         CupEstimator::PriorRegion => region.and_then(|(p, c)| prior_region_sphere(mesh, p, &c)),
     };
     let mut sphere = part.unwrap_or(surface);
-    sphere.radius -= 0.5 * cup.bias_mm;
+    // `CupParams::corrected` on the radius: without a shrink exactly the bias's half.
+    sphere.radius -= 0.5 * (cup.bias_mm + cup.shrink * (sphere.diameter() - cup.shrink_to_mm));
     if !(sphere.radius > 0.0) {
         // A diameter smaller than the bias: no cup (the guards refuse any under 30 mm anyway).
         return Err(SphereFitError::Degenerate);
@@ -190,5 +192,21 @@ mod tests {
         let obs = cup_spheres(&m, &[], &cup, region).unwrap();
         assert_eq!(obs.cup.radius, obs.surface.radius - 0.4);
         assert!((obs.cup.diameter() - less.cup.diameter()).abs() > 0.5);
+        // A shrink takes its share of the departure from `shrink_to_mm` off as well: the prior
+        // region's 50 mm, 0.8 mm bias, a quarter of the 6 mm above 44 mm.
+        cup.estimator = CupEstimator::PriorRegion;
+        cup.shrink = 0.25;
+        cup.shrink_to_mm = 44.0;
+        let pulled = cup_spheres(&m, &[], &cup, region).unwrap();
+        let expected = plain.cup.diameter() - 0.8 - 0.25 * (plain.cup.diameter() - 44.0);
+        assert!(
+            (pulled.cup.diameter() - expected).abs() < 1e-12,
+            "{pulled:?}"
+        );
+        assert!((cup.corrected(plain.cup.diameter()) - expected).abs() < 1e-12);
+        // Companion: toward its own diameter the shrink moves nothing.
+        cup.shrink_to_mm = plain.cup.diameter();
+        let still = cup_spheres(&m, &[], &cup, region).unwrap();
+        assert!((still.cup.diameter() - less.cup.diameter()).abs() < 1e-12);
     }
 }

@@ -15,7 +15,9 @@ mod placement;
 mod restart;
 mod uncertainty;
 
-pub use calibration::{CalibrationError, CupCalibration, MIN_TRAINING_RUNS, NOMINAL_COVERAGE};
+pub use calibration::{
+    CalibrationError, CupCalibration, Learn, TrainingRun, MIN_TRAINING_RUNS, NOMINAL_COVERAGE,
+};
 pub use cup::{
     cup_spheres, observed_part_sphere, prior_region_sphere, CupSpheres, PriorRegion,
     REGION_MIN_COVERAGE,
@@ -25,7 +27,9 @@ pub use guards::{
     first_failure, folded_share, odd_view, view_label, GuardFailure, GuardParams, Judged, Refusal,
     VIEW_NOTE_MIN_PX, VIEW_NOTE_RATIO,
 };
-pub use params::{CupEstimator, CupParams, DeformationParams, PlacementParams, ReconParams};
+pub use params::{
+    CupEstimator, CupParams, DeformationParams, PlacementParams, ReconParams, MAX_SHRINK,
+};
 pub use restart::outline_distance_px;
 pub use uncertainty::{cup_report, CupReport, SizeProbability, UncertaintyParams};
 

@@ -188,6 +188,39 @@ pub struct CupParams {
     /// The estimator's bias, mm: subtracted from the fitted diameter (default 0). Learned with
     /// the calibration from studies on acetabula whose cup is known (`CupCalibration::bias_mm`).
     pub bias_mm: f64,
+    /// The share of the fitted diameter's departure from `shrink_to_mm` taken off (0 to
+    /// `MAX_SHRINK`; default 0, none): a learned pull toward the training acetabula's cups for
+    /// estimates noisier than the population's spread (`CupCalibration::shrink`).
+    pub shrink: f64,
+    /// The diameter the shrink pulls toward, mm: the training runs' mean fitted diameter (their
+    /// mean estimate, so that the bias stays their mean error).
+    pub shrink_to_mm: f64,
+}
+
+/// The largest shrink a cup may be given: a cup that keeps less than a tenth of what its fit says
+/// would be the training population's mean, not a measurement.
+pub const MAX_SHRINK: f64 = 0.9;
+
+impl CupParams {
+    /// The cup diameter reported for a fitted diameter `fitted`: less the bias, and less the
+    /// shrink's share of its departure from `shrink_to_mm`.
+    pub fn corrected(&self, fitted: f64) -> f64 {
+        fitted - self.bias_mm - self.shrink * (fitted - self.shrink_to_mm)
+    }
+
+    /// The first correction field that cannot be used (field, value, what it must be).
+    pub fn invalid_correction(&self) -> Option<(&'static str, f64, &'static str)> {
+        if !(self.bias_mm.is_finite() && self.bias_mm.abs() <= 10.0) {
+            return Some(("bias_mm", self.bias_mm, "finite, within +-10 mm"));
+        }
+        if !(self.shrink.is_finite() && (0.0..=MAX_SHRINK).contains(&self.shrink)) {
+            return Some(("shrink", self.shrink, "finite, 0 to 0.9"));
+        }
+        if !(self.shrink_to_mm.is_finite() && (0.0..=200.0).contains(&self.shrink_to_mm)) {
+            return Some(("shrink_to_mm", self.shrink_to_mm, "finite, 0 to 200 mm"));
+        }
+        None
+    }
 }
 
 /// Which part of the reconstructed surface the cup sphere is fitted to.
@@ -314,12 +347,13 @@ impl ReconParams {
         if let Some((field, v)) = self.pose.as_ref().and_then(PoseParams::invalid) {
             return Err(bad(field, v, "finite and > 0"));
         }
-        if !(self.cup.bias_mm.is_finite() && self.cup.bias_mm.abs() <= 10.0) {
-            return Err(bad(
-                "cup.bias_mm",
-                self.cup.bias_mm,
-                "finite, within +-10 mm",
-            ));
+        if let Some((field, v, expected)) = self.cup.invalid_correction() {
+            let field = match field {
+                "bias_mm" => "cup.bias_mm",
+                "shrink" => "cup.shrink",
+                _ => "cup.shrink_to_mm",
+            };
+            return Err(bad(field, v, expected));
         }
         if self.cup.estimator == CupEstimator::PriorRegion
             && (self.deformation.shape_prior.is_none() || self.deformation.sphere_prior <= 0.0)
@@ -429,6 +463,12 @@ mod tests {
             ("lm.lambda0", Box::new(|p| p.lm.lambda0 = 0.0)),
             ("cup.bias_mm", Box::new(|p| p.cup.bias_mm = f64::NAN)),
             ("cup.bias_mm", Box::new(|p| p.cup.bias_mm = 12.0)),
+            ("cup.shrink", Box::new(|p| p.cup.shrink = 0.95)),
+            ("cup.shrink", Box::new(|p| p.cup.shrink = -0.1)),
+            (
+                "cup.shrink_to_mm",
+                Box::new(|p| p.cup.shrink_to_mm = f64::NAN),
+            ),
             (
                 "cup.estimator",
                 Box::new(|p| p.cup.estimator = CupEstimator::PriorRegion),

@@ -81,6 +81,11 @@ pub struct CupReport {
     pub estimator: &'static str,
     /// The estimator's bias taken off the diameter, mm (the calibration's; 0 without one).
     pub bias_mm: f64,
+    /// The share of the fitted diameter's departure from `shrink_to_mm` taken off (the
+    /// calibration's; 0 without one): `CupParams::corrected`.
+    pub shrink: f64,
+    /// The diameter the shrink pulls toward, mm.
+    pub shrink_to_mm: f64,
     /// The cup's centre (the fitted sphere's, the hip's centre of rotation), mm, in the case's
     /// frame.
     pub center_mm: [f64; 3],
@@ -157,7 +162,15 @@ impl CupReport {
             self.probability_of(self.catalogue_mm),
             if others.is_empty() { "" } else { "; " },
             others.join(", ")
-        ) + &match &self.orientation {
+        ) + &if self.shrink > 0.0 {
+            format!(
+                "; pulled {:.0} % toward {:.1} mm by the calibration",
+                100.0 * self.shrink,
+                self.shrink_to_mm
+            )
+        } else {
+            String::new()
+        } + &match &self.orientation {
             Some(o) => format!(
                 "; inclination {:.1} deg, anteversion {:.1} deg",
                 o.inclination_deg, o.anteversion_deg
@@ -318,6 +331,8 @@ pub fn cup_report(
         diameter_mm: diameter,
         estimator: used.cup.estimator.name(),
         bias_mm: used.cup.bias_mm,
+        shrink: used.cup.shrink,
+        shrink_to_mm: used.cup.shrink_to_mm,
         center_mm: rec.sphere.center,
         orientation,
         orientation_note,
@@ -391,6 +406,8 @@ mod tests {
             diameter_mm: 51.0,
             estimator: "observed-part",
             bias_mm: 0.0,
+            shrink: 0.0,
+            shrink_to_mm: 0.0,
             center_mm: [0.0; 3],
             orientation: None,
             orientation_note: None,

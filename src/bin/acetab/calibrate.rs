@@ -1,7 +1,8 @@
-//! `acetab calibrate`: learn the cup estimator's bias and the cup uncertainty's model-error SD
-//! from studies whose truths are known (see `acetab::pipeline::CupCalibration`).
+//! `acetab calibrate`: learn the cup estimator's bias (and, asked, its shrink) and the cup
+//! uncertainty's model-error SD from studies whose truths are known (see
+//! `acetab::pipeline::CupCalibration`).
 
-use acetab::pipeline::{CupCalibration, CupEstimator};
+use acetab::pipeline::{CupCalibration, CupEstimator, CupParams, Learn, TrainingRun};
 use acetab::study::{read_csv, StudyMethod};
 use std::path::{Path, PathBuf};
 
@@ -20,8 +21,14 @@ pub struct CalibrateArgs {
     pub method: StudyMethod,
     /// Learn no bias (bias_mm 0): only the model-error SD, as calibrations made before the
     /// bias were.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "shrink")]
     pub no_bias: bool,
+    /// Learn a shrink too: the cup pulled toward the training runs' mean by one minus the
+    /// slope of the least-squares line from fitted diameter to truth (each source of truths, the
+    /// folder its mesh came from, weighing the same). It pays where the cup's error is large
+    /// against the spread of acetabula (the realistic protocol), not on ideal X-rays.
+    #[arg(long)]
+    pub shrink: bool,
     /// A note on what the studies were (protocol, data, commit), kept in the file's
     /// `learned_from`.
     #[arg(long)]
@@ -71,20 +78,38 @@ fn study_dirs(dirs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
 }
 
 /// What a study's cups already hold: the model-error SD in its cup SDs
-/// (summary.json's study.cup_model_sd_mm), the bias taken off its cups (study.cup_bias_mm) and
-/// its cup estimator (study.cup_estimator); 0, 0 and the observed part when absent (a study
-/// made before calibrations or the bias, or run without them).
+/// (summary.json's study.cup_model_sd_mm), the correction its cups were given
+/// (study.cup_bias_mm, cup_shrink, cup_shrink_to_mm) and its cup estimator
+/// (study.cup_estimator); none and the observed part when absent (a study made before
+/// calibrations, the bias or the shrink, or run without them); and the folder its truth came
+/// from (study.gt's; the study's own parent folder when absent).
 struct Applied {
     model_sd: f64,
-    bias: f64,
+    cup: CupParams,
     estimator: CupEstimator,
+    source: PathBuf,
+}
+
+impl Applied {
+    /// The estimator's own diameter and resampled SD behind a study's corrected cup and its
+    /// resampled SD: the correction undone (`CupParams::corrected` is linear, with slope one
+    /// less the shrink).
+    fn undo(&self, cup_mm: f64, resample_sd_mm: f64) -> (f64, f64) {
+        let c = &self.cup;
+        let keep = 1.0 - c.shrink;
+        (
+            (cup_mm + c.bias_mm - c.shrink * c.shrink_to_mm) / keep,
+            resample_sd_mm / keep,
+        )
+    }
 }
 
 fn applied_in(dir: &Path) -> Result<Applied, String> {
     let mut a = Applied {
         model_sd: 0.0,
-        bias: 0.0,
+        cup: CupParams::default(),
         estimator: CupEstimator::ObservedPart,
+        source: dir.parent().map(Path::to_path_buf).unwrap_or_default(),
     };
     let p = dir.join("summary.json");
     let Ok(text) = std::fs::read_to_string(&p) else {
@@ -106,11 +131,26 @@ fn applied_in(dir: &Path) -> Result<Applied, String> {
         |s| s.is_finite() && s >= 0.0,
         "a finite SD >= 0",
     )?;
-    a.bias = number(
+    a.cup.bias_mm = number(
         "cup_bias_mm",
         |s| s.is_finite() && s.abs() <= 10.0,
         "finite, within +-10 mm",
     )?;
+    a.cup.shrink = number(
+        "cup_shrink",
+        |s| s.is_finite() && (0.0..=acetab::pipeline::MAX_SHRINK).contains(&s),
+        "finite, 0 to 0.9",
+    )?;
+    a.cup.shrink_to_mm = number(
+        "cup_shrink_to_mm",
+        |s| s.is_finite() && (0.0..=200.0).contains(&s),
+        "finite, 0 to 200 mm",
+    )?;
+    if let Some(gt) = v.pointer("/study/gt").and_then(|g| g.as_str()) {
+        if let Some(parent) = Path::new(gt).parent() {
+            a.source = parent.to_path_buf();
+        }
+    }
     if let Some(x) = v.pointer("/study/cup_estimator") {
         a.estimator = x.as_str().and_then(CupEstimator::parse).ok_or_else(|| {
             format!(
@@ -122,18 +162,28 @@ fn applied_in(dir: &Path) -> Result<Applied, String> {
     Ok(a)
 }
 
+/// What the flags ask to learn.
+pub fn what(no_bias: bool, shrink: bool) -> Learn {
+    match (no_bias, shrink) {
+        (_, true) => Learn::BiasAndShrink,
+        (true, false) => Learn::SdOnly,
+        (false, false) => Learn::Bias,
+    }
+}
+
 /// Learn a calibration from the `method` runs of the studies under `study`, leaving out the
-/// subjects `leave_out` (with the bias unless `no_bias`); `note` is appended to
-/// `learned_from`. The studies must share one cup estimator, which the calibration is for.
+/// subjects `leave_out` (learning `what`); `note` is appended to `learned_from`. The studies
+/// must share one cup estimator, which the calibration is for.
 pub fn learn(
     study: &[PathBuf],
     leave_out: &[String],
     method: StudyMethod,
-    no_bias: bool,
+    what: Learn,
     note: Option<&str>,
 ) -> Result<CupCalibration, String> {
     let dirs = study_dirs(study)?;
-    let mut pairs = Vec::new();
+    let mut runs = Vec::new();
+    let mut sources: Vec<PathBuf> = Vec::new();
     let mut used = 0;
     let mut estimator: Option<(CupEstimator, &Path)> = None;
     for d in &dirs {
@@ -156,26 +206,45 @@ pub fn learn(
             Some(_) => {}
         }
         let model = applied.model_sd;
+        let source = match sources.iter().position(|s| *s == applied.source) {
+            Some(k) => k,
+            None => {
+                sources.push(applied.source.clone());
+                sources.len() - 1
+            }
+        };
         let rows = read_csv(&d.join("runs.csv")).map_err(|e| e.to_string())?;
         for r in rows
             .iter()
             .filter(|r| r.method == method && r.error.is_empty())
         {
             // The resampled SD alone: the study's SD without the model error it already held;
-            // the error of the estimator itself, without the bias the study took off.
+            // the estimator's own diameter, without the correction the study made.
             let resample = (r.cup_sd_mm * r.cup_sd_mm - model * model).max(0.0).sqrt();
-            pairs.push((r.cup_error_mm() + applied.bias, resample));
+            let (fitted_mm, resample_sd_mm) = applied.undo(r.cup_diameter_mm, resample);
+            runs.push(TrainingRun {
+                fitted_mm,
+                truth_mm: r.gt_cup_diameter_mm,
+                resample_sd_mm,
+                source,
+            });
         }
     }
+    let pairs = &runs;
     let estimator = estimator.map_or(CupEstimator::ObservedPart, |(e, _)| e);
-    let mut from = format!("{} {} runs in {used} studies", pairs.len(), method.name());
+    let mut from = format!(
+        "{} {} runs in {used} studies from {} sources of truths",
+        pairs.len(),
+        method.name(),
+        sources.len()
+    );
     if !leave_out.is_empty() {
         from += &format!(" (left out: {})", leave_out.join(", "));
     }
     if let Some(n) = note {
         from += &format!(": {n}");
     }
-    CupCalibration::learn(&pairs, estimator, !no_bias, from).map_err(|e| e.to_string())
+    CupCalibration::learn(pairs, estimator, what, from).map_err(|e| e.to_string())
 }
 
 pub fn run(args: CalibrateArgs) -> Result<(), String> {
@@ -184,12 +253,20 @@ pub fn run(args: CalibrateArgs) -> Result<(), String> {
         &args.study,
         &args.leave_out,
         args.method,
-        args.no_bias,
+        what(args.no_bias, args.shrink),
         args.note.as_deref(),
     )?;
     crate::common::write_out_file(&args.out, cal.to_json().as_bytes())?;
+    let shrink = if cal.shrink > 0.0 {
+        format!(
+            ", shrink {:.3} toward {:.2} mm",
+            cal.shrink, cal.shrink_to_mm
+        )
+    } else {
+        String::new()
+    };
     println!(
-        "{} cup: bias {:+.3} mm, model-error SD {:.3} mm from {} runs (training coverage {:.1} %); written to {}",
+        "{} cup: bias {:+.3} mm{shrink}, model-error SD {:.3} mm from {} runs (training coverage {:.1} %); written to {}",
         cal.estimator,
         cal.bias_mm,
         cal.model_sd_mm,

@@ -91,10 +91,14 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
     let catalogue = CupCatalogue::parse(&catalogue).map_err(|e| format!("--catalogue: {e}"))?;
     let mut prm = ReconParams {
         method,
-        cup: CupParams {
-            catalogue,
-            estimator: cup_estimator,
-            bias_mm: cal.bias_mm,
+        cup: {
+            let mut cup = CupParams {
+                catalogue,
+                estimator: cup_estimator,
+                ..Default::default()
+            };
+            cal.correct(&mut cup);
+            cup
         },
         contour_source: contours,
         pose: refine_poses.then(acetab::solve::PoseParams::default),

@@ -132,6 +132,10 @@ pub struct SimulateArgs {
     /// subject.
     #[arg(long, conflicts_with = "calibration")]
     pub calibrate_loso: Option<PathBuf>,
+    /// With --calibrate-loso: learn each mesh's calibration with a shrink (as `acetab
+    /// calibrate --shrink` does).
+    #[arg(long, requires = "calibrate_loso")]
+    pub calibrate_shrink: bool,
     /// Population shape prior for the walls no outline watches: "none" (the bare sphere
     /// prior), "default" (the shipped prior, priors/default.json) or a file from `acetab prior
     /// build`.
@@ -184,6 +188,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         uncertainty_samples,
         calibration,
         calibrate_loso,
+        calibrate_shrink,
         prior,
         cup_estimator,
         prior_leave_out,
@@ -259,10 +264,13 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
                 }
             },
             pose: refine_poses.then(acetab::solve::PoseParams::default),
-            cup: acetab::pipeline::CupParams {
-                estimator: cup_estimator,
-                bias_mm: cal.bias_mm,
-                ..Default::default()
+            cup: {
+                let mut cup = acetab::pipeline::CupParams {
+                    estimator: cup_estimator,
+                    ..Default::default()
+                };
+                cal.correct(&mut cup);
+                cup
             },
             ..Default::default()
         },
@@ -307,7 +315,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         calibration,
         adapter: dev.as_ref().map(|d| d.describe()),
         adapter_json: dev.as_ref().map(|d| d.adapter_json()),
-        loso: calibrate_loso,
+        loso: calibrate_loso.map(|d| (d, crate::calibrate::what(false, calibrate_shrink))),
         prior: PriorChoice {
             arg: prior,
             leave_out: prior_leave_out,
@@ -346,8 +354,9 @@ struct Study<'a> {
     adapter: Option<String>,
     /// The adapter's name, driver, device type and API (summary.json's `engine`).
     adapter_json: Option<serde_json::Value>,
-    /// `--calibrate-loso`: the studies each mesh's calibration is learned from.
-    loso: Option<PathBuf>,
+    /// `--calibrate-loso`: the studies each mesh's calibration is learned from, and what is
+    /// learned.
+    loso: Option<(PathBuf, acetab::pipeline::Learn)>,
     /// The prior asked for.
     prior: PriorChoice,
     runs: usize,
@@ -491,13 +500,13 @@ impl Study<'_> {
         // Leave-one-subject-out: this mesh's calibration, learned without its subject.
         let mut own = cfg.clone();
         let mut calibration = calibration.clone();
-        if let Some(train) = loso {
+        if let Some((train, what)) = loso {
             let subject = crate::calibrate::subject_of(Path::new(gt));
             let cal = crate::calibrate::learn(
                 std::slice::from_ref(train),
                 std::slice::from_ref(&subject),
                 acetab::study::StudyMethod::Srvf,
-                false,
+                *what,
                 None,
             )
             .map_err(|e| format!("--calibrate-loso: {e}"))?;
@@ -510,7 +519,7 @@ impl Study<'_> {
                     used.name()
                 ));
             }
-            own.params.cup.bias_mm = cal.bias_mm;
+            cal.correct(&mut own.params.cup);
             if let Some(up) = own.uncertainty.as_mut() {
                 up.model_sd_mm = cal.model_sd_mm;
             }
@@ -585,6 +594,8 @@ impl Study<'_> {
             "cup_model_sd_mm": cfg.uncertainty.as_ref().map(|u| u.model_sd_mm),
             "cup_estimator": cfg.params.cup.estimator.name(),
             "cup_bias_mm": cfg.params.cup.bias_mm,
+            "cup_shrink": cfg.params.cup.shrink,
+            "cup_shrink_to_mm": cfg.params.cup.shrink_to_mm,
             "calibration": calibration,
             "prior": prior_from,
             "provenance": Provenance::here(kernels.name(), adapter.clone(), cfg.threads, seed),
