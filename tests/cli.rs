@@ -108,8 +108,21 @@ fn a_case_file_reconstructs_through_the_cli() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let d = v["cup"]["diameter_mm"].as_f64().unwrap();
-    // The phantom's fitted sphere is 52.45 mm across.
-    assert!((d - 52.45).abs() < 2.0, "cup {d}");
+    // The phantom's fitted sphere is 52.45 mm across. The shipped realistic calibration, used by
+    // default, corrects the fitted cup (its bias and shrink, reported beside it): undone, the
+    // fitted cup is the phantom's.
+    let (bias, shrink, to) = (
+        v["cup"]["bias_mm"].as_f64().unwrap(),
+        v["cup"]["shrink"].as_f64().unwrap(),
+        v["cup"]["shrink_to_mm"].as_f64().unwrap(),
+    );
+    let shipped = acetab::pipeline::CupCalibration::shipped_realistic();
+    assert_eq!(
+        (bias, shrink, to),
+        (shipped.bias_mm, shipped.shrink, shipped.shrink_to_mm)
+    );
+    let fitted = (d + bias - shrink * to) / (1.0 - shrink);
+    assert!((fitted - 52.45).abs() < 2.0, "cup {d}, fitted {fitted}");
     // The cup report: a +- and probabilities over the catalogue sizes that sum to one.
     // Where it came from: the version and this command line.
     assert_eq!(v["provenance"]["version"], env!("CARGO_PKG_VERSION"));
@@ -144,7 +157,22 @@ fn a_case_file_reconstructs_through_the_cli() {
         assert!(out.join(f).is_file(), "{f}");
     }
     assert_eq!(v["cup"]["estimator"], "observed-part");
-    assert_eq!(v["cup"]["bias_mm"], 0.0);
+    assert_eq!(v["cup"]["bias_mm"], shipped.bias_mm);
+    // The correction is the cup's size, not its geometry: without a calibration the orientation
+    // is the same, the diameter is the fitted one (the companion: another number).
+    let o = bin()
+        .arg("reconstruct")
+        .arg(&case)
+        .args(["--calibration", "none", "--json", "--out"])
+        .arg(dir.join("uncalibrated"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let raw: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(raw["cup"]["orientation"], v["cup"]["orientation"]);
+    let raw_d = raw["cup"]["diameter_mm"].as_f64().unwrap();
+    assert!((raw_d - fitted).abs() < 1e-9, "{raw_d} {fitted}");
+    assert!((raw_d - d).abs() > 0.5, "{raw_d} {d}");
     // The prior-region cup says so, with the shipped realistic calibration's bias; its cup is
     // another number (the companion).
     let o = bin()

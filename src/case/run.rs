@@ -158,17 +158,19 @@ pub fn run_case_with(
                     Err(e) => warnings.push(format!("{name} not drawn: {e}")),
                 }
             }
-            // The result from two viewpoints, coloured by its distance to the cup sphere.
+            // The result from two viewpoints, coloured by its distance to the cup sphere as
+            // fitted (the surface's geometry, before the calibration's size correction).
             #[cfg(feature = "plots")]
             {
-                let c = rec.sphere.center_point();
+                let fitted = &rec.fitted_sphere;
+                let c = fitted.center_point();
                 let dist: Vec<f64> = rec
                     .mesh
                     .vertices
                     .iter()
-                    .map(|v| ((v - c).norm() - rec.sphere.radius).abs())
+                    .map(|v| ((v - c).norm() - fitted.radius).abs())
                     .collect();
-                let axis = crate::report::plots::opening_axis(&rec.mesh, &rec.sphere);
+                let axis = crate::report::plots::opening_axis(&rec.mesh, fitted);
                 match crate::report::plots::surface_views(
                     &rec.mesh,
                     &dist,

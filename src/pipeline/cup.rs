@@ -21,6 +21,9 @@ pub struct CupSpheres {
     /// whole surface's when too few vertices lie in its part; its diameter corrected
     /// (`CupParams::corrected`).
     pub cup: Sphere,
+    /// The estimator's sphere as fitted, before the correction: the cup's geometry (its rim
+    /// lies on it), where `cup` is the size the calibration reads from it.
+    pub fitted: Sphere,
     /// The sphere fitted (robustly) to every vertex.
     pub surface: Sphere,
 }
@@ -44,7 +47,8 @@ pub fn cup_spheres(
         CupEstimator::ObservedPart => observed_part_sphere(mesh, obs),
         CupEstimator::PriorRegion => region.and_then(|(p, c)| prior_region_sphere(mesh, p, &c)),
     };
-    let mut sphere = part.unwrap_or(surface);
+    let fitted = part.unwrap_or(surface);
+    let mut sphere = fitted;
     // `CupParams::corrected` on the radius: without a shrink exactly the bias's half.
     sphere.radius -= 0.5 * (cup.bias_mm + cup.shrink * (sphere.diameter() - cup.shrink_to_mm));
     if !(sphere.radius > 0.0) {
@@ -53,6 +57,7 @@ pub fn cup_spheres(
     }
     Ok(CupSpheres {
         cup: sphere,
+        fitted,
         surface,
     })
 }
@@ -186,6 +191,8 @@ mod tests {
         let less = cup_spheres(&m, &[], &cup, region).unwrap();
         assert!((plain.cup.diameter() - less.cup.diameter() - 0.8).abs() < 1e-12);
         assert_eq!(plain.cup.center, less.cup.center);
+        // The fitted sphere is the estimator's, before the correction.
+        assert_eq!(less.fitted, plain.cup);
         // Companion: without correspondences the observed part is empty, so the observed-part
         // estimator falls back to the whole surface, another sphere.
         cup.estimator = CupEstimator::ObservedPart;

@@ -301,6 +301,9 @@ pub struct Reconstruction {
     /// observe, the vertices the last correspondences tie to the outlines (see
     /// `observed_part_sphere`); the whole surface's fit when too few.
     pub sphere: Sphere,
+    /// The same sphere before the calibration's bias and shrink (`CupParams::corrected`): the
+    /// cup's geometry, which the rim's orientation is read from; `sphere` is the size.
+    pub fitted_sphere: Sphere,
     /// The sphere fitted (robustly) to every reconstructed vertex.
     pub surface_sphere: Sphere,
     /// The cup's nearest catalogue size.
@@ -745,7 +748,7 @@ fn finish(
     log.reprojection_rms_px = rms_px(&mesh, &poses.cams_now, &obs);
     log.correspondences = obs.len();
     let spheres = cup_spheres(&mesh, &obs, &ctx.prm.cup, log.prior_region(ctx.prm))?;
-    let (sphere, surface_sphere) = (spheres.cup, spheres.surface);
+    let (sphere, fitted_sphere, surface_sphere) = (spheres.cup, spheres.fitted, spheres.surface);
     let cup = ctx.prm.cup.catalogue.nearest(sphere.diameter());
     let initial = input.init.place(input.template.mesh());
     let final_contours = ctx.contours(&mesh, &poses.cams_now)?;
@@ -757,6 +760,7 @@ fn finish(
         mesh,
         initial,
         sphere,
+        fitted_sphere,
         surface_sphere,
         cup,
         log,

@@ -323,7 +323,7 @@ pub fn cup_report(
     let chosen = prm.cup.catalogue.nearest(diameter).catalogue_mm;
     let probabilities = size_probabilities(&prm.cup.catalogue.sizes_mm, chosen, &diam, model);
     let (orientation, orientation_note) =
-        match crate::solve::rim_orientation(&rec.cameras, observed, &rec.sphere) {
+        match crate::solve::rim_orientation(&rec.cameras, observed, &rec.fitted_sphere) {
             Ok(o) => (Some(o), None),
             Err(e) => (None, Some(e.to_string())),
         };

@@ -267,7 +267,7 @@ fn run_prepared(
         }
     }
     let orientation = orientation
-        .unwrap_or_else(|| rim_orientation(&rec.cameras, input.observed, &rec.sphere).ok());
+        .unwrap_or_else(|| rim_orientation(&rec.cameras, input.observed, &rec.fitted_sphere).ok());
     if let Some(o) = orientation {
         row.inclination_deg = o.inclination_deg;
         row.anteversion_deg = o.anteversion_deg;
