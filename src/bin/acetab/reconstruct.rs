@@ -37,9 +37,10 @@ pub struct ReconstructArgs {
     /// (one resample has no spread).
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(2..=1000))]
     pub uncertainty_samples: u64,
-    /// Cup calibration (JSON from `acetab calibrate`; the model-error SD added to the
-    /// resamples' spread), or "none" (the resamples alone). Default: the shipped calibration
-    /// learned under the realistic protocol (calibration/realistic.json).
+    /// Cup calibration (JSON from `acetab calibrate`: the correction of the fitted cup, its
+    /// bias and shrink, and the model-error SD added to the resamples' spread), or "none" (the
+    /// fitted cup and the resamples alone). Default: the shipped calibration learned under the
+    /// realistic protocol (calibration/realistic.json).
     #[arg(long)]
     pub calibration: Option<String>,
     /// Population shape prior for the walls no outline watches: "none" (the bare sphere

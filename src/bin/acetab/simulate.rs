@@ -119,9 +119,9 @@ pub struct SimulateArgs {
     /// turns it off.
     #[arg(long, default_value_t = 16, value_parser = crate::common::study_samples)]
     pub uncertainty_samples: u64,
-    /// Cup calibration (JSON from `acetab calibrate`: the cup estimator's bias and the
-    /// model-error SD added to the resamples' spread), or "none" (the resamples alone, no
-    /// bias). Default: the shipped calibration of the protocol and cup estimator
+    /// Cup calibration (JSON from `acetab calibrate`: the cup estimator's bias and shrink and
+    /// the model-error SD added to the resamples' spread), or "none" (the resamples alone, no
+    /// correction). Default: the shipped calibration of the protocol and cup estimator
     /// (calibration/ideal.json, realistic.json, ideal-prior-region.json or
     /// realistic-prior-region.json).
     #[arg(long)]
