@@ -995,8 +995,16 @@ fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
 
 /// A study folder `dir` of `n` srvf runs with cup errors `err(k)` and resampled SDs 0.2 mm.
 fn study_of(dir: &Path, n: usize, err: impl Fn(usize) -> f64) {
-    let rows: Vec<acetab::study::Row> = (0..n)
-        .map(|k| {
+    let cups: Vec<(f64, f64)> = (0..n).map(|k| (50.0 + err(k), 50.0)).collect();
+    write_runs(dir, &cups, 0.2);
+}
+
+/// runs.csv in `dir`: srvf runs with these (cup, truth) diameters and resampled SDs `sd`.
+fn write_runs(dir: &Path, cups: &[(f64, f64)], sd: f64) {
+    let rows: Vec<acetab::study::Row> = cups
+        .iter()
+        .enumerate()
+        .map(|(k, &(cup, truth))| {
             let t = acetab::study::Task {
                 method: acetab::study::StudyMethod::Srvf,
                 level: 1,
@@ -1004,9 +1012,9 @@ fn study_of(dir: &Path, n: usize, err: impl Fn(usize) -> f64) {
                 seed: k as u64,
             };
             let mut r = acetab::study::Row::failed(&t, "");
-            r.gt_cup_diameter_mm = 50.0;
-            r.cup_diameter_mm = 50.0 + err(k);
-            r.cup_sd_mm = 0.2;
+            r.gt_cup_diameter_mm = truth;
+            r.cup_diameter_mm = cup;
+            r.cup_sd_mm = sd;
             r
         })
         .collect();
@@ -1160,25 +1168,7 @@ fn calibrate_learns_the_model_sd_leaves_a_subject_out_and_names_bad_input() {
 /// A study folder `dir` of srvf runs with these (cup, truth) diameters and resampled SDs `sd`,
 /// and a summary.json whose study holds `study` (its truth's path `gt`, a correction made).
 fn study_with(dir: &Path, cups: &[(f64, f64)], sd: f64, study: serde_json::Value) {
-    let rows: Vec<acetab::study::Row> = cups
-        .iter()
-        .enumerate()
-        .map(|(k, &(cup, truth))| {
-            let t = acetab::study::Task {
-                method: acetab::study::StudyMethod::Srvf,
-                level: 1,
-                run: k,
-                seed: k as u64,
-            };
-            let mut r = acetab::study::Row::failed(&t, "");
-            r.gt_cup_diameter_mm = truth;
-            r.cup_diameter_mm = cup;
-            r.cup_sd_mm = sd;
-            r
-        })
-        .collect();
-    std::fs::create_dir_all(dir).unwrap();
-    acetab::study::write_csv(&rows, &dir.join("runs.csv")).unwrap();
+    write_runs(dir, cups, sd);
     let summary = serde_json::json!({ "study": study });
     std::fs::write(dir.join("summary.json"), summary.to_string()).unwrap();
 }

@@ -600,19 +600,18 @@ mod tests {
             .collect()
     }
 
+    /// The observed part's calibration learned from `runs`.
+    fn learned(runs: &[TrainingRun], what: Learn) -> CupCalibration {
+        CupCalibration::learn(runs, CupEstimator::ObservedPart, what, "t".into()).unwrap()
+    }
+
     #[test]
     fn the_shrink_is_one_less_the_slope_from_fitted_to_truth() {
         // An estimator that doubles each cup's departure from 50 mm and adds 1 mm: the line from
         // fitted to truth has slope 1/2, so half the departure is taken off, and every corrected
         // cup is its truth.
         let runs = spread(60, 0, |t| 51.0 + 2.0 * (t - 50.0));
-        let c = CupCalibration::learn(
-            &runs,
-            CupEstimator::ObservedPart,
-            Learn::BiasAndShrink,
-            "t".into(),
-        )
-        .unwrap();
+        let c = learned(&runs, Learn::BiasAndShrink);
         assert!((c.shrink - 0.5).abs() < 1e-12, "{c:?}");
         let mut cup = CupParams::default();
         c.correct(&mut cup);
@@ -625,20 +624,13 @@ mod tests {
         // The resampled SD shrinks with the cup: covering the (zero) errors needs no model SD.
         assert!(c.model_sd_mm < 1e-9, "{c:?}");
         // Companion: the bias alone leaves the doubled departures, which the model SD must cover.
-        let b = CupCalibration::learn(&runs, CupEstimator::ObservedPart, Learn::Bias, "t".into())
-            .unwrap();
+        let b = learned(&runs, Learn::Bias);
         assert_eq!((b.shrink, b.shrink_to_mm), (0.0, 0.0));
         assert!(b.model_sd_mm > 3.0, "{b:?}");
         // An estimator that halves the departures would need a slope of 2: a shrink never
         // stretches, so it stays 0 (and the bias is the mean error).
         let flat = spread(60, 0, |t| 50.0 + 0.5 * (t - 50.0));
-        let f = CupCalibration::learn(
-            &flat,
-            CupEstimator::ObservedPart,
-            Learn::BiasAndShrink,
-            "t".into(),
-        )
-        .unwrap();
+        let f = learned(&flat, Learn::BiasAndShrink);
         assert_eq!(f.shrink, 0.0, "{f:?}");
     }
 
@@ -649,8 +641,7 @@ mod tests {
         let mut runs = spread(200, 0, |t| t + 3.0);
         runs.extend(spread(20, 1, |t| t + 1.0));
         for what in [Learn::Bias, Learn::BiasAndShrink] {
-            let c =
-                CupCalibration::learn(&runs, CupEstimator::ObservedPart, what, "t".into()).unwrap();
+            let c = learned(&runs, what);
             assert!((c.bias_mm - 2.0).abs() < 1e-9, "{c:?}");
         }
         // Companion: the same runs as one source give the pooled mean.
@@ -658,8 +649,7 @@ mod tests {
             .iter()
             .map(|r| TrainingRun { source: 0, ..*r })
             .collect();
-        let c = CupCalibration::learn(&pooled, CupEstimator::ObservedPart, Learn::Bias, "t".into())
-            .unwrap();
+        let c = learned(&pooled, Learn::Bias);
         assert!(
             (c.bias_mm - (200.0 * 3.0 + 20.0) / 220.0).abs() < 1e-9,
             "{c:?}"
