@@ -34,8 +34,8 @@ pub type PriorRegion<'a> = (&'a ShapePrior, Point3<f64>);
 
 /// The cup estimator `cup` of `mesh` under the correspondences `obs` (with their robust
 /// weights): its part's sphere, falling back to the whole surface's, the diameter corrected by
-/// the calibration's bias and shrink (`CupParams::corrected`). `region` is needed by `CupEstimator::PriorRegion` (without it, the whole
-/// surface's sphere).
+/// the calibration's bias and shrink (`CupParams::corrected`). `region` is needed by
+/// `CupEstimator::PriorRegion` (without it, the whole surface's sphere).
 pub fn cup_spheres(
     mesh: &Mesh,
     obs: &[Observation],
