@@ -4,7 +4,9 @@
 //! from patient to patient and dominates the error (docs/population.md: resampled SDs of
 //! 0.1-0.3 mm against cup errors of about 1.2 mm RMS). That part is learned from studies on
 //! acetabula whose cup is known: a model-error SD added in quadrature, chosen so that 68 % of
-//! the training runs' errors lie within the total SD (`learn_model_sd`).
+//! the training runs' errors lie within the total SD (`CupCalibration::learn`). The same
+//! training runs give the estimator's bias and, where its error is large against the spread of
+//! acetabula, a shrink toward their mean (`CupParams::corrected`).
 
 use super::params::{CupEstimator, CupParams, MAX_SHRINK};
 use serde::{Deserialize, Serialize};

@@ -1,7 +1,7 @@
 //! The cup sphere, the one estimator of the cup: fitted to the part of the result the X-rays
 //! observe (`CupEstimator::ObservedPart`, the default) or, with a population prior, to the part
-//! most acetabula have (`CupEstimator::PriorRegion`), its diameter less the estimator's learned
-//! bias (`CupParams::bias_mm`). `reconstruct` reports it and the uncertainty's resamples go
+//! most acetabula have (`CupEstimator::PriorRegion`), its diameter corrected by the calibration
+//! (`CupParams::corrected`: the estimator's learned bias and shrink). `reconstruct` reports it and the uncertainty's resamples go
 //! through it too, so the +- and the size probabilities describe the number they stand beside.
 
 use super::params::{CupEstimator, CupParams};
