@@ -1337,6 +1337,20 @@ fn calibrate_learns_a_shrink_with_each_source_of_truths_weighing_the_same() {
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("cup_shrink = 1.5"), "{err}");
     assert!(!dir.join("bad.json").exists());
+    // A shrink without the diameter it pulls toward cannot be undone: named.
+    std::fs::write(
+        again.join("b1_lhip/summary.json"),
+        r#"{"study": {"cup_shrink": 0.3}}"#,
+    )
+    .unwrap();
+    let o = learn(&again, &["--shrink"], &dir.join("bad.json"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("study.cup_shrink_to_mm = 0") && err.contains("where shrink > 0"),
+        "{err}"
+    );
+    assert!(!dir.join("bad.json").exists());
     let o = learn(&pop, &["--shrink", "--no-bias"], &dir.join("bad.json"));
     assert_eq!(o.status.code(), Some(2));
     assert!(!dir.join("bad.json").exists());

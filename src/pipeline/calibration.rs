@@ -673,6 +673,17 @@ mod tests {
                 .to_string();
             assert!(e.contains(field) && e.contains("c.json"), "{e}");
         }
+        // A shrink without the diameter it pulls toward (a file that leaves `shrink_to_mm` out)
+        // would cut every cup by its share: refused, naming the field.
+        let mut v: serde_json::Value = serde_json::from_str(&ok).unwrap();
+        v["shrink"] = serde_json::json!(0.3);
+        let e = CupCalibration::parse(&v.to_string(), Path::new("c.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("shrink_to_mm = 0") && e.contains("where shrink > 0"),
+            "{e}"
+        );
         // Companion: a shrink at the edge is read.
         let mut v: serde_json::Value = serde_json::from_str(&ok).unwrap();
         v["shrink"] = serde_json::json!(MAX_SHRINK);

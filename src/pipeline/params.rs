@@ -219,6 +219,15 @@ impl CupParams {
         if !(self.shrink_to_mm.is_finite() && (0.0..=200.0).contains(&self.shrink_to_mm)) {
             return Some(("shrink_to_mm", self.shrink_to_mm, "finite, 0 to 200 mm"));
         }
+        // A shrink pulls toward a cup: toward 0 mm (a file that leaves the field out) every cup
+        // would be cut by the shrink's share.
+        if self.shrink > 0.0 && !(20.0..=100.0).contains(&self.shrink_to_mm) {
+            return Some((
+                "shrink_to_mm",
+                self.shrink_to_mm,
+                "a cup diameter, 20 to 100 mm, where shrink > 0",
+            ));
+        }
         None
     }
 }
@@ -468,6 +477,13 @@ mod tests {
             (
                 "cup.shrink_to_mm",
                 Box::new(|p| p.cup.shrink_to_mm = f64::NAN),
+            ),
+            (
+                "cup.shrink_to_mm",
+                Box::new(|p| {
+                    p.cup.shrink = 0.3;
+                    p.cup.shrink_to_mm = 0.0;
+                }),
             ),
             (
                 "cup.estimator",

@@ -146,6 +146,12 @@ fn applied_in(dir: &Path) -> Result<Applied, String> {
         |s| s.is_finite() && (0.0..=200.0).contains(&s),
         "finite, 0 to 200 mm",
     )?;
+    if let Some((field, value, expected)) = a.cup.invalid_correction() {
+        return Err(format!(
+            "{}: study.cup_{field} = {value}: must be {expected}",
+            p.display()
+        ));
+    }
     if let Some(gt) = v.pointer("/study/gt").and_then(|g| g.as_str()) {
         if let Some(parent) = Path::new(gt).parent() {
             a.source = parent.to_path_buf();
