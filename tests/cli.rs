@@ -1281,8 +1281,7 @@ fn calibrate_learns_a_shrink_with_each_source_of_truths_weighing_the_same() {
     // shrunk with them, the correction in summary.json) give the same calibration back: the
     // correction a study made is undone before learning.
     let again = dir.join("again");
-    let mut cup = acetab::pipeline::CupParams::default();
-    cal.correct(&mut cup);
+    let cup = cal.correcting(acetab::pipeline::CupParams::default());
     for (name, n, offset, source) in [
         ("b1_lhip", 60, 3.0, "bone"),
         ("b2_rhip", 60, 3.0, "bone"),

@@ -159,15 +159,11 @@ impl ReconOptions {
         )?;
         let mut prm = ReconParams {
             method: method_of(&self.method)?,
-            cup: {
-                let mut cup = CupParams {
-                    catalogue,
-                    estimator,
-                    ..Default::default()
-                };
-                cal.correct(&mut cup);
-                cup
-            },
+            cup: cal.correcting(CupParams {
+                catalogue,
+                estimator,
+                ..Default::default()
+            }),
             contour_source,
             pose: self.refine_poses.then(acetab::solve::PoseParams::default),
             ..Default::default()
@@ -447,14 +443,10 @@ fn simulate_json(py: Python<'_>, options_json: &str) -> PyResult<String> {
                 shape_prior: shape_prior(&o.prior)?,
                 ..Default::default()
             },
-            cup: {
-                let mut cup = CupParams {
-                    estimator,
-                    ..Default::default()
-                };
-                cal.correct(&mut cup);
-                cup
-            },
+            cup: cal.correcting(CupParams {
+                estimator,
+                ..Default::default()
+            }),
             ..Default::default()
         },
         uncertainty: (o.uncertainty_samples > 0).then(|| UncertaintyParams {

@@ -308,10 +308,13 @@ impl CupCalibration {
     }
 
     /// `cup` with this calibration's bias and shrink.
-    pub fn correct(&self, cup: &mut CupParams) {
-        cup.bias_mm = self.bias_mm;
-        cup.shrink = self.shrink;
-        cup.shrink_to_mm = self.shrink_to_mm;
+    pub fn correcting(&self, cup: CupParams) -> CupParams {
+        CupParams {
+            bias_mm: self.bias_mm,
+            shrink: self.shrink,
+            shrink_to_mm: self.shrink_to_mm,
+            ..cup
+        }
     }
 
     /// Learn the calibration of `estimator` from training runs (`TrainingRun`: what the
@@ -615,8 +618,7 @@ mod tests {
         let runs = spread(60, 0, |t| 51.0 + 2.0 * (t - 50.0));
         let c = learned(&runs, Learn::BiasAndShrink);
         assert!((c.shrink - 0.5).abs() < 1e-12, "{c:?}");
-        let mut cup = CupParams::default();
-        c.correct(&mut cup);
+        let cup = c.correcting(CupParams::default());
         for r in &runs {
             assert!(
                 (cup.corrected(r.fitted_mm) - r.truth_mm).abs() < 1e-9,

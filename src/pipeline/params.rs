@@ -208,6 +208,12 @@ impl CupParams {
         fitted - self.bias_mm - self.shrink * (fitted - self.shrink_to_mm)
     }
 
+    /// The fitted diameter behind a `corrected` one (the correction undone; a shrink below 1
+    /// keeps it one to one).
+    pub fn uncorrected(&self, corrected: f64) -> f64 {
+        (corrected + self.bias_mm - self.shrink * self.shrink_to_mm) / (1.0 - self.shrink)
+    }
+
     /// The first correction field that cannot be used (field, value, what it must be).
     pub fn invalid_correction(&self) -> Option<(&'static str, f64, &'static str)> {
         if !(self.bias_mm.is_finite() && self.bias_mm.abs() <= 10.0) {

@@ -95,11 +95,9 @@ impl Applied {
     /// resampled SD: the correction undone (`CupParams::corrected` is linear, with slope one
     /// less the shrink).
     fn undo(&self, cup_mm: f64, resample_sd_mm: f64) -> (f64, f64) {
-        let c = &self.cup;
-        let keep = 1.0 - c.shrink;
         (
-            (cup_mm + c.bias_mm - c.shrink * c.shrink_to_mm) / keep,
-            resample_sd_mm / keep,
+            self.cup.uncorrected(cup_mm),
+            resample_sd_mm / (1.0 - self.cup.shrink),
         )
     }
 }
@@ -131,21 +129,10 @@ fn applied_in(dir: &Path) -> Result<Applied, String> {
         |s| s.is_finite() && s >= 0.0,
         "a finite SD >= 0",
     )?;
-    a.cup.bias_mm = number(
-        "cup_bias_mm",
-        |s| s.is_finite() && s.abs() <= 10.0,
-        "finite, within +-10 mm",
-    )?;
-    a.cup.shrink = number(
-        "cup_shrink",
-        |s| s.is_finite() && (0.0..=acetab::pipeline::MAX_SHRINK).contains(&s),
-        "finite, 0 to 0.9",
-    )?;
-    a.cup.shrink_to_mm = number(
-        "cup_shrink_to_mm",
-        |s| s.is_finite() && (0.0..=200.0).contains(&s),
-        "finite, 0 to 200 mm",
-    )?;
+    // The correction's fields as numbers, then judged together (`CupParams::invalid_correction`).
+    a.cup.bias_mm = number("cup_bias_mm", |_| true, "a number")?;
+    a.cup.shrink = number("cup_shrink", |_| true, "a number")?;
+    a.cup.shrink_to_mm = number("cup_shrink_to_mm", |_| true, "a number")?;
     if let Some((field, value, expected)) = a.cup.invalid_correction() {
         return Err(format!(
             "{}: study.cup_{field} = {value}: must be {expected}",
@@ -236,11 +223,10 @@ pub fn learn(
             });
         }
     }
-    let pairs = &runs;
     let estimator = estimator.map_or(CupEstimator::ObservedPart, |(e, _)| e);
     let mut from = format!(
         "{} {} runs in {used} studies from {} sources of truths",
-        pairs.len(),
+        runs.len(),
         method.name(),
         sources.len()
     );
@@ -250,7 +236,7 @@ pub fn learn(
     if let Some(n) = note {
         from += &format!(": {n}");
     }
-    CupCalibration::learn(pairs, estimator, what, from).map_err(|e| e.to_string())
+    CupCalibration::learn(&runs, estimator, what, from).map_err(|e| e.to_string())
 }
 
 pub fn run(args: CalibrateArgs) -> Result<(), String> {

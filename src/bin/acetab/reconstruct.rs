@@ -92,15 +92,11 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
     let catalogue = CupCatalogue::parse(&catalogue).map_err(|e| format!("--catalogue: {e}"))?;
     let mut prm = ReconParams {
         method,
-        cup: {
-            let mut cup = CupParams {
-                catalogue,
-                estimator: cup_estimator,
-                ..Default::default()
-            };
-            cal.correct(&mut cup);
-            cup
-        },
+        cup: cal.correcting(CupParams {
+            catalogue,
+            estimator: cup_estimator,
+            ..Default::default()
+        }),
         contour_source: contours,
         pose: refine_poses.then(acetab::solve::PoseParams::default),
         ..Default::default()

@@ -264,14 +264,10 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
                 }
             },
             pose: refine_poses.then(acetab::solve::PoseParams::default),
-            cup: {
-                let mut cup = acetab::pipeline::CupParams {
-                    estimator: cup_estimator,
-                    ..Default::default()
-                };
-                cal.correct(&mut cup);
-                cup
-            },
+            cup: cal.correcting(acetab::pipeline::CupParams {
+                estimator: cup_estimator,
+                ..Default::default()
+            }),
             ..Default::default()
         },
         geometry: XrayGeometry {
@@ -519,7 +515,7 @@ impl Study<'_> {
                     used.name()
                 ));
             }
-            cal.correct(&mut own.params.cup);
+            own.params.cup = cal.correcting(own.params.cup.clone());
             if let Some(up) = own.uncertainty.as_mut() {
                 up.model_sd_mm = cal.model_sd_mm;
             }
