@@ -476,6 +476,18 @@ mod tests {
         ] {
             assert_eq!(c.cup_estimator(), Some(CupEstimator::PriorRegion));
         }
+        // Every file in calibration/, the ones a user names by path too (other views'), reads.
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("calibration");
+        let mut read = 0;
+        for e in std::fs::read_dir(&dir).unwrap() {
+            let path = e.unwrap().path();
+            if path.extension().is_some_and(|x| x == "json") {
+                let c = CupCalibration::read(&path).unwrap_or_else(|e| panic!("{e}"));
+                assert!(c.model_sd_mm > 0.0 && c.runs >= MIN_TRAINING_RUNS, "{c:?}");
+                read += 1;
+            }
+        }
+        assert!(read >= 5, "{read} calibration files in {}", dir.display());
     }
 
     #[test]
