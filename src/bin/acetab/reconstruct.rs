@@ -40,7 +40,8 @@ pub struct ReconstructArgs {
     /// Cup calibration (JSON from `acetab calibrate`: the correction of the fitted cup, its
     /// bias and shrink, and the model-error SD added to the resamples' spread), or "none" (the
     /// fitted cup and the resamples alone). Default: the shipped calibration learned under the
-    /// realistic protocol (calibration/realistic.json).
+    /// realistic protocol with the paper's views (calibration/realistic.json); for the AP and
+    /// the two Judet obliques, calibration/realistic-judet.json.
     #[arg(long)]
     pub calibration: Option<String>,
     /// Population shape prior for the walls no outline watches: "none" (the bare sphere
