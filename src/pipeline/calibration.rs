@@ -462,12 +462,27 @@ mod tests {
 
     #[test]
     fn the_shipped_calibrations_parse() {
+        // Every file in calibration/ reads: the built-in ones and those a user names by path
+        // (other views', as realistic-judet.json).
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("calibration");
+        let mut on_disk = Vec::new();
+        for e in std::fs::read_dir(&dir).unwrap() {
+            let path = e.unwrap().path();
+            if path.extension().is_some_and(|x| x == "json") {
+                on_disk.push(CupCalibration::read(&path).unwrap_or_else(|e| panic!("{e}")));
+            }
+        }
+        let read = on_disk.len();
+        assert!(read >= 5, "{read} calibration files in {}", dir.display());
         for c in [
             CupCalibration::shipped_ideal(),
             CupCalibration::shipped_realistic(),
             CupCalibration::shipped_ideal_prior_region(),
             CupCalibration::shipped_realistic_prior_region(),
-        ] {
+        ]
+        .into_iter()
+        .chain(on_disk)
+        {
             assert!(c.model_sd_mm > 0.0 && c.runs >= MIN_TRAINING_RUNS, "{c:?}");
         }
         for c in [
@@ -476,18 +491,6 @@ mod tests {
         ] {
             assert_eq!(c.cup_estimator(), Some(CupEstimator::PriorRegion));
         }
-        // Every file in calibration/, the ones a user names by path too (other views'), reads.
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("calibration");
-        let mut read = 0;
-        for e in std::fs::read_dir(&dir).unwrap() {
-            let path = e.unwrap().path();
-            if path.extension().is_some_and(|x| x == "json") {
-                let c = CupCalibration::read(&path).unwrap_or_else(|e| panic!("{e}"));
-                assert!(c.model_sd_mm > 0.0 && c.runs >= MIN_TRAINING_RUNS, "{c:?}");
-                read += 1;
-            }
-        }
-        assert!(read >= 5, "{read} calibration files in {}", dir.display());
     }
 
     #[test]
