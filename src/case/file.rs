@@ -464,7 +464,11 @@ impl CaseFile {
                     (w, h, _) => return Err(field_err(
                         path,
                         f("width/height"),
-                        format!("{w:?}x{h:?}"),
+                        {
+                            let or_missing =
+                                |x: Option<u32>| x.map_or("missing".to_string(), |x| x.to_string());
+                            format!("width {}, height {}", or_missing(w), or_missing(h))
+                        },
                         "give both width and height, or neither with an image to take them from",
                     )),
                 };
