@@ -1114,6 +1114,33 @@ fn calibrate_learns_the_model_sd_leaves_a_subject_out_and_names_bad_input() {
     assert!(learn(&["--leave-out", "s2"], &again).status.success());
     let cal_a = acetab::pipeline::CupCalibration::read(&again).unwrap();
     assert!((cal_a.bias_mm - 1.005).abs() < 1e-9, "{cal_a:?}");
+    // The views the studies were made with go into the calibration (a study that does not
+    // say leaves it unsaid, as s2's here did above); studies made with different views are not
+    // learned from together, and views that do not read are named.
+    assert_eq!(cal_a.views, None);
+    let judet = serde_json::json!({"study": {"views": ["z:0", "z:45", "z:-45"]}});
+    for s in ["s1_lhip", "s2_rhip"] {
+        std::fs::write(pop.join(s).join("summary.json"), judet.to_string()).unwrap();
+    }
+    let viewed = dir.join("viewed.json");
+    assert!(learn(&[], &viewed).status.success());
+    let cal_v = acetab::pipeline::CupCalibration::read(&viewed).unwrap();
+    assert_eq!(
+        cal_v.views,
+        Some(vec!["z:0".to_string(), "z:45".into(), "z:-45".into()])
+    );
+    for (views, says) in [
+        (r#"["z:0", "z:20", "z:-20"]"#, "one set of views"),
+        (r#"["z:0", "q:20"]"#, "study.views"),
+    ] {
+        let other = format!(r#"{{"study": {{"views": {views}}}}}"#);
+        std::fs::write(pop.join("s2_rhip/summary.json"), other).unwrap();
+        let o = learn(&[], &dir.join("mixed-views.json"));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains(says) && err.contains("s2_rhip"), "{err}");
+        assert!(!dir.join("mixed-views.json").exists());
+    }
     // Studies made with different cup estimators are not learned from together.
     std::fs::write(
         pop.join("s2_rhip/summary.json"),
@@ -1372,7 +1399,7 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
     );
     let study = &s["study"];
     assert_eq!(study["protocol"]["Realistic"]["pose_deg"], 1.0, "{study}");
-    assert_eq!(study["calibration"], "shipped realistic");
+    assert_eq!(study["calibration"], "shipped calibration/realistic.json");
     assert_eq!(study["provenance"]["command_line"][1], "simulate");
     assert_eq!(study["provenance"]["threads"], 1);
     assert_eq!(study["engine"]["backend"], "cpu", "{study}");
@@ -1388,6 +1415,39 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
     // The run's SD holds the model error.
     let rows = acetab::study::read_csv(&out.join("runs.csv")).unwrap();
     assert!(rows[0].cup_sd_mm >= shipped, "{}", rows[0].cup_sd_mm);
+    // A study with the AP and Judet views gets the calibration learned on them (its own bias
+    // and model SD); the paper's calibration given for it is used, and warned of.
+    let judet = ["--protocol", "realistic", "--uncertainty-samples", "0"];
+    let views = ["--views", "z:0,z:45,z:-45"];
+    let s = phantom_study(&[&judet[..], &views[..]].concat(), &dir.join("judet"));
+    let own = acetab::pipeline::CupCalibration::shipped_realistic_judet();
+    assert_eq!(
+        s["study"]["calibration"],
+        "shipped calibration/realistic-judet.json"
+    );
+    assert_eq!(s["study"]["cup_bias_mm"], own.bias_mm);
+    assert_ne!(
+        own.bias_mm,
+        acetab::pipeline::CupCalibration::shipped_realistic().bias_mm
+    );
+    let paper = Path::new(env!("CARGO_MANIFEST_DIR")).join("calibration/realistic.json");
+    let o = bin()
+        .args(["simulate", "--gt", "phantom"])
+        .args(ONE_RUN.split(' '))
+        .args(judet)
+        .args(views)
+        .arg("--calibration")
+        .arg(&paper)
+        .arg("--out")
+        .arg(dir.join("judet-paper"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("warning: the cup calibration") && err.contains("not on z:0,z:45,z:-45"),
+        "{err}"
+    );
     // --realistic sets one error over the defaults, recorded in summary.json; a setting that is
     // not one, a value out of range, or --realistic without the protocol are refused by name.
     let s = phantom_study(
@@ -1650,6 +1710,75 @@ fn several_cases_reconstruct_into_one_folder_each_and_a_table() {
         .unwrap();
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("two cases are named"));
+}
+
+/// `acetab reconstruct` calibrates each case's cup with the shipped calibration learned on its
+/// views: a case taken with the AP and Judet views gets calibration/realistic-judet.json, one
+/// with the paper's views calibration/realistic.json (report.json says which, and that the
+/// views fit); the paper's file given for the Judet case is used, with a warning on stderr and in
+/// report.json naming both view sets.
+#[test]
+fn each_case_gets_the_calibration_learned_on_its_views() {
+    let dir = tmp("judet");
+    let truth = phantom(&PhantomParams::default()).mesh;
+    let case_file = |views: &str, name: &str| {
+        let geometry = acetab::sim::XrayGeometry {
+            views: views.split(',').map(|v| v.parse().unwrap()).collect(),
+            ..Default::default()
+        };
+        let level = acetab::sim::NoiseLevel::level(1).unwrap();
+        let sim = acetab::sim::simulate_case(&truth, &geometry, 2.0, &level, 5).unwrap();
+        let file = CaseFile::from_parts(&sim.cameras, &sim.observed, &sim.init);
+        let path = dir.join(name);
+        std::fs::write(&path, serde_json::to_string_pretty(&file).unwrap()).unwrap();
+        path
+    };
+    let judet = case_file("z:0,z:45,z:-45", "judet.json");
+    let paper = case_file("z:0,z:20,z:-20", "paper.json");
+    let run = |case: &Path, out: &str, extra: &[&str]| {
+        let o = bin()
+            .arg("reconstruct")
+            .arg(case)
+            .args(["--uncertainty-samples", "2", "--out"])
+            .arg(dir.join(out))
+            .args(extra)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.join(out).join("report.json")).unwrap())
+                .unwrap();
+        (report, err)
+    };
+    let (r, err) = run(&judet, "j", &[]);
+    assert_eq!(r["calibration"]["name"], "calibration/realistic-judet.json");
+    assert_eq!(r["calibration"]["views_fit"], "same");
+    assert!(!err.contains("calibration"), "{err}");
+    let judet_bias = acetab::pipeline::CupCalibration::shipped_realistic_judet().bias_mm;
+    assert_eq!(r["cup"]["bias_mm"].as_f64(), Some(judet_bias));
+    // Companion: the paper's views get the paper's calibration.
+    let (r, _) = run(&paper, "p", &[]);
+    assert_eq!(r["calibration"]["name"], "calibration/realistic.json");
+    let paper_bias = acetab::pipeline::CupCalibration::shipped_realistic().bias_mm;
+    assert_eq!(r["cup"]["bias_mm"].as_f64(), Some(paper_bias));
+    assert_ne!(judet_bias, paper_bias);
+    // The paper's file given for the Judet case: used as given, and warned of.
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("calibration/realistic.json");
+    let (r, err) = run(&judet, "jp", &["--calibration", file.to_str().unwrap()]);
+    assert_eq!(r["cup"]["bias_mm"].as_f64(), Some(paper_bias));
+    assert_eq!(r["calibration"]["views_fit"], "other");
+    assert!(
+        err.contains("warning: the cup calibration") && err.contains("z:0,z:20,z:-20"),
+        "{err}"
+    );
+    let warned = r["warnings"].as_array().unwrap();
+    assert!(
+        warned
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("z:0,z:45,z:-45")),
+        "{warned:?}"
+    );
 }
 
 /// `acetab prior build` learns a prior from mesh files (both hips of three subjects, phantoms of

@@ -91,12 +91,14 @@ def reconstruct_case(
     new or empty unless ``force``); with ``out=None`` they go to a temporary folder that is
     removed. Returns report.json's object: ``cup`` (``diameter_mm``, ``catalogue_mm``,
     ``sd_mm``, ``probabilities``, ...), ``sphere``, ``views`` (intrinsics and where they came
-    from, DICOM magnification), ``log``, ``warnings``, ``provenance``.
+    from, DICOM magnification), ``log``, ``calibration`` (which one, and whether it was learned
+    on the case's views), ``warnings``, ``provenance``.
 
     Options (the command line's flags, same defaults): ``method`` ("srvf", "icp",
     "icp-normvec"), ``catalogue`` ("40:70:2" or "44,46,48"), ``refine_poses`` (bool),
     ``uncertainty_samples`` (2-1000, default 16), ``calibration`` (None: the shipped realistic
-    one; "none"; or a file from ``acetab calibrate``), ``seed`` (default 1), ``contours``
+    one learned on the case's views, the AP and Judet views' or the paper's; "none"; or a file
+    from ``acetab calibrate``), ``seed`` (default 1), ``contours``
     ("alpha-shape" or "silhouette"), ``prior`` (the population shape prior: "none", the
     default; "default", the shipped one; or a file from ``acetab prior build``),
     ``cup_estimator`` ("observed-part", the default, or with a prior "prior-region"; the
@@ -208,7 +210,7 @@ def reconstruct(
 
     Returns ``vertices`` ((V, 3) float64, mm), ``faces`` ((F, 3) int64), ``cup`` (as in
     ``reconstruct_case``), ``sphere`` (``center``, ``radius``), ``log``, ``views``,
-    ``warnings``, ``method``. Writes nothing. Raises AcetabError when the input is refused
+    ``calibration``, ``warnings``, ``method``. Writes nothing. Raises AcetabError when the input is refused
     (naming the field) or the reconstruction fails.
     """
     if len(cameras) != len(contours):

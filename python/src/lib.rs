@@ -3,7 +3,7 @@
 //! with keyword arguments, numpy conversions and docstrings; options travel as JSON so that an
 //! unknown or mistyped option is refused with the engine's own message.
 
-use acetab::case::{run_case_with, solve_case, CaseFile};
+use acetab::case::{run_case_calibrated, solve_case, CalibrationChoice, CaseFile};
 use acetab::contours::ContourSource;
 use acetab::correspond::srvf::{align as srvf_align, aligned_b, CurveKind, SrvfParams};
 use acetab::correspond::srvf::{MAX_SAMPLES, MIN_SAMPLES};
@@ -133,7 +133,9 @@ fn calibration(
 }
 
 impl ReconOptions {
-    fn params(&self) -> PyResult<(ReconParams, UncertaintyParams)> {
+    /// The reconstruction's and the uncertainty's parameters, and the cup calibration to give
+    /// each case (as `acetab reconstruct` does: by default the shipped one learned on its views).
+    fn params(&self) -> PyResult<(ReconParams, UncertaintyParams, CalibrationChoice)> {
         let catalogue = CupCatalogue::parse(&self.catalogue)
             .map_err(|e| PyValueError::new_err(format!("catalogue={:?}: {e}", self.catalogue)))?;
         let contour_source = match self.contours.as_str() {
@@ -154,16 +156,27 @@ impl ReconOptions {
         let estimator = cup_estimator(&self.cup_estimator, &self.prior)?;
         let cal = calibration(
             &self.calibration,
-            CupCalibration::shipped_realistic,
+            CupCalibration::shipped(true, estimator),
             estimator,
         )?;
+        let choice = match self.calibration.as_deref() {
+            None => CalibrationChoice::Shipped {
+                realistic: true,
+                estimator,
+            },
+            Some("none") => CalibrationChoice::None { estimator },
+            Some(path) => CalibrationChoice::Given {
+                calibration: cal,
+                name: path.to_string(),
+            },
+        };
         let mut prm = ReconParams {
             method: method_of(&self.method)?,
-            cup: cal.correcting(CupParams {
+            cup: CupParams {
                 catalogue,
                 estimator,
                 ..Default::default()
-            }),
+            },
             contour_source,
             pose: self.refine_poses.then(acetab::solve::PoseParams::default),
             ..Default::default()
@@ -172,10 +185,9 @@ impl ReconOptions {
         let up = UncertaintyParams {
             samples: self.uncertainty_samples as usize,
             seed: self.seed,
-            model_sd_mm: cal.model_sd_mm,
             ..Default::default()
         };
-        Ok((prm, up))
+        Ok((prm, up, choice))
     }
 }
 
@@ -191,7 +203,7 @@ fn reconstruct_case_json(
     options_json: &str,
 ) -> PyResult<String> {
     let opts: ReconOptions = options(options_json)?;
-    let (prm, up) = opts.params()?;
+    let (prm, up, choice) = opts.params()?;
     if let Some(o) = &out {
         if acetab::io::out_in_use(o) && !force {
             return Err(engine_err(format!(
@@ -213,8 +225,9 @@ fn reconstruct_case_json(
             }
         };
         let provenance = Provenance::here("cpu", None, 1, up.seed);
-        let report = run_case_with(&path, &dest, &prm, Kernels::Cpu, &up, provenance)
-            .map_err(|e| e.to_string())?;
+        let report =
+            run_case_calibrated(&path, &dest, &prm, Kernels::Cpu, &up, provenance, &choice)
+                .map_err(|e| e.to_string())?;
         serde_json::to_string(&report).map_err(|e| e.to_string())
     })
     .map_err(engine_err)
@@ -231,11 +244,23 @@ fn reconstruct_json<'py>(
     options_json: &str,
 ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<i64>>, String)> {
     let opts: ReconOptions = options(options_json)?;
-    let (prm, up) = opts.params()?;
+    let (prm, up, choice) = opts.params()?;
     let label = Path::new("reconstruct()");
     let file: CaseFile = serde_json::from_str(case_json)
         .map_err(|e| PyValueError::new_err(format!("reconstruct(): {e}")))?;
     let case = file.validate(label).map_err(engine_err)?;
+    // The calibration for the case's views, as `acetab reconstruct` gives it.
+    let (cal, used, view_warning) = choice.resolve(&case);
+    let prm = ReconParams {
+        cup: cal.correcting(prm.cup.clone()),
+        ..prm
+    };
+    let up = UncertaintyParams {
+        model_sd_mm: cal.model_sd_mm,
+        ..up
+    };
+    let mut warnings = case.warnings.clone();
+    warnings.extend(view_warning);
     let (mesh, report) = py
         .detach(|| {
             let (rec, cup) = solve_case(&case, label, &prm, Kernels::Cpu, &up)?;
@@ -245,7 +270,8 @@ fn reconstruct_json<'py>(
                 "sphere": rec.sphere,
                 "log": rec.log,
                 "views": case.geometry,
-                "warnings": case.warnings,
+                "calibration": used,
+                "warnings": warnings,
             });
             Ok::<_, acetab::case::CaseRunError>((rec.mesh, report.to_string()))
         })
@@ -397,13 +423,10 @@ fn simulate_json(py: Python<'_>, options_json: &str) -> PyResult<String> {
         .collect::<PyResult<Vec<_>>>()?;
     let estimator = cup_estimator(&o.cup_estimator, &o.prior)?;
     let (protocol, shipped): (Protocol, fn() -> CupCalibration) = match o.protocol.as_str() {
-        "ideal" if estimator == CupEstimator::PriorRegion => {
-            (Protocol::Ideal, CupCalibration::shipped_ideal_prior_region)
-        }
-        "ideal" => (Protocol::Ideal, CupCalibration::shipped_ideal),
+        "ideal" => (Protocol::Ideal, CupCalibration::shipped(false, estimator)),
         "realistic" => (
             Protocol::Realistic(RealisticErrors::default()),
-            CupCalibration::shipped_realistic,
+            CupCalibration::shipped(true, estimator),
         ),
         other => {
             return Err(PyValueError::new_err(format!(

@@ -34,8 +34,12 @@ def test_reconstruct_case_gives_the_cli_cup(tmp_path):
     assert abs(py["cup"]["diameter_mm"] - cli["cup"]["diameter_mm"]) < 1e-6
     assert py["cup"]["catalogue_mm"] == cli["cup"]["catalogue_mm"]
     assert py["cup"]["probabilities"] == cli["cup"]["probabilities"]
-    # The same object as the command line's: every key of report.json.
+    # The same object as the command line's: every key of report.json, and the calibration
+    # learned on the case's views (the paper's).
     assert set(py) == set(cli)
+    assert py["calibration"] == cli["calibration"]
+    assert py["calibration"]["name"] == "calibration/realistic.json"
+    assert py["calibration"]["views_fit"] == "same"
     assert (tmp_path / "py" / "reconstruction.ply").is_file()
     assert json.loads((tmp_path / "py" / "report.json").read_text())["cup"] == py["cup"]
 
@@ -83,6 +87,7 @@ def test_reconstruct_from_arrays_matches_the_case_file():
     r = acetab.reconstruct(cameras, contours, template, uncertainty_samples=2)
     ref = acetab.reconstruct_case(CASE, uncertainty_samples=2)
     assert r["cup"]["diameter_mm"] == ref["cup"]["diameter_mm"]
+    assert r["calibration"] == ref["calibration"]
     v, f = r["vertices"], r["faces"]
     assert v.dtype == np.float64 and v.ndim == 2 and v.shape[1] == 3
     assert f.dtype == np.int64 and f.shape[1] == 3 and f.max() < len(v) and f.min() >= 0

@@ -1,11 +1,15 @@
 //! Case files: a patient's views and annotated rims read from JSON (`file`), and the whole run of
 //! one case, from the file to the written report (`run`).
 
+mod calibration;
 mod file;
 mod run;
 
+pub use calibration::{CalibrationChoice, CalibrationUsed};
 pub use file::{
     Case, CaseError, CaseFile, ContourFile, ContourKind, IntrinsicsFile, TemplateFile, ViewFile,
     ViewGeometry, MAX_OUTLINE_SPAN_RATIO, MIN_HULL_FILL,
 };
-pub use run::{run_case, run_case_with, solve_case, CaseRunError, CaseRunReport};
+pub use run::{
+    run_case, run_case_calibrated, run_case_with, solve_case, CaseRunError, CaseRunReport,
+};

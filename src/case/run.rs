@@ -3,7 +3,7 @@
 //! and moved into place only when all of it succeeded (`fsutil::fill_dir_atomically`), so a
 //! failed run leaves no files.
 
-use crate::case::{Case, CaseError, CaseFile};
+use crate::case::{CalibrationChoice, CalibrationUsed, Case, CaseError, CaseFile};
 use crate::engine::Kernels;
 use crate::io::{write_ply, MeshIoError};
 use crate::pipeline::{cup_report, CupReport, UncertaintyParams};
@@ -77,8 +77,11 @@ pub struct CaseRunReport {
     pub seconds: f64,
     /// The files written.
     pub files: Vec<String>,
-    /// What the case's views disagree on, and pictures that could not be drawn, and why (the
-    /// rest is written regardless).
+    /// The cup calibration and whether it was learned on the case's views (None when the
+    /// caller set the cup's correction itself: `run_case_with`).
+    pub calibration: Option<CalibrationUsed>,
+    /// What the case's views disagree on, a calibration learned on other views, and pictures
+    /// that could not be drawn, and why (the rest is written regardless).
     pub warnings: Vec<String>,
 }
 
@@ -106,7 +109,8 @@ pub fn run_case(
     run_case_with(path, out, prm, kernels, up, provenance)
 }
 
-/// As `run_case`, with the caller's provenance in report.json (its adapter, its threads).
+/// As `run_case`, with the caller's provenance in report.json (its adapter, its threads): the
+/// cup corrected as `prm.cup` says, its model SD `up.model_sd_mm`.
 pub fn run_case_with(
     path: &Path,
     out: &Path,
@@ -116,8 +120,50 @@ pub fn run_case_with(
     provenance: Provenance,
 ) -> Result<CaseRunReport, CaseRunError> {
     let case = CaseFile::load(path)?;
+    run_loaded(&case, path, out, prm, kernels, up, provenance, None)
+}
+
+/// As `run_case_with`, the cup calibrated as `choice` says for the case's views (its bias,
+/// shrink and model SD in place of those in `prm.cup` and `up`); report.json records which
+/// calibration, and warns when it was learned on other views.
+pub fn run_case_calibrated(
+    path: &Path,
+    out: &Path,
+    prm: &ReconParams,
+    kernels: Kernels,
+    up: &UncertaintyParams,
+    provenance: Provenance,
+    choice: &CalibrationChoice,
+) -> Result<CaseRunReport, CaseRunError> {
+    let case = CaseFile::load(path)?;
+    let (calibration, used, warning) = choice.resolve(&case);
+    let prm = ReconParams {
+        cup: calibration.correcting(prm.cup.clone()),
+        ..prm.clone()
+    };
+    let up = UncertaintyParams {
+        model_sd_mm: calibration.model_sd_mm,
+        ..up.clone()
+    };
+    let mut case = case;
+    case.warnings.extend(warning);
+    run_loaded(&case, path, out, &prm, kernels, &up, provenance, Some(used))
+}
+
+/// Reconstruct a loaded case and write its files (`run_case_with`).
+#[allow(clippy::too_many_arguments)]
+fn run_loaded(
+    case: &Case,
+    path: &Path,
+    out: &Path,
+    prm: &ReconParams,
+    kernels: Kernels,
+    up: &UncertaintyParams,
+    provenance: Provenance,
+    calibration: Option<CalibrationUsed>,
+) -> Result<CaseRunReport, CaseRunError> {
     let t = std::time::Instant::now();
-    let (rec, cup) = solve_case(&case, path, prm, kernels, up)?;
+    let (rec, cup) = solve_case(case, path, prm, kernels, up)?;
     let seconds = t.elapsed().as_secs_f64();
 
     let write_err = |p: &Path, source| CaseRunError::Write {
@@ -199,6 +245,7 @@ pub fn run_case_with(
                 log: rec.log.clone(),
                 seconds,
                 files,
+                calibration: calibration.clone(),
                 warnings,
             };
             std::fs::write(stage.join("cup.json"), pretty(&cup))

@@ -9,6 +9,8 @@
 //! acetabula, a shrink toward their mean (`CupParams::corrected`).
 
 use super::params::{CupEstimator, CupParams, MAX_SHRINK};
+use crate::views::{view_set_mismatch_deg, ViewRotation};
+use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -46,6 +48,30 @@ pub struct CupCalibration {
     pub runs: usize,
     /// Share of the training runs within their total SD (about 0.68 by construction).
     pub training_coverage: f64,
+    /// The views of the studies it was learned on, each as the antero-posterior view turned
+    /// about body axes (`ViewRotation` text, "z:20"); absent in files that do not say. A
+    /// calibration holds for its views: the bias and SD of a cup read from other views differ
+    /// (docs/population.md, "Which views under the realistic protocol").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub views: Option<Vec<String>>,
+}
+
+/// How far each view of a case may stand from a calibration's (the angle between the two
+/// sources' directions, degrees, views paired as `view_set_mismatch_deg` pairs them) for the
+/// calibration to count as learned on the case's views: wide enough for a patient turned a few
+/// degrees more or less than planned, narrow enough to tell the paper's obliques (20 degrees)
+/// from the Judet ones (45).
+pub const VIEW_MATCH_DEG: f64 = 10.0;
+
+/// Whether a calibration was learned on a set of views.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ViewFit {
+    /// Its views and the set pair within `VIEW_MATCH_DEG`.
+    Same,
+    /// They do not: the worst pair's angle, degrees (None when the sets differ in size).
+    Other(Option<f64>),
+    /// The calibration does not say which views it was learned on.
+    Unrecorded,
 }
 
 /// Why a calibration file cannot be used.
@@ -160,6 +186,14 @@ pub const REALISTIC_PRIOR_REGION_JSON: &str =
 /// The same for the realistic protocol: `acetab simulate --protocol realistic` and `acetab
 /// reconstruct` (a patient's X-rays) use it.
 pub const REALISTIC_JSON: &str = include_str!("../../calibration/realistic.json");
+/// The same for the realistic protocol with the antero-posterior view and the two Judet
+/// obliques (`z:0,z:45,z:-45`), with a learned shrink: `acetab reconstruct` uses it for cases
+/// taken with those views, `acetab simulate --protocol realistic` for studies with them.
+pub const REALISTIC_JUDET_JSON: &str = include_str!("../../calibration/realistic-judet.json");
+
+/// A calibration built into the program: the repository file it was made as, and the function
+/// that gives it.
+pub type Shipped = (&'static str, fn() -> CupCalibration);
 
 impl CupCalibration {
     /// The shipped calibration for studies under the ideal protocol.
@@ -189,6 +223,103 @@ impl CupCalibration {
         Self::embedded(REALISTIC_JSON, "calibration/realistic.json")
     }
 
+    /// The shipped calibration for the realistic protocol with the AP and Judet views.
+    pub fn shipped_realistic_judet() -> CupCalibration {
+        Self::embedded(REALISTIC_JUDET_JSON, "calibration/realistic-judet.json")
+    }
+
+    /// The calibrations shipped for a protocol (`realistic` or ideal) and cup estimator, the
+    /// default one (learned with the paper's views) first.
+    pub fn shipped_set(realistic: bool, estimator: CupEstimator) -> Vec<Shipped> {
+        match (realistic, estimator) {
+            (false, CupEstimator::ObservedPart) => {
+                vec![("calibration/ideal.json", Self::shipped_ideal)]
+            }
+            (false, CupEstimator::PriorRegion) => vec![(
+                "calibration/ideal-prior-region.json",
+                Self::shipped_ideal_prior_region,
+            )],
+            (true, CupEstimator::ObservedPart) => vec![
+                ("calibration/realistic.json", Self::shipped_realistic),
+                (
+                    "calibration/realistic-judet.json",
+                    Self::shipped_realistic_judet,
+                ),
+            ],
+            (true, CupEstimator::PriorRegion) => vec![(
+                "calibration/realistic-prior-region.json",
+                Self::shipped_realistic_prior_region,
+            )],
+        }
+    }
+
+    /// The shipped calibration of a protocol and cup estimator for views whose sources stand in
+    /// `directions` (from the object, body axes): the first of `shipped_set` learned on such
+    /// views, else the default one; with its file name and how its views fit.
+    pub fn shipped_for_views(
+        realistic: bool,
+        estimator: CupEstimator,
+        directions: &[Vector3<f64>],
+    ) -> (CupCalibration, &'static str, ViewFit) {
+        let set = Self::shipped_set(realistic, estimator);
+        for &(name, make) in &set {
+            let c = make();
+            if c.view_fit(directions) == ViewFit::Same {
+                return (c, name, ViewFit::Same);
+            }
+        }
+        let (name, make) = set[0];
+        let c = make();
+        let fit = c.view_fit(directions);
+        (c, name, fit)
+    }
+
+    /// The source directions of the views it was learned on (None when it does not say, or a
+    /// view does not read).
+    pub fn source_directions(&self) -> Option<Vec<Vector3<f64>>> {
+        self.views
+            .as_ref()?
+            .iter()
+            .map(|v| v.parse::<ViewRotation>().ok().map(|v| v.source_direction()))
+            .collect()
+    }
+
+    /// Whether it was learned on views whose sources stand in `directions`.
+    pub fn view_fit(&self, directions: &[Vector3<f64>]) -> ViewFit {
+        let Some(own) = self.source_directions() else {
+            return ViewFit::Unrecorded;
+        };
+        match view_set_mismatch_deg(&own, directions) {
+            Some(d) if d <= VIEW_MATCH_DEG => ViewFit::Same,
+            other => ViewFit::Other(other),
+        }
+    }
+
+    /// What to tell a user whose views (sources in `directions`, described as `theirs`) the
+    /// calibration `name` was not learned on; None when it was, or when it does not say.
+    pub fn view_warning(
+        &self,
+        name: &str,
+        directions: &[Vector3<f64>],
+        theirs: &str,
+    ) -> Option<String> {
+        let ViewFit::Other(off) = self.view_fit(directions) else {
+            return None;
+        };
+        let own = self.views.as_deref().unwrap_or_default().join(",");
+        let how = match off {
+            Some(d) => format!("a view stands {d:.0} degrees from the nearest of those"),
+            None => format!(
+                "{} views against {}",
+                directions.len(),
+                self.views.as_ref().map_or(0, Vec::len)
+            ),
+        };
+        Some(format!(
+            "the cup calibration {name} was learned on the views {own}, not on {theirs} ({how}): its bias, shrink and model SD may not hold for them; learn one on these views (acetab simulate --views ... --calibration none, then acetab calibrate) or use --calibration none"
+        ))
+    }
+
     /// A calibration built into the program (`json`, the repository's file `path`).
     fn embedded(json: &str, path: &str) -> CupCalibration {
         Self::parse(json, Path::new(path)).expect("the shipped calibration is valid (tested)")
@@ -205,6 +336,7 @@ impl CupCalibration {
             learned_from: "none".into(),
             runs: 0,
             training_coverage: 0.0,
+            views: None,
         }
     }
 
@@ -270,6 +402,17 @@ impl CupCalibration {
                 value: c.estimator.clone(),
                 expected: "a cup estimator (observed-part or prior-region)",
             });
+        }
+        if let Some(views) = &c.views {
+            let bad = views.iter().find(|v| v.parse::<ViewRotation>().is_err());
+            if views.is_empty() || bad.is_some() {
+                return Err(CalibrationError::Field {
+                    path: path.to_path_buf(),
+                    field: "views",
+                    value: crate::io::shown(&format!("{views:?}")),
+                    expected: "a list of views, each AXIS:DEGREES turns of the antero-posterior view (\"z:20\", \"z:20+x:-15\")",
+                });
+            }
         }
         if let Some((field, value, expected)) = c.unusable() {
             return Err(CalibrationError::Field {
@@ -410,6 +553,8 @@ impl CupCalibration {
             learned_from,
             runs: pairs.len(),
             training_coverage: covered as f64 / pairs.len() as f64,
+            // The runs do not say; the caller who read their studies does.
+            views: None,
         };
         // Never write a file that reading it back would refuse.
         match learned.unusable() {
@@ -776,5 +921,63 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("not a cup calibration"), "{e}");
+        // The views it was learned on must read as views; a list of them does.
+        for (views, ok) in [
+            (serde_json::json!(["z:0", "z:45", "z:-45"]), true),
+            (serde_json::json!(["z:0", "sideways"]), false),
+            (serde_json::json!([]), false),
+        ] {
+            let mut v: serde_json::Value = serde_json::from_str(&ok_json()).unwrap();
+            v["views"] = views;
+            let got = CupCalibration::parse(&v.to_string(), p);
+            assert_eq!(got.is_ok(), ok, "{got:?}");
+            if let Err(e) = got {
+                assert!(e.to_string().contains("views = "), "{e}");
+            }
+        }
+    }
+
+    fn ok_json() -> String {
+        CupCalibration::shipped_realistic().to_json()
+    }
+
+    #[test]
+    fn the_shipped_calibrations_say_their_views_and_the_judet_one_is_chosen_for_its_own() {
+        let dir = |s: &str| -> Vec<Vector3<f64>> {
+            s.split(',')
+                .map(|v| v.parse::<ViewRotation>().unwrap().source_direction())
+                .collect()
+        };
+        for realistic in [false, true] {
+            for estimator in CupEstimator::ALL {
+                for (name, make) in CupCalibration::shipped_set(realistic, estimator) {
+                    let c = make();
+                    assert!(c.views.is_some(), "{name}");
+                    assert_eq!(c.cup_estimator(), Some(estimator), "{name}");
+                }
+            }
+        }
+        let est = CupEstimator::ObservedPart;
+        let (c, name, fit) = CupCalibration::shipped_for_views(true, est, &dir("z:0,z:45,z:-45"));
+        assert_eq!(
+            (name, fit),
+            ("calibration/realistic-judet.json", ViewFit::Same)
+        );
+        assert_eq!(c, CupCalibration::shipped_realistic_judet());
+        // Companions: the paper's views, and views no shipped calibration was learned on, get
+        // the paper's (the second told so by its fit); the ideal protocol has only that one.
+        let (_, name, fit) = CupCalibration::shipped_for_views(true, est, &dir("z:0,z:20,z:-20"));
+        assert_eq!((name, fit), ("calibration/realistic.json", ViewFit::Same));
+        let (_, name, fit) = CupCalibration::shipped_for_views(true, est, &dir("z:0,z:60,z:-60"));
+        assert_eq!(name, "calibration/realistic.json");
+        assert!(
+            matches!(fit, ViewFit::Other(Some(d)) if (d - 40.0).abs() < 1e-6),
+            "{fit:?}"
+        );
+        let (_, name, fit) = CupCalibration::shipped_for_views(false, est, &dir("z:0,z:45,z:-45"));
+        assert_eq!(name, "calibration/ideal.json");
+        assert!(matches!(fit, ViewFit::Other(_)));
+        let (_, _, fit) = CupCalibration::shipped_for_views(true, est, &dir("z:0,z:20"));
+        assert_eq!(fit, ViewFit::Other(None));
     }
 }

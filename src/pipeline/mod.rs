@@ -16,7 +16,8 @@ mod restart;
 mod uncertainty;
 
 pub use calibration::{
-    CalibrationError, CupCalibration, Learn, TrainingRun, MIN_TRAINING_RUNS, NOMINAL_COVERAGE,
+    CalibrationError, CupCalibration, Learn, Shipped, TrainingRun, ViewFit, MIN_TRAINING_RUNS,
+    NOMINAL_COVERAGE, VIEW_MATCH_DEG,
 };
 pub use cup::{
     cup_spheres, observed_part_sphere, prior_region_sphere, CupSpheres, PriorRegion,

@@ -4,6 +4,7 @@
 //! and aimed at the object.
 
 use crate::views::{widest_spread_deg, Camera, Intrinsics, MIN_VIEW_SPREAD_DEG};
+pub use crate::views::{BodyAxis, ViewRotation};
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 
 /// X-ray geometry in mm and pixels.
@@ -19,112 +20,6 @@ pub struct XrayGeometry {
     pub image_size: u32,
     /// Each view: the antero-posterior view turned about body axes (see `ViewRotation`).
     pub views: Vec<ViewRotation>,
-}
-
-/// A body axis of the world frame: x left-right, y antero-posterior (towards the source of the
-/// antero-posterior view), z longitudinal (superior).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum BodyAxis {
-    /// Left-right: turning about it tilts the view cranially or caudally (inlet / outlet).
-    X,
-    /// Antero-posterior: turning about it rolls the image.
-    Y,
-    /// Longitudinal: turning about it gives the oblique (Judet-like) views.
-    Z,
-}
-
-/// One view: the antero-posterior view turned about body axes, in order (`z:20`, or `z:20+x:-15`:
-/// 20 degrees about z, then -15 about x). Written and read as that text.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ViewRotation {
-    /// (axis, degrees), applied first to last.
-    pub turns: Vec<(BodyAxis, f64)>,
-}
-
-impl ViewRotation {
-    /// A turn about z alone (the default views' kind).
-    pub fn about_z(deg: f64) -> Self {
-        ViewRotation {
-            turns: vec![(BodyAxis::Z, deg)],
-        }
-    }
-
-    /// The rotation: the turns composed, the first applied first.
-    pub fn rotation(&self) -> Rotation3<f64> {
-        self.turns
-            .iter()
-            .fold(Rotation3::identity(), |acc, &(axis, deg)| {
-                let a = match axis {
-                    BodyAxis::X => Vector3::x_axis(),
-                    BodyAxis::Y => Vector3::y_axis(),
-                    BodyAxis::Z => Vector3::z_axis(),
-                };
-                Rotation3::from_axis_angle(&a, deg.to_radians()) * acc
-            })
-    }
-}
-
-impl std::fmt::Display for ViewRotation {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let parts: Vec<String> = self
-            .turns
-            .iter()
-            .map(|(a, d)| {
-                let a = match a {
-                    BodyAxis::X => "x",
-                    BodyAxis::Y => "y",
-                    BodyAxis::Z => "z",
-                };
-                format!("{a}:{d}")
-            })
-            .collect();
-        f.write_str(&parts.join("+"))
-    }
-}
-
-impl std::str::FromStr for ViewRotation {
-    type Err = String;
-
-    /// `AXIS:DEG[+AXIS:DEG...]`, AXIS one of x, y, z, DEG degrees from -180 to 180 (a sign of
-    /// its own allowed: `z:+20`; `z:400`, a slip for 40, is refused rather than read as 40).
-    fn from_str(s: &str) -> Result<Self, String> {
-        // Turns are joined by a '+' that an axis letter follows.
-        let mut parts = Vec::new();
-        let mut start = 0;
-        for (i, c) in s.char_indices() {
-            let next_is_axis = s[i + 1..].trim_start().starts_with(char::is_alphabetic);
-            if c == '+' && next_is_axis {
-                parts.push(&s[start..i]);
-                start = i + 1;
-            }
-        }
-        parts.push(&s[start..]);
-        let turns = parts
-            .into_iter()
-            .map(|t| {
-                let (a, d) = t
-                    .trim()
-                    .split_once(':')
-                    .ok_or_else(|| format!("\"{t}\": expected AXIS:DEGREES (e.g. z:20)"))?;
-                let axis = match a.trim() {
-                    "x" | "X" => BodyAxis::X,
-                    "y" | "Y" => BodyAxis::Y,
-                    "z" | "Z" => BodyAxis::Z,
-                    other => return Err(format!("\"{other}\": the axis must be x, y or z")),
-                };
-                let deg: f64 = d
-                    .trim()
-                    .parse()
-                    .ok()
-                    .filter(|v: &f64| v.abs() <= 180.0)
-                    .ok_or_else(|| {
-                        format!("\"{d}\": the angle must be degrees from -180 to 180")
-                    })?;
-                Ok((axis, deg))
-            })
-            .collect::<Result<Vec<_>, String>>()?;
-        Ok(ViewRotation { turns })
-    }
 }
 
 /// A geometry no X-ray set-up has (see `XrayGeometry::validate`).
@@ -179,7 +74,7 @@ impl XrayGeometry {
         let sources: Vec<Vector3<f64>> = self
             .views
             .iter()
-            .map(|v| v.rotation() * Vector3::y())
+            .map(ViewRotation::source_direction)
             .collect();
         if widest_spread_deg(&sources) < MIN_VIEW_SPREAD_DEG {
             let list: Vec<String> = self.views.iter().map(|v| v.to_string()).collect();

@@ -1,8 +1,10 @@
 //! Stage 2: X-ray views, each a pinhole camera p ~ K (R P + t).
 
 mod camera;
+mod turn;
 
 pub use camera::{Camera, Intrinsics, ProjectionError};
+pub use turn::{view_set_mismatch_deg, BodyAxis, ViewRotation, MAX_PAIRED_VIEWS};
 
 use nalgebra::Vector3;
 

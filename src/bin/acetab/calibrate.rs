@@ -88,6 +88,8 @@ struct Applied {
     cup: CupParams,
     estimator: CupEstimator,
     source: PathBuf,
+    /// study.views (None when absent).
+    views: Option<Vec<String>>,
 }
 
 impl Applied {
@@ -108,6 +110,7 @@ fn applied_in(dir: &Path) -> Result<Applied, String> {
         cup: CupParams::default(),
         estimator: CupEstimator::ObservedPart,
         source: dir.parent().map(Path::to_path_buf).unwrap_or_default(),
+        views: None,
     };
     let p = dir.join("summary.json");
     let Ok(text) = std::fs::read_to_string(&p) else {
@@ -144,6 +147,23 @@ fn applied_in(dir: &Path) -> Result<Applied, String> {
             a.source = parent.to_path_buf();
         }
     }
+    if let Some(x) = v.pointer("/study/views") {
+        let views: Option<Vec<String>> = x
+            .as_array()
+            .and_then(|a| a.iter().map(|v| v.as_str().map(String::from)).collect());
+        let readable = views.as_ref().is_some_and(|v| {
+            !v.is_empty()
+                && v.iter()
+                    .all(|v| v.parse::<acetab::views::ViewRotation>().is_ok())
+        });
+        if !readable {
+            return Err(format!(
+                "{}: study.views = {x}: must be a list of views as --views writes them (\"z:20\")",
+                p.display()
+            ));
+        }
+        a.views = views;
+    }
     if let Some(x) = v.pointer("/study/cup_estimator") {
         a.estimator = x.as_str().and_then(CupEstimator::parse).ok_or_else(|| {
             format!(
@@ -179,6 +199,10 @@ pub fn learn(
     let mut sources: Vec<PathBuf> = Vec::new();
     let mut used = 0;
     let mut estimator: Option<(CupEstimator, &Path)> = None;
+    // The views the training studies say they were made with (all the same), and whether one
+    // did not say (then the calibration does not either).
+    let mut said: Option<(Vec<String>, &Path)> = None;
+    let mut unsaid = false;
     for d in &dirs {
         if leave_out.contains(&subject_of(d)) {
             continue;
@@ -197,6 +221,20 @@ pub fn learn(
                 ))
             }
             Some(_) => {}
+        }
+        match (&applied.views, &said) {
+            (None, _) => unsaid = true,
+            (Some(v), None) => said = Some((v.clone(), d)),
+            (Some(v), Some((first_views, first))) if v != first_views => {
+                return Err(format!(
+                    "{}: views {} differ from {}'s {}: a calibration is learned on one set of views (its bias and SD are theirs)",
+                    d.display(),
+                    v.join(","),
+                    first.display(),
+                    first_views.join(",")
+                ))
+            }
+            _ => {}
         }
         let model = applied.model_sd;
         let source = match sources.iter().position(|s| *s == applied.source) {
@@ -236,7 +274,9 @@ pub fn learn(
     if let Some(n) = note {
         from += &format!(": {n}");
     }
-    CupCalibration::learn(&runs, estimator, what, from).map_err(|e| e.to_string())
+    let mut cal = CupCalibration::learn(&runs, estimator, what, from).map_err(|e| e.to_string())?;
+    cal.views = said.filter(|_| !unsaid).map(|(v, _)| v);
+    Ok(cal)
 }
 
 pub fn run(args: CalibrateArgs) -> Result<(), String> {

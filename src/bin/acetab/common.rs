@@ -331,6 +331,7 @@ pub fn calibration(
     realistic: bool,
     estimator: acetab::pipeline::CupEstimator,
     has_prior: bool,
+    views: &[acetab::views::ViewRotation],
 ) -> Result<(acetab::pipeline::CupCalibration, String), String> {
     use acetab::pipeline::{CupCalibration, CupEstimator};
     if estimator == CupEstimator::PriorRegion && !has_prior {
@@ -339,18 +340,17 @@ pub fn calibration(
                 .into(),
         );
     }
-    let shipped = CupCalibration::shipped(realistic, estimator);
+    let directions: Vec<_> = views.iter().map(|v| v.source_direction()).collect();
+    let (_, shipped_name, _) = CupCalibration::shipped_for_views(realistic, estimator, &directions);
+    let shipped = CupCalibration::shipped_set(realistic, estimator)
+        .into_iter()
+        .find(|(name, _)| *name == shipped_name)
+        .map(|(_, make)| make)
+        .expect("shipped_for_views picks from shipped_set");
     let cal = CupCalibration::for_estimator(arg.as_deref(), shipped, estimator)
         .map_err(|e| format!("--calibration {e}"))?;
     let source = match arg.as_deref() {
-        None => format!(
-            "shipped {}{}",
-            if realistic { "realistic" } else { "ideal" },
-            match estimator {
-                CupEstimator::ObservedPart => "",
-                CupEstimator::PriorRegion => " prior-region",
-            }
-        ),
+        None => format!("shipped {shipped_name}"),
         Some(choice) => choice.to_string(),
     };
     Ok((cal, source))

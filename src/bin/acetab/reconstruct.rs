@@ -1,7 +1,7 @@
 //! `acetab reconstruct`: reconstruct a case file.
 
 use crate::common::{engine_on, open_device};
-use acetab::case::run_case_with;
+use acetab::case::{run_case_calibrated, CalibrationChoice};
 use acetab::contours::ContourSource;
 use acetab::correspond::Method;
 use acetab::engine::{BackendChoice, Kernels};
@@ -40,8 +40,11 @@ pub struct ReconstructArgs {
     /// Cup calibration (JSON from `acetab calibrate`: the correction of the fitted cup, its
     /// bias and shrink, and the model-error SD added to the resamples' spread), or "none" (the
     /// fitted cup and the resamples alone). Default: the shipped calibration learned under the
-    /// realistic protocol with the paper's views (calibration/realistic.json); for the AP and
-    /// the two Judet obliques, calibration/realistic-judet.json.
+    /// realistic protocol on the case's views: for the AP and the two Judet obliques (sources
+    /// turned 0 and +-45 degrees about the long axis, each within 10)
+    /// calibration/realistic-judet.json, otherwise the paper's views' calibration/realistic.json
+    /// (with a warning when the case's views are not the paper's either). A file learned on
+    /// other views than the case's is used with a warning.
     #[arg(long)]
     pub calibration: Option<String>,
     /// Population shape prior for the walls no outline watches: "none" (the bare sphere
@@ -86,18 +89,37 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         json,
     } = args;
     let (shape_prior, _) = crate::prior::choose(&prior, None)?;
-    let (cal, _) =
-        crate::common::calibration(&calibration, true, cup_estimator, shape_prior.is_some())?;
-    let model_sd_mm = cal.model_sd_mm;
+    // The file (or "none") is checked up front; each case then gets the calibration learned on
+    // its views (`CalibrationChoice::resolve`).
+    let (cal, _) = crate::common::calibration(
+        &calibration,
+        true,
+        cup_estimator,
+        shape_prior.is_some(),
+        &[],
+    )?;
+    let choice = match calibration.as_deref() {
+        None => CalibrationChoice::Shipped {
+            realistic: true,
+            estimator: cup_estimator,
+        },
+        Some("none") => CalibrationChoice::None {
+            estimator: cup_estimator,
+        },
+        Some(path) => CalibrationChoice::Given {
+            calibration: cal,
+            name: path.to_string(),
+        },
+    };
     crate::common::check_out(&out, force)?;
     let catalogue = CupCatalogue::parse(&catalogue).map_err(|e| format!("--catalogue: {e}"))?;
     let mut prm = ReconParams {
         method,
-        cup: cal.correcting(CupParams {
+        cup: CupParams {
             catalogue,
             estimator: cup_estimator,
             ..Default::default()
-        }),
+        },
         contour_source: contours,
         pose: refine_poses.then(acetab::solve::PoseParams::default),
         ..Default::default()
@@ -109,7 +131,6 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
     let up = UncertaintyParams {
         samples: uncertainty_samples as usize,
         seed,
-        model_sd_mm,
         ..Default::default()
     };
     let provenance = acetab::report::Provenance::here(
@@ -119,7 +140,7 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         seed,
     );
     if let [one] = case.as_slice() {
-        let report = run_case_with(one, &out, &prm, kernels, &up, provenance)
+        let report = run_case_calibrated(one, &out, &prm, kernels, &up, provenance, &choice)
             .map_err(|e| crate::common::unstage(&e.to_string(), &out))?;
         print_report(&report, json, &out)?;
         return Ok(());
@@ -146,7 +167,7 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
     let mut failed = 0;
     for (c, name) in case.iter().zip(&names) {
         let dir = out.join(name);
-        match run_case_with(c, &dir, &prm, kernels, &up, provenance.clone()) {
+        match run_case_calibrated(c, &dir, &prm, kernels, &up, provenance.clone(), &choice) {
             Ok(r) => {
                 print_report(&r, json, &dir)?;
                 table += &format!(

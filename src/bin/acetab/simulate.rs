@@ -121,9 +121,11 @@ pub struct SimulateArgs {
     pub uncertainty_samples: u64,
     /// Cup calibration (JSON from `acetab calibrate`: the cup estimator's bias and shrink and
     /// the model-error SD added to the resamples' spread), or "none" (the resamples alone, no
-    /// correction). Default: the shipped calibration of the protocol and cup estimator
-    /// (calibration/ideal.json, realistic.json, ideal-prior-region.json or
-    /// realistic-prior-region.json).
+    /// correction). Default: the shipped calibration of the protocol and cup estimator learned
+    /// on the study's --views (calibration/ideal.json, realistic.json, ideal-prior-region.json
+    /// or realistic-prior-region.json, learned on the paper's views; realistic-judet.json for
+    /// z:0,z:45,z:-45), with a warning when none was learned on them. A file learned on other
+    /// views is used with a warning.
     #[arg(long)]
     pub calibration: Option<String>,
     /// Leave-one-subject-out calibration: each mesh's study uses a calibration learned (as
@@ -203,12 +205,27 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         return Err("--prior-leave-out needs a prior (--prior default or a file)".into());
     }
     let realistic_protocol = protocol == ProtocolArg::Realistic;
+    // The shipped calibration learned on the study's views (the paper's views' when none
+    // was); a calibration learned on other views is used, with a warning.
     let (shipped_or_file, calibration) = crate::common::calibration(
         &calibration,
         realistic_protocol,
         cup_estimator,
         shape_prior.is_some(),
+        &views.0,
     )?;
+    if calibrate_loso.is_none() {
+        let directions: Vec<_> = views.0.iter().map(|v| v.source_direction()).collect();
+        let theirs = views
+            .0
+            .iter()
+            .map(|v| v.to_string())
+            .collect::<Vec<_>>()
+            .join(",");
+        if let Some(w) = shipped_or_file.view_warning(&calibration, &directions, &theirs) {
+            eprintln!("acetab: warning: {w}");
+        }
+    }
     // With --calibrate-loso each mesh's own is learned when its study starts.
     let cal = if calibrate_loso.is_some() {
         acetab::pipeline::CupCalibration::none(cup_estimator)
