@@ -316,7 +316,7 @@ impl CupCalibration {
             ),
         };
         Some(format!(
-            "the cup calibration {name} was learned on the views {own}, not on {theirs} ({how}): its bias, shrink and model SD may not hold for them; learn one on these views (acetab simulate --views ... --calibration none, then acetab calibrate) or use --calibration none"
+            "the cup calibration {name} was learned on the views {own}, not on {theirs} ({how}; views are turns of the antero-posterior view, sources compared in body axes: x left-right, y toward the AP source, z up): its bias, shrink and model SD may not hold for them; learn one on these views (acetab simulate --views ... --calibration none, then acetab calibrate) or use --calibration none"
         ))
     }
 
