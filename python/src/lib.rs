@@ -250,15 +250,7 @@ fn reconstruct_json<'py>(
         .map_err(|e| PyValueError::new_err(format!("reconstruct(): {e}")))?;
     let case = file.validate(label).map_err(engine_err)?;
     // The calibration for the case's views, as `acetab reconstruct` gives it.
-    let (cal, used, view_warning) = choice.resolve(&case);
-    let prm = ReconParams {
-        cup: cal.correcting(prm.cup.clone()),
-        ..prm
-    };
-    let up = UncertaintyParams {
-        model_sd_mm: cal.model_sd_mm,
-        ..up
-    };
+    let (prm, up, used, view_warning) = choice.apply(&case, &prm, &up);
     let mut warnings = case.warnings.clone();
     warnings.extend(view_warning);
     let (mesh, report) = py

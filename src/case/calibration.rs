@@ -3,7 +3,7 @@
 //! when none was), and a user's calibration learned on other views is used with a warning.
 
 use crate::case::Case;
-use crate::pipeline::{CupCalibration, CupEstimator, ViewFit};
+use crate::pipeline::{CupCalibration, CupEstimator, ReconParams, UncertaintyParams, ViewFit};
 use nalgebra::{Matrix3, Point2, Point3, Vector2, Vector3};
 
 /// How a case's cup is calibrated.
@@ -43,7 +43,31 @@ pub struct CalibrationUsed {
     pub views_fit: &'static str,
 }
 
+/// A case's parameters with its calibration applied, what the report records of it, and the
+/// warning, if any (`CalibrationChoice::apply`).
+pub type Calibrated = (
+    ReconParams,
+    UncertaintyParams,
+    CalibrationUsed,
+    Option<String>,
+);
+
 impl CalibrationChoice {
+    /// `prm` and `up` with the calibration for `case` in place of their cup correction and
+    /// model SD (`resolve`).
+    pub fn apply(&self, case: &Case, prm: &ReconParams, up: &UncertaintyParams) -> Calibrated {
+        let (calibration, used, warning) = self.resolve(case);
+        let prm = ReconParams {
+            cup: calibration.correcting(prm.cup.clone()),
+            ..prm.clone()
+        };
+        let up = UncertaintyParams {
+            model_sd_mm: calibration.model_sd_mm,
+            ..up.clone()
+        };
+        (prm, up, used, warning)
+    }
+
     /// The calibration for `case`, what the report records of it, and a warning when it was
     /// learned on other views than the case's.
     pub fn resolve(&self, case: &Case) -> (CupCalibration, CalibrationUsed, Option<String>) {

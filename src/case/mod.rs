@@ -5,7 +5,7 @@ mod calibration;
 mod file;
 mod run;
 
-pub use calibration::{CalibrationChoice, CalibrationUsed};
+pub use calibration::{Calibrated, CalibrationChoice, CalibrationUsed};
 pub use file::{
     Case, CaseError, CaseFile, ContourFile, ContourKind, IntrinsicsFile, TemplateFile, ViewFile,
     ViewGeometry, MAX_OUTLINE_SPAN_RATIO, MIN_HULL_FILL,

@@ -135,17 +135,8 @@ pub fn run_case_calibrated(
     provenance: Provenance,
     choice: &CalibrationChoice,
 ) -> Result<CaseRunReport, CaseRunError> {
-    let case = CaseFile::load(path)?;
-    let (calibration, used, warning) = choice.resolve(&case);
-    let prm = ReconParams {
-        cup: calibration.correcting(prm.cup.clone()),
-        ..prm.clone()
-    };
-    let up = UncertaintyParams {
-        model_sd_mm: calibration.model_sd_mm,
-        ..up.clone()
-    };
-    let mut case = case;
+    let mut case = CaseFile::load(path)?;
+    let (prm, up, used, warning) = choice.apply(&case, prm, up);
     case.warnings.extend(warning);
     run_loaded(&case, path, out, &prm, kernels, &up, provenance, Some(used))
 }
