@@ -186,6 +186,10 @@ pub const REALISTIC_PRIOR_REGION_JSON: &str =
 /// The same for the realistic protocol: `acetab simulate --protocol realistic` and `acetab
 /// reconstruct` (a patient's X-rays) use it.
 pub const REALISTIC_JSON: &str = include_str!("../../calibration/realistic.json");
+/// The same for the ideal protocol with the antero-posterior view and the two Judet obliques
+/// (`z:0,z:45,z:-45`; a bias and model SD, no shrink): `acetab simulate` uses it for ideal
+/// studies with those views.
+pub const IDEAL_JUDET_JSON: &str = include_str!("../../calibration/ideal-judet.json");
 /// The same for the realistic protocol with the antero-posterior view and the two Judet
 /// obliques (`z:0,z:45,z:-45`), with a learned shrink: `acetab reconstruct` uses it for cases
 /// taken with those views, `acetab simulate --protocol realistic` for studies with them.
@@ -223,6 +227,11 @@ impl CupCalibration {
         Self::embedded(REALISTIC_JSON, "calibration/realistic.json")
     }
 
+    /// The shipped calibration for the ideal protocol with the AP and Judet views.
+    pub fn shipped_ideal_judet() -> CupCalibration {
+        Self::embedded(IDEAL_JUDET_JSON, "calibration/ideal-judet.json")
+    }
+
     /// The shipped calibration for the realistic protocol with the AP and Judet views.
     pub fn shipped_realistic_judet() -> CupCalibration {
         Self::embedded(REALISTIC_JUDET_JSON, "calibration/realistic-judet.json")
@@ -232,9 +241,10 @@ impl CupCalibration {
     /// default one (learned with the paper's views) first.
     pub fn shipped_set(realistic: bool, estimator: CupEstimator) -> Vec<Shipped> {
         match (realistic, estimator) {
-            (false, CupEstimator::ObservedPart) => {
-                vec![("calibration/ideal.json", Self::shipped_ideal)]
-            }
+            (false, CupEstimator::ObservedPart) => vec![
+                ("calibration/ideal.json", Self::shipped_ideal),
+                ("calibration/ideal-judet.json", Self::shipped_ideal_judet),
+            ],
             (false, CupEstimator::PriorRegion) => vec![(
                 "calibration/ideal-prior-region.json",
                 Self::shipped_ideal_prior_region,
@@ -965,7 +975,7 @@ mod tests {
         );
         assert_eq!(c, CupCalibration::shipped_realistic_judet());
         // Companions: the paper's views, and views no shipped calibration was learned on, get
-        // the paper's (the second told so by its fit); the ideal protocol has only that one.
+        // the paper's (the second told so by its fit); the ideal protocol has its own pair.
         let (_, name, fit) = CupCalibration::shipped_for_views(true, est, &dir("z:0,z:20,z:-20"));
         assert_eq!((name, fit), ("calibration/realistic.json", ViewFit::Same));
         let (_, name, fit) = CupCalibration::shipped_for_views(true, est, &dir("z:0,z:60,z:-60"));
@@ -974,7 +984,10 @@ mod tests {
             matches!(fit, ViewFit::Other(Some(d)) if (d - 40.0).abs() < 1e-6),
             "{fit:?}"
         );
-        let (_, name, fit) = CupCalibration::shipped_for_views(false, est, &dir("z:0,z:45,z:-45"));
+        let (c, name, fit) = CupCalibration::shipped_for_views(false, est, &dir("z:0,z:45,z:-45"));
+        assert_eq!((name, fit), ("calibration/ideal-judet.json", ViewFit::Same));
+        assert_eq!(c, CupCalibration::shipped_ideal_judet());
+        let (_, name, fit) = CupCalibration::shipped_for_views(false, est, &dir("z:0,z:60,z:-60"));
         assert_eq!(name, "calibration/ideal.json");
         assert!(matches!(fit, ViewFit::Other(_)));
         let (_, _, fit) = CupCalibration::shipped_for_views(true, est, &dir("z:0,z:20"));

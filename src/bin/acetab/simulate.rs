@@ -123,9 +123,9 @@ pub struct SimulateArgs {
     /// the model-error SD added to the resamples' spread), or "none" (the resamples alone, no
     /// correction). Default: the shipped calibration of the protocol and cup estimator learned
     /// on the study's --views (calibration/ideal.json, realistic.json, ideal-prior-region.json
-    /// or realistic-prior-region.json, learned on the paper's views; realistic-judet.json for
-    /// z:0,z:45,z:-45), with a warning when none was learned on them. A file learned on other
-    /// views is used with a warning.
+    /// or realistic-prior-region.json, learned on the paper's views; ideal-judet.json and
+    /// realistic-judet.json for z:0,z:45,z:-45), with a warning when none was learned on them.
+    /// A file learned on other views is used with a warning.
     #[arg(long)]
     pub calibration: Option<String>,
     /// Leave-one-subject-out calibration: each mesh's study uses a calibration learned (as
