@@ -2045,3 +2045,133 @@ fn a_study_compares_srvf_with_its_baseline_run_by_run() {
             .unwrap();
     assert_eq!(json["comparisons"].as_array().map(|a| a.len()), Some(0));
 }
+
+/// A view set's sweep under `dir`: subjects s1-s4, two hips each, six srvf runs a hip, cups
+/// `truth + offset + noise(k)`, from two sources of truths, recorded as made with `views`.
+fn sweep_of(dir: &Path, views: &[&str], offset: f64, noise: impl Fn(usize) -> f64) {
+    for s in 1..=4 {
+        for hip in ["lhip", "rhip"] {
+            let name = format!("s{s}_{hip}");
+            let truth = 46.0 + 2.4 * s as f64 + if hip == "lhip" { 0.3 } else { -0.4 };
+            let cups: Vec<(f64, f64)> = (0..6)
+                .map(|k| (truth + offset + noise(k + s), truth))
+                .collect();
+            let source = if s <= 2 { "shells" } else { "bone" };
+            study_with(
+                &dir.join(&name),
+                &cups,
+                f64::NAN,
+                serde_json::json!({
+                    "gt": format!("/data/{source}/{name}.stl"),
+                    "views": views,
+                }),
+            );
+        }
+    }
+}
+
+#[test]
+fn plan_views_ranks_view_sets_by_the_corrected_cup_and_refuses_mixed_sweeps() {
+    let dir = tmp("plan-views");
+    // Set A: every cup 2 mm too large, +-0.3 mm about it (a bias a correction removes); set B:
+    // no bias, but +-1.5 mm of scatter (nothing to learn).
+    let alternating = |amp: f64| move |k: usize| if k % 2 == 0 { amp } else { -amp };
+    sweep_of(
+        &dir.join("A"),
+        &["z:0", "z:45", "z:-45"],
+        2.0,
+        alternating(0.3),
+    );
+    sweep_of(
+        &dir.join("B"),
+        &["z:0", "z:20", "z:-20"],
+        0.0,
+        alternating(1.5),
+    );
+    let plan = |extra: &[&str], out: &Path| {
+        bin()
+            .args(["plan-views", "--sweep"])
+            .arg(dir.join("A"))
+            .arg(dir.join("B"))
+            .args(extra)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let rows = |out: &Path| -> Vec<serde_json::Value> {
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("views.json")).unwrap())
+                .unwrap();
+        v["rows"].as_array().unwrap().clone()
+    };
+    let find = |rows: &[serde_json::Value], views: &str, source: &str| -> serde_json::Value {
+        rows.iter()
+            .find(|r| r["views"] == views && r["source"] == source)
+            .unwrap_or_else(|| panic!("no row {views} {source} in {rows:?}"))
+            .clone()
+    };
+    let corrected = dir.join("corrected");
+    let o = plan(&[], &corrected);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r = rows(&corrected);
+    // Two sets x (two sources + all).
+    assert_eq!(r.len(), 6, "{r:?}");
+    let a = find(&r, "z:0,z:45,z:-45", "all");
+    let b = find(&r, "z:0,z:20,z:-20", "all");
+    assert_eq!(a["runs"], 48);
+    assert!(
+        (a["fitted_bias_mm"].as_f64().unwrap() - 2.0).abs() < 1e-9,
+        "{a}"
+    );
+    // Each subject's bias is learned from the other three: all 2 mm, so A's cups land within
+    // 0.3 mm; B's scatter stays.
+    assert!(a["rms_mm"].as_f64().unwrap() < 0.31, "{a}");
+    assert_eq!(a["within_1mm"], 1.0);
+    assert_eq!(b["within_1mm"], 0.0);
+    assert!(
+        stdout.contains("most cups within 1 mm over all sources: z:0,z:45,z:-45"),
+        "{stdout}"
+    );
+    assert!(std::fs::read_to_string(corrected.join("views.csv"))
+        .unwrap()
+        .starts_with("views,source,runs,failed,mae_mm"));
+    // The companion: the cups as fitted rank the sets the other way (A's 2 mm bias is a miss).
+    let fitted = dir.join("fitted");
+    let o = plan(&["--correction", "none"], &fitted);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r = rows(&fitted);
+    assert_eq!(find(&r, "z:0,z:45,z:-45", "all")["within_1mm"], 0.0);
+    assert!(String::from_utf8_lossy(&o.stdout)
+        .contains("most cups within 1 mm over all sources: z:0,z:20,z:-20"));
+    // A sweep whose studies were made with different views is refused, naming the study, and
+    // nothing is written.
+    study_with(
+        &dir.join("A").join("s9_lhip"),
+        &[(50.0, 50.0)],
+        f64::NAN,
+        serde_json::json!({"gt": "/data/bone/s9_lhip.stl", "views": ["z:0", "z:20", "z:-20"]}),
+    );
+    let mixed = dir.join("mixed");
+    let mut cmd = bin();
+    cmd.args(["plan-views", "--sweep"]).arg(dir.join("A"));
+    fails_cleanly(
+        cmd,
+        &mixed,
+        &[
+            "s9_lhip",
+            "views z:0,z:20,z:-20 differ",
+            "a sweep is one view set",
+        ],
+    );
+    // So is a sweep whose studies do not say their views.
+    std::fs::write(
+        dir.join("A").join("s9_lhip").join("summary.json"),
+        serde_json::json!({"study": {"gt": "/data/bone/s9_lhip.stl"}}).to_string(),
+    )
+    .unwrap();
+    let mut cmd = bin();
+    cmd.args(["plan-views", "--sweep"]).arg(dir.join("A"));
+    fails_cleanly(cmd, &mixed, &["s9_lhip", "study.views missing"]);
+}

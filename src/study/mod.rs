@@ -12,6 +12,7 @@ pub mod pose;
 mod runner;
 mod table;
 mod task;
+pub mod view_plan;
 
 pub use method::StudyMethod;
 pub use outputs::{write_examples, write_tables};

@@ -53,7 +53,7 @@ pub fn subject_of(path: &Path) -> String {
 }
 
 /// The study folders under `dirs`: each one with runs.csv, or its subfolders that have one.
-fn study_dirs(dirs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
+pub(crate) fn study_dirs(dirs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
     let mut out = Vec::new();
     for d in dirs {
         if d.join("runs.csv").is_file() {
@@ -83,20 +83,20 @@ fn study_dirs(dirs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
 /// (study.cup_estimator); none and the observed part when absent (a study made before
 /// calibrations, the bias or the shrink, or run without them); and the folder its truth came
 /// from (study.gt's; the study's own parent folder when absent).
-struct Applied {
-    model_sd: f64,
-    cup: CupParams,
-    estimator: CupEstimator,
-    source: PathBuf,
+pub(crate) struct Applied {
+    pub(crate) model_sd: f64,
+    pub(crate) cup: CupParams,
+    pub(crate) estimator: CupEstimator,
+    pub(crate) source: PathBuf,
     /// study.views (None when absent).
-    views: Option<Vec<String>>,
+    pub(crate) views: Option<Vec<String>>,
 }
 
 impl Applied {
     /// The estimator's own diameter and resampled SD behind a study's corrected cup and its
     /// resampled SD: the correction undone (`CupParams::corrected` is linear, with slope one
     /// less the shrink).
-    fn undo(&self, cup_mm: f64, resample_sd_mm: f64) -> (f64, f64) {
+    pub(crate) fn undo(&self, cup_mm: f64, resample_sd_mm: f64) -> (f64, f64) {
         (
             self.cup.uncorrected(cup_mm),
             resample_sd_mm / (1.0 - self.cup.shrink),
@@ -104,7 +104,7 @@ impl Applied {
     }
 }
 
-fn applied_in(dir: &Path) -> Result<Applied, String> {
+pub(crate) fn applied_in(dir: &Path) -> Result<Applied, String> {
     let mut a = Applied {
         model_sd: 0.0,
         cup: CupParams::default(),

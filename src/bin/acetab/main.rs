@@ -6,6 +6,7 @@ mod calibrate;
 mod common;
 mod demo;
 mod merge;
+mod plan_views;
 mod pose_study;
 mod prior;
 mod reconstruct;
@@ -45,6 +46,9 @@ enum Command {
     Reconstruct(reconstruct::ReconstructArgs),
     /// Learn the cup uncertainty's model-error SD from studies whose truths are known.
     Calibrate(calibrate::CalibrateArgs),
+    /// View planning: the cup's accuracy per set of views, from population sweeps of the same
+    /// acetabula made with different --views (leave-one-subject-out corrections).
+    PlanViews(plan_views::PlanViewsArgs),
     /// The population shape prior: `acetab prior build MESH... --out prior.json`.
     Prior(prior::PriorArgs),
 }
@@ -60,6 +64,7 @@ fn run(cli: Cli) -> Result<(), String> {
         Command::Reconstruct(a) => reconstruct::run(a),
         Command::Calibrate(a) => calibrate::run(a),
         Command::Prior(a) => prior::run(a),
+        Command::PlanViews(a) => plan_views::run(a),
     }
 }
 

@@ -1,0 +1,289 @@
+//! `acetab plan-views`: which set of X-ray views sizes the cup best. Reads population sweeps of
+//! the same acetabula made with different `--views` (one `acetab simulate --gt ... --views SET`
+//! sweep per set) and writes the view-planning table (`acetab::study::view_plan`): per set and
+//! source of truths, the surface's MAE, the fitted cup's error, and the cup corrected by what
+//! the set's other subjects' runs teach (leave-one-subject-out).
+
+use crate::calibrate::{applied_in, study_dirs, subject_of};
+use crate::common::{check_out, io_msg};
+use acetab::io::fill_dir_atomically;
+use acetab::pipeline::{CupEstimator, Learn};
+use acetab::study::view_plan::{plan_rows, PlanRun, ViewSetRow};
+use acetab::study::{read_csv, StudyMethod};
+use std::path::{Path, PathBuf};
+
+/// `--correction`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum CorrectionArg {
+    /// The fitted cup as it is.
+    None,
+    /// Less a bias learned leave-one-subject-out (as `acetab calibrate` learns it).
+    Bias,
+    /// Less a bias and a shrink learned leave-one-subject-out (`acetab calibrate --shrink`).
+    Shrink,
+}
+
+#[derive(clap::Args)]
+pub struct PlanViewsArgs {
+    /// Population sweeps (folders with one study per acetabulum, as `acetab simulate --gt
+    /// DIR... --out SWEEP` writes them), one per view set, of the same acetabula.
+    #[arg(long, num_args = 1.., required = true)]
+    pub sweep: Vec<PathBuf>,
+    /// The cup each set is judged by: as fitted, or corrected by a bias (or a bias and a
+    /// shrink) learned from the set's own runs, leaving each subject out of its own correction.
+    #[arg(long, value_enum, default_value_t = CorrectionArg::Bias)]
+    pub correction: CorrectionArg,
+    /// The method whose runs are compared.
+    #[arg(long, default_value = "srvf", value_parser = crate::common::method)]
+    pub method: StudyMethod,
+    /// Where views.csv and views.json are written (a new folder, or --force).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Write into an --out that is not empty.
+    #[arg(long)]
+    pub force: bool,
+}
+
+/// One sweep read: its views, cup estimator, sources (paths), meshes and runs.
+struct Sweep {
+    views: String,
+    estimator: CupEstimator,
+    sources: Vec<PathBuf>,
+    meshes: Vec<String>,
+    runs: Vec<PlanRun>,
+}
+
+fn read_sweep(sweep: &Path, method: StudyMethod) -> Result<Sweep, String> {
+    let dirs = study_dirs(std::slice::from_ref(&sweep.to_path_buf()))
+        .map_err(|e| e.replacen("--study", "--sweep", 1))?;
+    let mut first: Option<(Vec<String>, CupEstimator, PathBuf)> = None;
+    let mut sources: Vec<PathBuf> = Vec::new();
+    let mut meshes = Vec::new();
+    let mut runs = Vec::new();
+    for d in &dirs {
+        let applied = applied_in(d)?;
+        let Some(views) = applied.views.clone() else {
+            return Err(format!(
+                "{}: study.views missing: the sweep's views are not known (a study made before they were recorded)",
+                d.join("summary.json").display()
+            ));
+        };
+        match &first {
+            None => first = Some((views, applied.estimator, d.clone())),
+            Some((v, e, at)) => {
+                if *v != views {
+                    return Err(format!(
+                        "{}: views {} differ from {}'s {}: a sweep is one view set",
+                        d.display(),
+                        views.join(","),
+                        at.display(),
+                        v.join(",")
+                    ));
+                }
+                if *e != applied.estimator {
+                    return Err(format!(
+                        "{}: cup_estimator {} differs from {}'s {}",
+                        d.display(),
+                        applied.estimator.name(),
+                        at.display(),
+                        e.name()
+                    ));
+                }
+            }
+        }
+        let source = match sources.iter().position(|s| *s == applied.source) {
+            Some(k) => k,
+            None => {
+                sources.push(applied.source.clone());
+                sources.len() - 1
+            }
+        };
+        let subject = subject_of(d);
+        meshes.push(
+            d.file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+        );
+        let rows = read_csv(&d.join("runs.csv")).map_err(|e| e.to_string())?;
+        for r in rows.iter().filter(|r| r.method == method) {
+            let ok = r.error.is_empty() && r.cup_diameter_mm.is_finite();
+            // The resampled SD alone (NaN, no resampling, gives 0), and the estimator's own
+            // diameter, without the correction the study made.
+            let resample = (r.cup_sd_mm * r.cup_sd_mm - applied.model_sd * applied.model_sd)
+                .max(0.0)
+                .sqrt();
+            let (fitted, resample_sd_mm) = applied.undo(r.cup_diameter_mm, resample);
+            runs.push(PlanRun {
+                source,
+                subject: subject.clone(),
+                fitted_mm: ok.then_some(fitted),
+                truth_mm: r.gt_cup_diameter_mm,
+                resample_sd_mm,
+                mae_mm: r.mae_mm,
+            });
+        }
+    }
+    let Some((views, estimator, _)) = first else {
+        return Err(format!("--sweep {}: no study in it", sweep.display()));
+    };
+    if runs.is_empty() {
+        return Err(format!(
+            "--sweep {}: no {} runs in its studies",
+            sweep.display(),
+            method.name()
+        ));
+    }
+    meshes.sort();
+    Ok(Sweep {
+        views: views.join(","),
+        estimator,
+        sources,
+        meshes,
+        runs,
+    })
+}
+
+/// Short names for the sources: each folder's own name, or its last two components where two
+/// share a name.
+fn source_names(paths: &[PathBuf]) -> Vec<String> {
+    let last = |p: &Path, n: usize| {
+        let parts: Vec<String> = p
+            .components()
+            .map(|c| c.as_os_str().to_string_lossy().into_owned())
+            .collect();
+        parts[parts.len().saturating_sub(n)..].join("/")
+    };
+    let short: Vec<String> = paths.iter().map(|p| last(p, 1)).collect();
+    let mut sorted = short.clone();
+    sorted.sort();
+    sorted.dedup();
+    if sorted.len() == short.len() {
+        short
+    } else {
+        paths.iter().map(|p| last(p, 2)).collect()
+    }
+}
+
+pub fn run(args: PlanViewsArgs) -> Result<(), String> {
+    check_out(&args.out, args.force)?;
+    let what = match args.correction {
+        CorrectionArg::None => Learn::SdOnly,
+        CorrectionArg::Bias => Learn::Bias,
+        CorrectionArg::Shrink => Learn::BiasAndShrink,
+    };
+    let sweeps: Vec<Sweep> = args
+        .sweep
+        .iter()
+        .map(|s| read_sweep(s, args.method))
+        .collect::<Result<_, _>>()?;
+    // Every set's sources, in order of first appearance, named once for the whole table.
+    let mut all_sources: Vec<PathBuf> = Vec::new();
+    for s in &sweeps {
+        for p in &s.sources {
+            if !all_sources.contains(p) {
+                all_sources.push(p.clone());
+            }
+        }
+    }
+    let names = source_names(&all_sources);
+    for (s, path) in sweeps.iter().zip(&args.sweep).skip(1) {
+        if s.meshes != sweeps[0].meshes {
+            eprintln!(
+                "acetab: warning: --sweep {} holds {} acetabula, {} holds {}: the sets are not compared on the same acetabula",
+                path.display(),
+                s.meshes.len(),
+                args.sweep[0].display(),
+                sweeps[0].meshes.len()
+            );
+        }
+    }
+    let mut rows: Vec<ViewSetRow> = Vec::new();
+    for s in &sweeps {
+        // The sweep's runs with their sources renumbered into the table's.
+        let runs: Vec<PlanRun> = s
+            .runs
+            .iter()
+            .map(|r| PlanRun {
+                source: all_sources
+                    .iter()
+                    .position(|p| *p == s.sources[r.source])
+                    .unwrap_or(r.source),
+                ..r.clone()
+            })
+            .collect();
+        rows.extend(
+            plan_rows(&s.views, &names, &runs, s.estimator, what).map_err(|e| e.to_string())?,
+        );
+    }
+    let meta = serde_json::json!({
+        "method": args.method.name(),
+        "correction": match args.correction {
+            CorrectionArg::None => "none: the fitted cup",
+            CorrectionArg::Bias => "a bias learned leave-one-subject-out from the set's own runs",
+            CorrectionArg::Shrink => "a bias and a shrink learned leave-one-subject-out from the set's own runs",
+        },
+        "sweeps": args.sweep.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+        "sources": all_sources.iter().zip(&names).map(|(p, n)| serde_json::json!({"name": n, "path": p.display().to_string()})).collect::<Vec<_>>(),
+    });
+    fill_dir_atomically(
+        &args.out,
+        |d| {
+            let p = d.join("views.csv");
+            let mut w = csv::Writer::from_path(&p).map_err(|e| format!("{}: {e}", p.display()))?;
+            for r in &rows {
+                w.serialize(r)
+                    .map_err(|e| format!("{}: {e}", p.display()))?;
+            }
+            w.flush().map_err(|e| io_msg(&p, e))?;
+            let p = d.join("views.json");
+            let text =
+                serde_json::to_string_pretty(&serde_json::json!({"plan": meta, "rows": rows}))
+                    .map_err(|e| e.to_string())?;
+            std::fs::write(&p, text).map_err(|e| io_msg(&p, e))
+        },
+        io_msg,
+    )
+    .map_err(|e| crate::common::unstage(&e, &args.out))?;
+    println!(
+        "{:<28} {:<22} {:>5} {:>6} {:>7} {:>9} {:>8} {:>7} {:>8} {:>9}",
+        "views",
+        "source",
+        "runs",
+        "failed",
+        "MAE",
+        "fit bias",
+        "cup RMS",
+        "exact",
+        "<=1 mm",
+        "one size"
+    );
+    for r in &rows {
+        println!(
+            "{:<28} {:<22} {:>5} {:>6} {:>7.3} {:>+9.2} {:>8.2} {:>6.0}% {:>7.0}% {:>8.0}%",
+            r.views,
+            r.source,
+            r.runs,
+            r.failed,
+            r.mae_mm,
+            r.fitted_bias_mm,
+            r.rms_mm,
+            100.0 * r.exact_size,
+            100.0 * r.within_1mm,
+            100.0 * r.within_one_size
+        );
+    }
+    if let Some(best) = rows
+        .iter()
+        .filter(|r| r.source == "all")
+        .max_by(|a, b| a.within_1mm.total_cmp(&b.within_1mm))
+    {
+        println!(
+            "most cups within 1 mm over all sources: {} ({:.0} %, exact size {:.0} %)",
+            best.views,
+            100.0 * best.within_1mm,
+            100.0 * best.exact_size
+        );
+    }
+    eprintln!("view-planning table in {}", args.out.display());
+    Ok(())
+}
