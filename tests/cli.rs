@@ -2075,7 +2075,7 @@ fn plan_views_ranks_view_sets_by_the_corrected_cup_and_refuses_mixed_sweeps() {
     let dir = tmp("plan-views");
     // Set A: every cup 2 mm too large, +-0.3 mm about it (a bias a correction removes); set B:
     // no bias, but +-1.5 mm of scatter (nothing to learn).
-    let alternating = |amp: f64| move |k: usize| if k % 2 == 0 { amp } else { -amp };
+    let alternating = |amp: f64| move |k: usize| if k.is_multiple_of(2) { amp } else { -amp };
     sweep_of(
         &dir.join("A"),
         &["z:0", "z:45", "z:-45"],

@@ -213,6 +213,12 @@ mod tests {
         out
     }
 
+    /// The rows of `runs` (two sources, a and b) under `what`.
+    fn rows_of(runs: &[PlanRun], what: Learn) -> Result<Vec<ViewSetRow>, PlanError> {
+        let src = ["a".to_string(), "b".to_string()];
+        plan_rows("z:0", &src, runs, CupEstimator::ObservedPart, what)
+    }
+
     fn all(rows: &[ViewSetRow]) -> &ViewSetRow {
         rows.iter().find(|r| r.source == "all").unwrap()
     }
@@ -221,16 +227,8 @@ mod tests {
     fn a_shared_bias_is_learned_from_the_other_subjects_and_removed() {
         // Every cup 1.5 mm too large: the learned bias takes it off, leave-one-subject-out.
         let runs = population(6, &|_| 1.5);
-        let src = vec!["a".to_string(), "b".to_string()];
-        let raw = plan_rows(
-            "z:0",
-            &src,
-            &runs,
-            CupEstimator::ObservedPart,
-            Learn::SdOnly,
-        )
-        .unwrap();
-        let fixed = plan_rows("z:0", &src, &runs, CupEstimator::ObservedPart, Learn::Bias).unwrap();
+        let raw = rows_of(&runs, Learn::SdOnly).unwrap();
+        let fixed = rows_of(&runs, Learn::Bias).unwrap();
         assert!((all(&raw).fitted_bias_mm - 1.51).abs() < 1e-9);
         assert!(
             (all(&raw).bias_mm - 1.51).abs() < 1e-9,
@@ -248,11 +246,9 @@ mod tests {
         // One subject 6 mm off, the rest exact: left out, it learns (about) nothing and keeps
         // its error; had it been in its own training set, part of its error would be removed.
         let runs = population(6, &|s| if s == 0 { 6.0 } else { 0.0 });
-        let src = vec!["a".to_string(), "b".to_string()];
-        let rows = plan_rows("z:0", &src, &runs, CupEstimator::ObservedPart, Learn::Bias).unwrap();
-        // Source a holds subjects 0, 2, 4: subject 0's six runs keep 6 mm (less nothing), the
-        // others are corrected by a bias learned with subject 0 in it (6/6 ~ 0.5 mm per source
-        // a... weighted by source).
+        let rows = rows_of(&runs, Learn::Bias).unwrap();
+        // Subject 0's runs keep their 6 mm; every other subject's bias is learned with
+        // subject 0 in it, so it is well above zero.
         let fixes = corrections("z:0", &runs, CupEstimator::ObservedPart, Learn::Bias).unwrap();
         for (r, c) in runs.iter().zip(&fixes) {
             if r.subject == "s0" {
@@ -304,15 +300,7 @@ mod tests {
         for r in runs.iter_mut().take(6) {
             r.fitted_mm = None;
         }
-        let src = vec!["a".to_string(), "b".to_string()];
-        let rows = plan_rows(
-            "z:0",
-            &src,
-            &runs,
-            CupEstimator::ObservedPart,
-            Learn::SdOnly,
-        )
-        .unwrap();
+        let rows = rows_of(&runs, Learn::SdOnly).unwrap();
         let a = all(&rows);
         assert_eq!((a.runs, a.failed), (24, 6));
         assert!((a.exact_size - 18.0 / 24.0).abs() < 1e-12);
@@ -320,7 +308,7 @@ mod tests {
         for r in &mut runs {
             r.fitted_mm = None;
         }
-        let err = plan_rows("z:0", &src, &runs, CupEstimator::ObservedPart, Learn::Bias);
+        let err = rows_of(&runs, Learn::Bias);
         assert!(matches!(err, Err(PlanError::NoResults { .. })));
     }
 
@@ -331,15 +319,7 @@ mod tests {
             r.truth_mm = 50.0;
             r.fitted_mm = Some(52.1);
         }
-        let src = vec!["a".to_string(), "b".to_string()];
-        let rows = plan_rows(
-            "z:0",
-            &src,
-            &runs,
-            CupEstimator::ObservedPart,
-            Learn::SdOnly,
-        )
-        .unwrap();
+        let rows = rows_of(&runs, Learn::SdOnly).unwrap();
         let a = all(&rows);
         assert_eq!(
             (a.exact_size, a.within_1mm, a.within_one_size),
@@ -348,14 +328,7 @@ mod tests {
         for r in &mut runs {
             r.fitted_mm = Some(54.1);
         }
-        let rows = plan_rows(
-            "z:0",
-            &src,
-            &runs,
-            CupEstimator::ObservedPart,
-            Learn::SdOnly,
-        )
-        .unwrap();
+        let rows = rows_of(&runs, Learn::SdOnly).unwrap();
         assert_eq!(all(&rows).within_one_size, 0.0, "two sizes off");
     }
 }
