@@ -2165,6 +2165,16 @@ fn plan_views_ranks_view_sets_by_the_corrected_cup_and_refuses_mixed_sweeps() {
             "a sweep is one view set",
         ],
     );
+    // And a run without its truth's cup.
+    study_with(
+        &dir.join("A").join("s9_lhip"),
+        &[(50.0, f64::NAN)],
+        f64::NAN,
+        serde_json::json!({"gt": "/data/bone/s9_lhip.stl", "views": ["z:0", "z:45", "z:-45"]}),
+    );
+    let mut cmd = bin();
+    cmd.args(["plan-views", "--sweep"]).arg(dir.join("A"));
+    fails_cleanly(cmd, &mixed, &["s9_lhip", "gt_cup_diameter_mm = NaN"]);
     // So is a sweep whose studies do not say their views.
     std::fs::write(
         dir.join("A").join("s9_lhip").join("summary.json"),

@@ -106,6 +106,16 @@ fn read_sweep(sweep: &Path, method: StudyMethod) -> Result<Sweep, String> {
         );
         let rows = read_csv(&d.join("runs.csv")).map_err(|e| e.to_string())?;
         for r in rows.iter().filter(|r| r.method == method) {
+            if !(r.gt_cup_diameter_mm.is_finite() && r.gt_cup_diameter_mm > 0.0) {
+                return Err(format!(
+                    "{}: {} level {} run {}: gt_cup_diameter_mm = {}: must be a positive diameter (the truth's cup)",
+                    d.join("runs.csv").display(),
+                    r.method.name(),
+                    r.level,
+                    r.run,
+                    r.gt_cup_diameter_mm
+                ));
+            }
             let ok = r.error.is_empty() && r.cup_diameter_mm.is_finite();
             // The resampled SD alone (NaN, no resampling, gives 0), and the estimator's own
             // diameter, without the correction the study made.
