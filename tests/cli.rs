@@ -2145,6 +2145,17 @@ fn plan_views_ranks_view_sets_by_the_corrected_cup_and_refuses_mixed_sweeps() {
     assert_eq!(find(&r, "z:0,z:45,z:-45", "all")["within_1mm"], 0.0);
     assert!(String::from_utf8_lossy(&o.stdout)
         .contains("most cups within 1 mm over all sources: z:0,z:20,z:-20"));
+    // Sweeps of different acetabula are compared with a warning naming the difference.
+    std::fs::remove_dir_all(dir.join("B").join("s4_rhip")).unwrap();
+    let fewer = dir.join("fewer");
+    let o = plan(&[], &fewer);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("holds 7 acetabula") && err.contains(": s4_rhip;"),
+        "{err}"
+    );
+    assert_eq!(find(&rows(&fewer), "z:0,z:20,z:-20", "all")["runs"], 42);
     // A sweep whose studies were made with different views is refused, naming the study, and
     // nothing is written.
     study_with(

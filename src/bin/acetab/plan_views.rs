@@ -198,12 +198,29 @@ pub fn run(args: PlanViewsArgs) -> Result<(), String> {
     let names = source_names(&all_sources);
     for (s, path) in sweeps.iter().zip(&args.sweep).skip(1) {
         if s.meshes != sweeps[0].meshes {
+            let missing = |a: &Sweep, b: &Sweep| -> String {
+                let names: Vec<&str> = b
+                    .meshes
+                    .iter()
+                    .filter(|m| !a.meshes.contains(m))
+                    .map(String::as_str)
+                    .collect();
+                match names.len() {
+                    0 => "none".into(),
+                    n if n <= 5 => names.join(", "),
+                    n => format!("{} and {} more", names[..5].join(", "), n - 5),
+                }
+            };
             eprintln!(
-                "acetab: warning: --sweep {} holds {} acetabula, {} holds {}: the sets are not compared on the same acetabula",
+                "acetab: warning: --sweep {} holds {} acetabula, {} holds {}: the sets are not compared on the same acetabula (not in {}: {}; not in {}: {}; a mesh whose every run failed has no study)",
                 path.display(),
                 s.meshes.len(),
                 args.sweep[0].display(),
-                sweeps[0].meshes.len()
+                sweeps[0].meshes.len(),
+                path.display(),
+                missing(s, &sweeps[0]),
+                args.sweep[0].display(),
+                missing(&sweeps[0], s),
             );
         }
     }
