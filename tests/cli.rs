@@ -974,6 +974,43 @@ fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
         std::fs::read_to_string(out.join("population.csv")).unwrap(),
         table
     );
+    // A mesh whose every run fails (no regularisation: the deformation flies off) is not lost
+    // from the sweep: its study is written with each run's reason, the population table counts
+    // its runs as failed, and the sweep ends with an error naming it (resumed too). A single
+    // study like it writes nothing (`simulate_with_every_run_failed_writes_nothing`).
+    let wild = dir.join("wild");
+    let run_wild = || {
+        bin()
+            .arg("simulate")
+            .args(ONE_RUN.split(' '))
+            .args(["--w-reg", "0", "--w-rot", "0", "--gt"])
+            .arg(meshes.join("big.obj"))
+            .arg(meshes.join("small.obj"))
+            .arg("--out")
+            .arg(&wild)
+            .output()
+            .unwrap()
+    };
+    for pass in 0..2 {
+        let o = run_wild();
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert_eq!(o.status.code(), Some(1), "pass {pass}: {err}");
+        assert!(err.contains("big: all 1 runs failed"), "{err}");
+        assert!(
+            err.contains("the study failed on 2 mesh(es): big, small"),
+            "{err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+        let runs = std::fs::read_to_string(wild.join("big").join("runs.csv")).unwrap();
+        assert_eq!(runs.lines().count(), 2, "{runs}");
+        let table = std::fs::read_to_string(wild.join("population.csv")).unwrap();
+        let all = table
+            .lines()
+            .find(|l| l.starts_with("all,srvf,1,"))
+            .unwrap();
+        // runs 2, failed 2, ..., catastrophic 2
+        assert!(all.starts_with("all,srvf,1,2,2,"), "{table}");
+    }
     // Companion: a folder with no mesh is refused.
     let empty = dir.join("empty");
     std::fs::create_dir_all(&empty).unwrap();

@@ -137,6 +137,8 @@ pub fn worst_meshes(rows: &[PopulationRow]) -> Vec<(StudyMethod, String, f64)> {
         .filter_map(|m| {
             mesh_means(rows, m)
                 .into_iter()
+                // A mesh with no result at some level is counted by its failed runs, not here.
+                .filter(|(_, v)| v.is_finite())
                 .max_by(|a, b| a.1.total_cmp(&b.1))
                 .map(|(n, v)| (m, n, v))
         })

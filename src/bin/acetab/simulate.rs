@@ -345,7 +345,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         // A single study's folder must be new (a sweep's is resumed: its meshes' folders are
         // checked one by one).
         crate::common::check_out(&out, force)?;
-        let rows = study.run(&gt[0], &out)?;
+        let rows = study.run(&gt[0], &out, false)?;
         return print_summary_as(&rows, json);
     }
     sweep(&study, &meshes, &out, json)
@@ -418,7 +418,7 @@ fn sweep(
             continue;
         }
         eprintln!("[{}/{}] {name}", k + 1, meshes.len());
-        if let Err(e) = study.run(&path.to_string_lossy(), &dir) {
+        if let Err(e) = study.run(&path.to_string_lossy(), &dir, true) {
             eprintln!("acetab: error: {name}: {e}");
             failed.push(name.clone());
         }
@@ -427,7 +427,21 @@ fn sweep(
     for (name, _) in meshes {
         let p = out.join(name).join("runs.csv");
         if p.is_file() {
-            tables.push((name.clone(), read_csv(&p).map_err(|e| e.to_string())?));
+            let rows = read_csv(&p).map_err(|e| e.to_string())?;
+            // A mesh whose every run failed (now or in the sweep this one resumes) is in the
+            // table, its runs counted as failed, and the sweep says so.
+            if !rows.is_empty() && rows.iter().all(|r| !r.error.is_empty()) {
+                eprintln!(
+                    "acetab: error: {name}: all {} runs failed (the first: {}); {} says why",
+                    rows.len(),
+                    rows[0].error,
+                    p.display()
+                );
+                if !failed.contains(name) {
+                    failed.push(name.clone());
+                }
+            }
+            tables.push((name.clone(), rows));
         }
     }
     let meta = serde_json::json!({
@@ -494,8 +508,15 @@ fn sweep(
 }
 
 impl Study<'_> {
-    /// One study on the truth `gt`, its folder written at `out`; its rows.
-    fn run(&self, gt: &str, out: &Path) -> Result<Vec<acetab::study::Row>, String> {
+    /// One study on the truth `gt`, its folder written at `out`; its rows. A study in which
+    /// every run failed is an error with nothing written, unless `keep_failed` (a sweep's mesh:
+    /// its runs.csv records each run's reason, and the population table counts them).
+    fn run(
+        &self,
+        gt: &str,
+        out: &Path,
+        keep_failed: bool,
+    ) -> Result<Vec<acetab::study::Row>, String> {
         let Study {
             cfg,
             ref calibration,
@@ -572,7 +593,7 @@ impl Study<'_> {
         bar.finish_and_clear();
         // A study in which every run failed (a solver diverging for want of regularisation,
         // say) has no result to write: it is an error, not a folder of NaN with exit 0.
-        if !rows.is_empty() && rows.iter().all(|r| !r.error.is_empty()) {
+        if !keep_failed && !rows.is_empty() && rows.iter().all(|r| !r.error.is_empty()) {
             return Err(format!(
                 "simulate: all {} runs failed, nothing written (the first, {} level {} run {}: {})",
                 rows.len(),
