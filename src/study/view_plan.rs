@@ -66,12 +66,14 @@ pub enum PlanError {
         views: String,
     },
     /// A subject's correction could not be learned (too few runs left without it, say).
-    #[error("views {views}: the correction for subject {subject} could not be learned from the other subjects' runs: {reason}")]
+    #[error("views {views}: the correction for subject {subject} could not be learned from the runs of the {others} other subject(s): {reason}")]
     Learn {
         /// The view set.
         views: String,
         /// The subject left out.
         subject: String,
+        /// How many subjects it would be learned from.
+        others: usize,
         /// Why.
         reason: String,
     },
@@ -88,6 +90,7 @@ fn corrections(
     let mut subjects: Vec<&str> = runs.iter().map(|r| r.subject.as_str()).collect();
     subjects.sort_unstable();
     subjects.dedup();
+    let others = subjects.len().saturating_sub(1);
     let mut learned: Vec<(&str, CupParams)> = Vec::new();
     for s in subjects {
         let cup = CupParams {
@@ -113,6 +116,7 @@ fn corrections(
                 .map_err(|e| PlanError::Learn {
                     views: views.to_string(),
                     subject: s.to_string(),
+                    others,
                     reason: e.to_string(),
                 })?
                 .correcting(cup)
@@ -310,6 +314,19 @@ mod tests {
         }
         let err = rows_of(&runs, Learn::Bias);
         assert!(matches!(err, Err(PlanError::NoResults { .. })));
+    }
+
+    #[test]
+    fn one_subject_has_no_one_to_learn_from() {
+        let runs: Vec<PlanRun> = population(1, &|_| 1.0);
+        let err = rows_of(&runs, Learn::Bias).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("subject s0 could not be learned from the runs of the 0 other"),
+            "{err}"
+        );
+        // Uncorrected, one subject is enough.
+        assert_eq!(all(&rows_of(&runs, Learn::SdOnly).unwrap()).runs, 6);
     }
 
     #[test]
