@@ -54,6 +54,10 @@ pub struct ViewSetRow {
     pub within_1mm: f64,
     /// Share of the runs whose corrected cup's size is at most one catalogue step off.
     pub within_one_size: f64,
+    /// Share of the runs with a result whose corrected cup is within the SD it would report
+    /// (the resampled SD as the correction scales it and the model-error SD learned without
+    /// the run's subject, in quadrature; 68 % nominal), where the sweep resampled every run.
+    pub sd_coverage: Option<f64>,
 }
 
 /// What could not be planned.
@@ -79,49 +83,66 @@ pub enum PlanError {
     },
 }
 
-/// The correction applied to each run of one view set: learned (`what`) from the set's runs of
-/// every other subject. `Learn::SdOnly` corrects nothing.
+/// What each run of a view set is given, as a calibration learned without its subject would
+/// give it: the correction of its cup and the model-error SD added to its resampled SD (None
+/// where none could be learned).
+#[derive(Clone, Debug, Default)]
+struct Fix {
+    cup: CupParams,
+    model_sd_mm: Option<f64>,
+}
+
+/// The fix of each run of one view set: learned (`what`, and always the model-error SD) from
+/// the set's runs of every other subject. `Learn::SdOnly` corrects nothing; where its SD cannot
+/// be learned (too few runs) the runs get none, where a correction cannot be learned it is an
+/// error.
 fn corrections(
     views: &str,
     runs: &[PlanRun],
     estimator: CupEstimator,
     what: Learn,
-) -> Result<Vec<CupParams>, PlanError> {
+) -> Result<Vec<Fix>, PlanError> {
     let mut subjects: Vec<&str> = runs.iter().map(|r| r.subject.as_str()).collect();
     subjects.sort_unstable();
     subjects.dedup();
     let others = subjects.len().saturating_sub(1);
-    let mut learned: Vec<(&str, CupParams)> = Vec::new();
+    let mut learned: Vec<(&str, Fix)> = Vec::new();
     for s in subjects {
         let cup = CupParams {
             estimator,
             ..Default::default()
         };
-        let cup = if what == Learn::SdOnly {
-            cup
-        } else {
-            let train: Vec<TrainingRun> = runs
-                .iter()
-                .filter(|r| r.subject != s)
-                .filter_map(|r| {
-                    r.fitted_mm.map(|f| TrainingRun {
-                        fitted_mm: f,
-                        truth_mm: r.truth_mm,
-                        resample_sd_mm: r.resample_sd_mm,
-                        source: r.source,
-                    })
+        let train: Vec<TrainingRun> = runs
+            .iter()
+            .filter(|r| r.subject != s)
+            .filter_map(|r| {
+                r.fitted_mm.map(|f| TrainingRun {
+                    fitted_mm: f,
+                    truth_mm: r.truth_mm,
+                    resample_sd_mm: r.resample_sd_mm,
+                    source: r.source,
                 })
-                .collect();
-            CupCalibration::learn(&train, estimator, what, String::new())
-                .map_err(|e| PlanError::Learn {
+            })
+            .collect();
+        let fix = match CupCalibration::learn(&train, estimator, what, String::new()) {
+            Ok(cal) => Fix {
+                cup: cal.correcting(cup),
+                model_sd_mm: Some(cal.model_sd_mm),
+            },
+            Err(_) if what == Learn::SdOnly => Fix {
+                cup,
+                model_sd_mm: None,
+            },
+            Err(e) => {
+                return Err(PlanError::Learn {
                     views: views.to_string(),
                     subject: s.to_string(),
                     others,
                     reason: e.to_string(),
-                })?
-                .correcting(cup)
+                })
+            }
         };
-        learned.push((s, cup));
+        learned.push((s, fix));
     }
     Ok(runs
         .iter()
@@ -129,7 +150,7 @@ fn corrections(
             learned
                 .iter()
                 .find(|(s, _)| *s == r.subject)
-                .map(|(_, c)| c.clone())
+                .map(|(_, f)| f.clone())
                 .unwrap_or_default()
         })
         .collect())
@@ -153,11 +174,22 @@ pub fn plan_rows(
     let cat = CupCatalogue::default();
     let step = 2.0;
     let row = |source: &str, pick: &dyn Fn(&PlanRun) -> bool| -> ViewSetRow {
-        let sel: Vec<(&PlanRun, &CupParams)> =
-            runs.iter().zip(&fixes).filter(|(r, _)| pick(r)).collect();
+        let sel: Vec<(&PlanRun, &Fix)> = runs.iter().zip(&fixes).filter(|(r, _)| pick(r)).collect();
         let ok: Vec<(&PlanRun, f64, f64)> = sel
             .iter()
-            .filter_map(|(r, c)| r.fitted_mm.map(|f| (*r, f, c.corrected(f))))
+            .filter_map(|(r, x)| r.fitted_mm.map(|f| (*r, f, x.cup.corrected(f))))
+            .collect();
+        // The SD each run with a result would report: its resampled SD as the correction
+        // scales it and the model-error SD in quadrature; none unless every one resampled.
+        let sds: Option<Vec<f64>> = sel
+            .iter()
+            .filter(|(r, _)| r.fitted_mm.is_some())
+            .map(|(r, x)| {
+                let scaled = (1.0 - x.cup.shrink) * r.resample_sd_mm;
+                x.model_sd_mm
+                    .filter(|_| r.resample_sd_mm > 0.0)
+                    .map(|m| scaled.hypot(m))
+            })
             .collect();
         let n = sel.len() as f64;
         let k = ok.len().max(1) as f64;
@@ -179,6 +211,14 @@ pub fn plan_rows(
             exact_size: share(&|(r, _, c)| size(*c) == size(r.truth_mm)),
             within_1mm: share(&|(r, _, c)| (c - r.truth_mm).abs() <= 1.0),
             within_one_size: share(&|(r, _, c)| (size(*c) - size(r.truth_mm)).abs() <= step + 1e-9),
+            sd_coverage: sds.filter(|v| !v.is_empty()).map(|v| {
+                let covered = ok
+                    .iter()
+                    .zip(&v)
+                    .filter(|((r, _, c), sd)| (c - r.truth_mm).abs() <= **sd)
+                    .count();
+                covered as f64 / v.len() as f64
+            }),
         }
     };
     let mut out = Vec::new();
@@ -257,16 +297,16 @@ mod tests {
         for (r, c) in runs.iter().zip(&fixes) {
             if r.subject == "s0" {
                 assert!(
-                    c.bias_mm.abs() < 0.02,
+                    c.cup.bias_mm.abs() < 0.02,
                     "s0 learned from itself: {}",
-                    c.bias_mm
+                    c.cup.bias_mm
                 );
             } else {
                 assert!(
-                    c.bias_mm > 0.3,
+                    c.cup.bias_mm > 0.3,
                     "{} should see s0's error: {}",
                     r.subject,
-                    c.bias_mm
+                    c.cup.bias_mm
                 );
             }
         }
@@ -295,7 +335,7 @@ mod tests {
             String::new(),
         )
         .unwrap();
-        assert!((fixes[0].bias_mm - in_sample.bias_mm).abs() > 0.5);
+        assert!((fixes[0].cup.bias_mm - in_sample.bias_mm).abs() > 0.5);
     }
 
     #[test]
@@ -314,6 +354,50 @@ mod tests {
         }
         let err = rows_of(&runs, Learn::Bias);
         assert!(matches!(err, Err(PlanError::NoResults { .. })));
+    }
+
+    #[test]
+    fn the_sd_coverage_is_that_of_a_model_sd_learned_without_the_subject() {
+        // Errors spread evenly from -1.5 to +1.5 mm in every subject, resampled SD 0.2 mm: a
+        // model SD learned on the others covers about 68 % of each subject's runs.
+        let mut runs = population(8, &|_| 0.0);
+        for (k, r) in runs.iter_mut().enumerate() {
+            r.fitted_mm = Some(r.truth_mm - 1.5 + 3.0 * ((k * 7) % 48) as f64 / 47.0);
+            r.resample_sd_mm = 0.2;
+        }
+        let cov = all(&rows_of(&runs, Learn::SdOnly).unwrap())
+            .sd_coverage
+            .unwrap();
+        assert!((0.6..=0.76).contains(&cov), "{cov}");
+        // The companion: a sweep that did not resample reports no coverage, and a subject
+        // whose errors are four times the others' is covered far less than nominal.
+        for r in &mut runs {
+            r.resample_sd_mm = 0.0;
+        }
+        assert_eq!(
+            all(&rows_of(&runs, Learn::SdOnly).unwrap()).sd_coverage,
+            None
+        );
+        for r in &mut runs {
+            r.resample_sd_mm = 0.2;
+            if r.subject == "s0" {
+                let e = r.fitted_mm.unwrap() - r.truth_mm;
+                r.fitted_mm = Some(r.truth_mm + 4.0 * e);
+            }
+        }
+        let rows = rows_of(&runs, Learn::SdOnly).unwrap();
+        let s0: Vec<bool> = runs
+            .iter()
+            .zip(corrections("z:0", &runs, CupEstimator::ObservedPart, Learn::SdOnly).unwrap())
+            .filter(|(r, _)| r.subject == "s0")
+            .map(|(r, x)| {
+                let e = r.fitted_mm.unwrap() - r.truth_mm;
+                e.abs() <= 0.2f64.hypot(x.model_sd_mm.unwrap())
+            })
+            .collect();
+        let s0_cov = s0.iter().filter(|&&c| c).count() as f64 / s0.len() as f64;
+        assert!(s0_cov < 0.4, "{s0_cov}");
+        assert!(rows[0].sd_coverage.unwrap() < cov, "{rows:?}");
     }
 
     #[test]
