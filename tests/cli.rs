@@ -2167,6 +2167,8 @@ fn plan_views_ranks_view_sets_by_the_corrected_cup_and_refuses_mixed_sweeps() {
     assert!(a["rms_mm"].as_f64().unwrap() < 0.31, "{a}");
     assert_eq!(a["within_1mm"], 1.0);
     assert_eq!(b["within_1mm"], 0.0);
+    // These studies did not resample: no SD to cover with.
+    assert!(a["sd_coverage"].is_null(), "{a}");
     assert!(
         stdout.contains("most cups within 1 mm over all sources: z:0,z:45,z:-45"),
         "{stdout}"

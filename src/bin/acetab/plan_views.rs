@@ -272,7 +272,7 @@ pub fn run(args: PlanViewsArgs) -> Result<(), String> {
     )
     .map_err(|e| crate::common::unstage(&e, &args.out))?;
     println!(
-        "{:<28} {:<22} {:>5} {:>6} {:>7} {:>9} {:>8} {:>7} {:>8} {:>9}",
+        "{:<28} {:<22} {:>5} {:>6} {:>7} {:>9} {:>8} {:>7} {:>8} {:>9} {:>9}",
         "views",
         "source",
         "runs",
@@ -282,11 +282,12 @@ pub fn run(args: PlanViewsArgs) -> Result<(), String> {
         "cup RMS",
         "exact",
         "<=1 mm",
-        "one size"
+        "one size",
+        "<=cup SD"
     );
     for r in &rows {
         println!(
-            "{:<28} {:<22} {:>5} {:>6} {:>7.3} {:>+9.2} {:>8.2} {:>6.0}% {:>7.0}% {:>8.0}%",
+            "{:<28} {:<22} {:>5} {:>6} {:>7.3} {:>+9.2} {:>8.2} {:>6.0}% {:>7.0}% {:>8.0}% {:>9}",
             r.views,
             r.source,
             r.runs,
@@ -296,7 +297,9 @@ pub fn run(args: PlanViewsArgs) -> Result<(), String> {
             r.rms_mm,
             100.0 * r.exact_size,
             100.0 * r.within_1mm,
-            100.0 * r.within_one_size
+            100.0 * r.within_one_size,
+            r.sd_coverage
+                .map_or("-".to_string(), |c| format!("{:.0}%", 100.0 * c))
         );
     }
     if let Some(best) = rows
