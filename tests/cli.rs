@@ -1003,6 +1003,14 @@ fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
         assert!(!err.contains("panicked"), "{err}");
         let runs = std::fs::read_to_string(wild.join("big").join("runs.csv")).unwrap();
         assert_eq!(runs.lines().count(), 2, "{runs}");
+        // No empty picture: nothing to draw is said, not drawn.
+        assert!(!wild.join("big").join("errors.png").exists());
+        if pass == 0 {
+            assert!(
+                err.contains("errors.png not drawn: no run has a result"),
+                "{err}"
+            );
+        }
         let table = std::fs::read_to_string(wild.join("population.csv")).unwrap();
         let all = table
             .lines()

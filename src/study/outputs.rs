@@ -44,8 +44,11 @@ pub fn write_tables(
     })?;
     #[allow(unused_mut)]
     let mut warnings = Vec::new();
+    // A study in which every run failed (a sweep keeps one) has nothing to draw.
     #[cfg(feature = "plots")]
-    if let Err(e) = write_box_plots(rows, dir) {
+    if !rows.iter().any(|r| r.error.is_empty()) {
+        warnings.push("errors.png not drawn: no run has a result".to_string());
+    } else if let Err(e) = write_box_plots(rows, dir) {
         warnings.push(format!("errors.png not drawn: {e}"));
     }
     Ok(warnings)
