@@ -159,17 +159,7 @@ impl ReconOptions {
             CupCalibration::shipped(true, estimator),
             estimator,
         )?;
-        let choice = match self.calibration.as_deref() {
-            None => CalibrationChoice::Shipped {
-                realistic: true,
-                estimator,
-            },
-            Some("none") => CalibrationChoice::None { estimator },
-            Some(path) => CalibrationChoice::Given {
-                calibration: cal,
-                name: path.to_string(),
-            },
-        };
+        let choice = CalibrationChoice::from_arg(self.calibration.as_deref(), true, estimator, cal);
         let mut prm = ReconParams {
             method: method_of(&self.method)?,
             cup: CupParams {

@@ -53,6 +53,27 @@ pub type Calibrated = (
 );
 
 impl CalibrationChoice {
+    /// From a `--calibration` argument: none given, the shipped one for the case's views;
+    /// "none", no calibration; a path, `given` (the file as read and checked).
+    pub fn from_arg(
+        arg: Option<&str>,
+        realistic: bool,
+        estimator: CupEstimator,
+        given: CupCalibration,
+    ) -> Self {
+        match arg {
+            None => CalibrationChoice::Shipped {
+                realistic,
+                estimator,
+            },
+            Some("none") => CalibrationChoice::None { estimator },
+            Some(path) => CalibrationChoice::Given {
+                calibration: given,
+                name: path.to_string(),
+            },
+        }
+    }
+
     /// `prm` and `up` with the calibration for `case` in place of their cup correction and
     /// model SD (`resolve`).
     pub fn apply(&self, case: &Case, prm: &ReconParams, up: &UncertaintyParams) -> Calibrated {

@@ -371,7 +371,7 @@ impl CupCalibration {
     /// (`read`). A calibration learned for another estimator is refused (`path` names it).
     pub fn for_estimator(
         choice: Option<&str>,
-        shipped: fn() -> CupCalibration,
+        shipped: impl FnOnce() -> CupCalibration,
         estimator: CupEstimator,
     ) -> Result<CupCalibration, CalibrationError> {
         let (c, path) = match choice {

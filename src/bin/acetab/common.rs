@@ -341,13 +341,9 @@ pub fn calibration(
         );
     }
     let directions: Vec<_> = views.iter().map(|v| v.source_direction()).collect();
-    let (_, shipped_name, _) = CupCalibration::shipped_for_views(realistic, estimator, &directions);
-    let shipped = CupCalibration::shipped_set(realistic, estimator)
-        .into_iter()
-        .find(|(name, _)| *name == shipped_name)
-        .map(|(_, make)| make)
-        .expect("shipped_for_views picks from shipped_set");
-    let cal = CupCalibration::for_estimator(arg.as_deref(), shipped, estimator)
+    let (shipped, shipped_name, _) =
+        CupCalibration::shipped_for_views(realistic, estimator, &directions);
+    let cal = CupCalibration::for_estimator(arg.as_deref(), || shipped, estimator)
         .map_err(|e| format!("--calibration {e}"))?;
     let source = match arg.as_deref() {
         None => format!("shipped {shipped_name}"),

@@ -44,20 +44,24 @@ pub struct PlanViewsArgs {
     pub force: bool,
 }
 
-/// One sweep read: its views, cup estimator, sources (paths), meshes and runs.
+/// One sweep read: its views, cup estimator, meshes and runs.
 struct Sweep {
     views: String,
     estimator: CupEstimator,
-    sources: Vec<PathBuf>,
     meshes: Vec<String>,
     runs: Vec<PlanRun>,
 }
 
-fn read_sweep(sweep: &Path, method: StudyMethod) -> Result<Sweep, String> {
+/// Read one sweep; its runs' sources index `sources`, the sources of every sweep read so far
+/// (a new one is added).
+fn read_sweep(
+    sweep: &Path,
+    method: StudyMethod,
+    sources: &mut Vec<PathBuf>,
+) -> Result<Sweep, String> {
     let dirs = study_dirs(std::slice::from_ref(&sweep.to_path_buf()))
         .map_err(|e| e.replacen("--study", "--sweep", 1))?;
     let mut first: Option<(Vec<String>, CupEstimator, PathBuf)> = None;
-    let mut sources: Vec<PathBuf> = Vec::new();
     let mut meshes = Vec::new();
     let mut runs = Vec::new();
     for d in &dirs {
@@ -147,7 +151,6 @@ fn read_sweep(sweep: &Path, method: StudyMethod) -> Result<Sweep, String> {
     Ok(Sweep {
         views: views.join(","),
         estimator,
-        sources,
         meshes,
         runs,
     })
@@ -181,20 +184,13 @@ pub fn run(args: PlanViewsArgs) -> Result<(), String> {
         CorrectionArg::Bias => Learn::Bias,
         CorrectionArg::Shrink => Learn::BiasAndShrink,
     };
+    // Every set's sources, in order of first appearance, named once for the whole table.
+    let mut all_sources: Vec<PathBuf> = Vec::new();
     let sweeps: Vec<Sweep> = args
         .sweep
         .iter()
-        .map(|s| read_sweep(s, args.method))
+        .map(|s| read_sweep(s, args.method, &mut all_sources))
         .collect::<Result<_, _>>()?;
-    // Every set's sources, in order of first appearance, named once for the whole table.
-    let mut all_sources: Vec<PathBuf> = Vec::new();
-    for s in &sweeps {
-        for p in &s.sources {
-            if !all_sources.contains(p) {
-                all_sources.push(p.clone());
-            }
-        }
-    }
     let names = source_names(&all_sources);
     for (s, path) in sweeps.iter().zip(&args.sweep).skip(1) {
         if s.meshes != sweeps[0].meshes {
@@ -212,7 +208,7 @@ pub fn run(args: PlanViewsArgs) -> Result<(), String> {
                 }
             };
             eprintln!(
-                "acetab: warning: --sweep {} holds {} acetabula, {} holds {}: the sets are not compared on the same acetabula (not in {}: {}; not in {}: {}; a mesh whose every run failed has no study)",
+                "acetab: warning: --sweep {} holds {} acetabula, {} holds {}: the sets are not compared on the same acetabula (not in {}: {}; not in {}: {})",
                 path.display(),
                 s.meshes.len(),
                 args.sweep[0].display(),
@@ -226,20 +222,8 @@ pub fn run(args: PlanViewsArgs) -> Result<(), String> {
     }
     let mut rows: Vec<ViewSetRow> = Vec::new();
     for s in &sweeps {
-        // The sweep's runs with their sources renumbered into the table's.
-        let runs: Vec<PlanRun> = s
-            .runs
-            .iter()
-            .map(|r| PlanRun {
-                source: all_sources
-                    .iter()
-                    .position(|p| *p == s.sources[r.source])
-                    .unwrap_or(r.source),
-                ..r.clone()
-            })
-            .collect();
         rows.extend(
-            plan_rows(&s.views, &names, &runs, s.estimator, what).map_err(|e| e.to_string())?,
+            plan_rows(&s.views, &names, &s.runs, s.estimator, what).map_err(|e| e.to_string())?,
         );
     }
     let meta = serde_json::json!({

@@ -98,19 +98,7 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         shape_prior.is_some(),
         &[],
     )?;
-    let choice = match calibration.as_deref() {
-        None => CalibrationChoice::Shipped {
-            realistic: true,
-            estimator: cup_estimator,
-        },
-        Some("none") => CalibrationChoice::None {
-            estimator: cup_estimator,
-        },
-        Some(path) => CalibrationChoice::Given {
-            calibration: cal,
-            name: path.to_string(),
-        },
-    };
+    let choice = CalibrationChoice::from_arg(calibration.as_deref(), true, cup_estimator, cal);
     crate::common::check_out(&out, force)?;
     let catalogue = CupCatalogue::parse(&catalogue).map_err(|e| format!("--catalogue: {e}"))?;
     let mut prm = ReconParams {
