@@ -2012,7 +2012,8 @@ fn prior_build_makes_a_prior_a_study_leaves_its_subject_out_of_and_bad_input_is_
 #[test]
 fn a_study_records_its_correspondence_schedule_and_runs_it() {
     // --correspondence-updates and --srvf-samples reach the method: the rounds show in
-    // runs.csv and both settings in summary.json; the defaults are recorded the same way.
+    // runs.csv and both settings in summary.json; the defaults are recorded the same way, as
+    // are the SRVF alignments' alternations and step neighbourhood.
     let dir = tmp("schedule");
     let rounds = |out: &Path| -> Vec<usize> {
         acetab::study::read_csv(&out.join("runs.csv"))
@@ -2026,6 +2027,8 @@ fn a_study_records_its_correspondence_schedule_and_runs_it() {
     let s = phantom_study(&[], &default);
     assert_eq!(s["study"]["correspondence_updates"], 3, "{}", s["study"]);
     assert_eq!(s["study"]["srvf_samples"], 200);
+    assert_eq!(s["study"]["srvf_alternations"], 3);
+    assert_eq!(s["study"]["srvf_neighbourhood"], 5);
     let five = dir.join("five");
     let s = phantom_study(
         &["--correspondence-updates", "5", "--srvf-samples", "100"],
@@ -2037,6 +2040,45 @@ fn a_study_records_its_correspondence_schedule_and_runs_it() {
     assert!(!r3.is_empty() && r3.iter().all(|&r| r == 3), "{r3:?}");
     // The companion: the five-round study is told apart from the default by the same column.
     assert!(!r5.is_empty() && r5.iter().all(|&r| r == 5), "{r5:?}");
+    // One alternation and the 7-step neighbourhood reach every alignment: recorded, and the
+    // same runs end elsewhere (the default's MAE is not the cheaper study's).
+    let cheap = dir.join("cheap");
+    let s = phantom_study(
+        &["--srvf-alternations", "1", "--srvf-neighbourhood", "3"],
+        &cheap,
+    );
+    assert_eq!(s["study"]["srvf_alternations"], 1, "{}", s["study"]);
+    assert_eq!(s["study"]["srvf_neighbourhood"], 3);
+    let mae = |out: &Path| -> Vec<f64> {
+        acetab::study::read_csv(&out.join("runs.csv"))
+            .unwrap()
+            .iter()
+            .filter(|r| r.method == acetab::study::StudyMethod::Srvf)
+            .map(|r| r.mae_mm)
+            .collect()
+    };
+    let (m_default, m_cheap) = (mae(&default), mae(&cheap));
+    assert_eq!(m_default.len(), m_cheap.len());
+    assert!(
+        m_default.iter().zip(&m_cheap).any(|(a, b)| a != b),
+        "{m_default:?}"
+    );
+    // A neighbourhood outside 2-7 is refused, naming the flag, and nothing is written.
+    let bad = dir.join("bad");
+    let o = bin()
+        .args(["simulate", "--gt", "phantom"])
+        .args(ONE_RUN.split(' '))
+        .args(["--srvf-neighbourhood", "9", "--out"])
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--srvf-neighbourhood") && err.contains('9'),
+        "{err}"
+    );
+    assert!(!bad.exists());
 }
 
 /// A single study with srvf and a baseline compares them run by run in summary.json and on

@@ -114,6 +114,15 @@ pub struct SimulateArgs {
     /// takes at most 100).
     #[arg(long, default_value_t = acetab::correspond::CorrespondParams::default().srvf.samples, value_parser = count_in(acetab::correspond::srvf::MIN_SAMPLES, 2000))]
     pub srvf_samples: usize,
+    /// Rotation/DP alternations at most in each SRVF alignment, in every stage (default 3; 1
+    /// makes a study about a fifth faster and moves every result: docs/gpu.md).
+    #[arg(long, default_value_t = acetab::correspond::CorrespondParams::default().srvf.max_alternations, value_parser = count_in(1, 10))]
+    pub srvf_alternations: usize,
+    /// The SRVF DP's step neighbourhood: the steps (a, b) with a, b <= N and coprime, in every
+    /// stage (default 5: 19 step directions; 3: 7, a cheaper DP that moves every result:
+    /// docs/gpu.md).
+    #[arg(long, default_value_t = acetab::correspond::CorrespondParams::default().srvf.neighbourhood, value_parser = count_in(2, 7))]
+    pub srvf_neighbourhood: usize,
     /// Resamples for every run's cup uncertainty (cup_sd_mm, size_probability and brier in
     /// runs.csv; the same resampling as `acetab reconstruct`, seeded by the run's seed); 0
     /// turns it off.
@@ -187,6 +196,8 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         coarse_nodes,
         correspondence_updates,
         srvf_samples,
+        srvf_alternations,
+        srvf_neighbourhood,
         uncertainty_samples,
         calibration,
         calibrate_loso,
@@ -275,6 +286,8 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
                 acetab::correspond::CorrespondParams {
                     srvf: acetab::correspond::srvf::SrvfParams {
                         samples: srvf_samples,
+                        max_alternations: srvf_alternations,
+                        neighbourhood: srvf_neighbourhood,
                         ..d.srvf.clone()
                     },
                     ..d
@@ -653,6 +666,8 @@ impl Study<'_> {
             "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
             "correspondence_updates": cfg.params.deformation.correspondence_updates,
             "srvf_samples": cfg.params.correspond.srvf.samples,
+            "srvf_alternations": cfg.params.correspond.srvf.max_alternations,
+            "srvf_neighbourhood": cfg.params.correspond.srvf.neighbourhood,
             // How each run's cup uncertainty was resampled (0 resamples: none).
             "uncertainty_samples": cfg.uncertainty.as_ref().map_or(0, |u| u.samples),
             "resample_steps": cfg.uncertainty.as_ref().map(|u| u.resample_steps(&cfg.params)),
