@@ -31,7 +31,7 @@ enum Command {
     /// Simulate three X-rays of the built-in phantom, reconstruct, and report accuracy.
     Demo(demo::DemoArgs),
     /// The simulation study: levels x runs x methods on a ground-truth surface.
-    Simulate(simulate::SimulateArgs),
+    Simulate(Box<simulate::SimulateArgs>),
     /// Join the runs of several `acetab simulate --shard` folders.
     Merge(merge::MergeArgs),
     /// SRVF elastic alignment of two curves (CSV files of x,y; header optional).
@@ -56,7 +56,7 @@ enum Command {
 fn run(cli: Cli) -> Result<(), String> {
     match cli.command {
         Command::Demo(a) => demo::run(a),
-        Command::Simulate(a) => simulate::run(a),
+        Command::Simulate(a) => simulate::run(*a),
         Command::Merge(a) => merge::run(a),
         Command::Align(a) => align::run(a),
         Command::Bench(a) => bench::run(a),
