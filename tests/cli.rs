@@ -974,6 +974,41 @@ fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
         std::fs::read_to_string(out.join("population.csv")).unwrap(),
         table
     );
+    // Resumed with another setting: refused, naming the mesh's summary and the setting, and
+    // the population table is left as it was (it would have mixed two seeds under one).
+    let o = bin()
+        .arg("simulate")
+        .args(ONE_RUN.split(' '))
+        .args(["--seed", "2", "--gt"])
+        .arg(&meshes)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("summary.json: study.seed is 1, this sweep's is 2"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(
+        std::fs::read_to_string(out.join("population.csv")).unwrap(),
+        table
+    );
+    // A summary from a version that did not record a setting is not held to it.
+    let summary = out.join("big").join("summary.json");
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    v["study"]
+        .as_object_mut()
+        .unwrap()
+        .remove("srvf_alternations");
+    std::fs::write(&summary, v.to_string()).unwrap();
+    let o = run();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    assert_eq!(err.matches("done before, skipped").count(), 2, "{err}");
     // A mesh whose every run fails (no regularisation: the deformation flies off) is not lost
     // from the sweep: its study is written with each run's reason, the population table counts
     // its runs as failed, and the sweep ends with an error naming it (resumed too). A single

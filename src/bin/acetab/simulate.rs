@@ -413,8 +413,41 @@ fn population_meshes(gt: &[String]) -> Result<Vec<(String, PathBuf)>, String> {
     Ok(out)
 }
 
-/// The sweep: each mesh's study in --out/<name> unless its runs.csv is there already, then the
-/// population table over all of them.
+/// A mesh study a sweep resumes must have been made with the sweep's settings (`Study::settings`):
+/// otherwise the population table would mix studies of different settings under this sweep's
+/// name. Settings its summary.json does not record (an older version's) are not compared.
+fn same_settings(study: &Study, dir: &Path) -> Result<(), String> {
+    let path = dir.join("summary.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        format!(
+            "{}: cannot resume this mesh's study: {e} (its runs.csv is there; remove the folder \
+             to run it again)",
+            path.display()
+        )
+    })?;
+    let saved: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+        format!(
+            "{}: cannot resume this mesh's study: not JSON: {e}",
+            path.display()
+        )
+    })?;
+    for (key, want) in study.settings() {
+        if let Some(had) = saved.pointer(&format!("/study/{key}")) {
+            if *had != want {
+                return Err(format!(
+                    "{}: study.{key} is {had}, this sweep's is {want}: a sweep resumes only with \
+                     the settings it was started with (use another --out, or remove {})",
+                    path.display(),
+                    dir.display()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The sweep: each mesh's study in --out/<name> unless its runs.csv is there already (made with
+/// the same settings), then the population table over all of them.
 fn sweep(
     study: &Study,
     meshes: &[(String, PathBuf)],
@@ -427,6 +460,7 @@ fn sweep(
     for (k, (name, path)) in meshes.iter().enumerate() {
         let dir = out.join(name);
         if dir.join("runs.csv").is_file() {
+            same_settings(study, &dir)?;
             eprintln!("[{}/{}] {name}: done before, skipped", k + 1, meshes.len());
             continue;
         }
@@ -521,6 +555,42 @@ fn sweep(
 }
 
 impl Study<'_> {
+    /// The settings every mesh of a sweep shares and its runs depend on, as summary.json's
+    /// `study` records them (the rest there is the mesh's own: its truth, its calibration and
+    /// prior when learned without its subject, the time, the engine).
+    fn settings(&self) -> serde_json::Map<String, serde_json::Value> {
+        let cfg = self.cfg;
+        let mut m = serde_json::json!({
+            "levels": cfg.levels, "runs": self.runs, "methods": cfg.methods, "seed": self.seed,
+            "shard": format!("{}/{}", self.shard.0, self.shard.1),
+            "views": cfg.geometry.views.iter().map(|v| v.to_string()).collect::<Vec<_>>(),
+            "protocol": cfg.protocol, "contour_noise_px": cfg.noise_px,
+            "contours": format!("{:?}", cfg.params.contour_source),
+            "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
+            "w_obs": cfg.params.weights.obs, "refine_poses": cfg.params.pose.is_some(),
+            "cup_estimator": cfg.params.cup.estimator.name(),
+            "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
+            "correspondence_updates": cfg.params.deformation.correspondence_updates,
+            "srvf_samples": cfg.params.correspond.srvf.samples,
+            "srvf_alternations": cfg.params.correspond.srvf.max_alternations,
+            "srvf_neighbourhood": cfg.params.correspond.srvf.neighbourhood,
+            // How each run's cup uncertainty was resampled (0 resamples: none).
+            "uncertainty_samples": cfg.uncertainty.as_ref().map_or(0, |u| u.samples),
+        })
+        .as_object()
+        .cloned()
+        .unwrap_or_default();
+        // The cup's calibration and the prior are shared too, unless each mesh learns its own
+        // without its subject.
+        if self.loso.is_none() {
+            m.insert("calibration".into(), self.calibration.clone().into());
+        }
+        if !self.prior.leave_out {
+            m.insert("prior".into(), self.prior.from.clone().into());
+        }
+        m
+    }
+
     /// One study on the truth `gt`, its folder written at `out`; its rows. A study in which
     /// every run failed is an error with nothing written, unless `keep_failed` (a sweep's mesh:
     /// its runs.csv records each run's reason, and the population table counts them).
@@ -537,9 +607,9 @@ impl Study<'_> {
             ref adapter_json,
             ref loso,
             ref prior,
-            runs,
+            runs: _,
             seed,
-            shard,
+            shard: _,
             kernels,
             batcher,
         } = *self;
@@ -626,20 +696,14 @@ impl Study<'_> {
             ),
             Err(_) => (None, None),
         };
-        let meta = serde_json::json!({
+        let mut meta = self.settings();
+        let own_keys = serde_json::json!({
             // A mesh by its canonical path, so shards given it relatively and absolutely agree.
             "gt": std::fs::canonicalize(gt).map_or_else(|_| gt.to_string(), |p| p.display().to_string()),
             "truth_cup_diameter_mm": truth_cup,
             "truth_outline_sphere_diameter_mm": outline_cup,
-            "levels": cfg.levels, "runs": runs, "methods": cfg.methods, "seed": seed,
-            "views": cfg.geometry.views.iter().map(|v| v.to_string()).collect::<Vec<_>>(),
-            "shard": format!("{}/{}", shard.0, shard.1), "protocol": cfg.protocol,
-            "contour_noise_px": cfg.noise_px, "seconds": start.elapsed().as_secs_f64(),
-            "contours": format!("{:?}", cfg.params.contour_source),
-            "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
-            "w_obs": cfg.params.weights.obs, "refine_poses": cfg.params.pose.is_some(),
+            "seconds": start.elapsed().as_secs_f64(),
             "cup_model_sd_mm": cfg.uncertainty.as_ref().map(|u| u.model_sd_mm),
-            "cup_estimator": cfg.params.cup.estimator.name(),
             "cup_bias_mm": cfg.params.cup.bias_mm,
             "cup_shrink": cfg.params.cup.shrink,
             "cup_shrink_to_mm": cfg.params.cup.shrink_to_mm,
@@ -663,15 +727,12 @@ impl Study<'_> {
                 }
                 None => serde_json::json!({"backend": kernels.name(), "adapter": null, "batch": 1, "dp": "host"}),
             },
-            "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
-            "correspondence_updates": cfg.params.deformation.correspondence_updates,
-            "srvf_samples": cfg.params.correspond.srvf.samples,
-            "srvf_alternations": cfg.params.correspond.srvf.max_alternations,
-            "srvf_neighbourhood": cfg.params.correspond.srvf.neighbourhood,
-            // How each run's cup uncertainty was resampled (0 resamples: none).
-            "uncertainty_samples": cfg.uncertainty.as_ref().map_or(0, |u| u.samples),
             "resample_steps": cfg.uncertainty.as_ref().map(|u| u.resample_steps(&cfg.params)),
         });
+        if let serde_json::Value::Object(own) = own_keys {
+            meta.extend(own);
+        }
+        let meta = serde_json::Value::Object(meta);
         fill_dir_atomically(
             out,
             |d| {
