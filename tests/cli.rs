@@ -2050,11 +2050,16 @@ fn a_study_records_its_correspondence_schedule_and_runs_it() {
     // runs.csv and both settings in summary.json; the defaults are recorded the same way, as
     // are the SRVF alignments' alternations and step neighbourhood.
     let dir = tmp("schedule");
-    let rounds = |out: &Path| -> Vec<usize> {
+    let srvf_rows = |out: &Path| -> Vec<acetab::study::Row> {
         acetab::study::read_csv(&out.join("runs.csv"))
             .unwrap()
-            .iter()
+            .into_iter()
             .filter(|r| r.method == acetab::study::StudyMethod::Srvf)
+            .collect()
+    };
+    let rounds = |out: &Path| -> Vec<usize> {
+        srvf_rows(out)
+            .iter()
             .map(|r| r.correspondence_updates)
             .collect()
     };
@@ -2084,14 +2089,7 @@ fn a_study_records_its_correspondence_schedule_and_runs_it() {
     );
     assert_eq!(s["study"]["srvf_alternations"], 1, "{}", s["study"]);
     assert_eq!(s["study"]["srvf_neighbourhood"], 3);
-    let mae = |out: &Path| -> Vec<f64> {
-        acetab::study::read_csv(&out.join("runs.csv"))
-            .unwrap()
-            .iter()
-            .filter(|r| r.method == acetab::study::StudyMethod::Srvf)
-            .map(|r| r.mae_mm)
-            .collect()
-    };
+    let mae = |out: &Path| -> Vec<f64> { srvf_rows(out).iter().map(|r| r.mae_mm).collect() };
     let (m_default, m_cheap) = (mae(&default), mae(&cheap));
     assert_eq!(m_default.len(), m_cheap.len());
     assert!(
