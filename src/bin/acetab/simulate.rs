@@ -455,12 +455,18 @@ fn sweep(
     json: bool,
 ) -> Result<(), String> {
     let start = std::time::Instant::now();
+    // Every study done before is checked first, so a refused resume runs nothing.
+    for (name, _) in meshes {
+        let dir = out.join(name);
+        if dir.join("runs.csv").is_file() {
+            same_settings(study, &dir)?;
+        }
+    }
     std::fs::create_dir_all(out).map_err(|e| io_msg(out, e))?;
     let mut failed = Vec::new();
     for (k, (name, path)) in meshes.iter().enumerate() {
         let dir = out.join(name);
         if dir.join("runs.csv").is_file() {
-            same_settings(study, &dir)?;
             eprintln!("[{}/{}] {name}: done before, skipped", k + 1, meshes.len());
             continue;
         }
