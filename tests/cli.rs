@@ -1244,6 +1244,54 @@ fn calibrate_learns_the_model_sd_leaves_a_subject_out_and_names_bad_input() {
         "{err}"
     );
     assert!(!dir.join("mixed.json").exists());
+    // Studies made under different protocols are not learned from together either, and a
+    // study of one protocol does not learn leave-one-subject-out from studies of the other
+    // (nothing written); one that says no protocol is not held to one.
+    let ideal = r#"{"study": {"protocol": "Ideal"}}"#;
+    let realistic = r#"{"study": {"protocol": {"Realistic": {"pose_deg": 1.0}}}}"#;
+    std::fs::write(pop.join("s1_lhip/summary.json"), ideal).unwrap();
+    std::fs::write(pop.join("s2_rhip/summary.json"), realistic).unwrap();
+    let o = learn(&[], &dir.join("mixed-protocols.json"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("protocol realistic differs") && err.contains("s2_rhip"),
+        "{err}"
+    );
+    assert!(!dir.join("mixed-protocols.json").exists());
+    std::fs::write(pop.join("s2_rhip/summary.json"), ideal).unwrap();
+    assert!(learn(&[], &dir.join("ideal-only.json")).status.success());
+    let mut cmd = bin();
+    cmd.args(["simulate", "--gt"])
+        .arg(&gt)
+        .args(ONE_RUN.split(' '))
+        .args([
+            "--protocol",
+            "realistic",
+            "--uncertainty-samples",
+            "2",
+            "--calibrate-loso",
+        ])
+        .arg(&pop);
+    fails_cleanly_with(
+        cmd,
+        &dir.join("loso-other-protocol"),
+        &[
+            "--calibrate-loso",
+            "ideal protocol, this study is realistic",
+        ],
+        1,
+    );
+    std::fs::write(
+        pop.join("s2_rhip/summary.json"),
+        r#"{"study": {"protocol": 3}}"#,
+    )
+    .unwrap();
+    let o = learn(&[], &dir.join("bad-protocol.json"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("study.protocol = 3"), "{err}");
+    std::fs::remove_file(pop.join("s1_lhip/summary.json")).unwrap();
     // A study whose summary.json holds a model SD has it taken out of its cup SDs first.
     std::fs::write(
         pop.join("s2_rhip/summary.json"),
@@ -2326,4 +2374,53 @@ fn plan_views_ranks_view_sets_by_the_corrected_cup_and_refuses_mixed_sweeps() {
     let mut cmd = bin();
     cmd.args(["plan-views", "--sweep"]).arg(dir.join("A"));
     fails_cleanly(cmd, &mixed, &["s9_lhip", "study.views missing"]);
+    std::fs::remove_dir_all(dir.join("A").join("s9_lhip")).unwrap();
+    // View sets are compared under one protocol: within a sweep, and between sweeps (a study
+    // that does not say its protocol, as these did above, is not held to one).
+    let say = |sweep: &str, name: &str, protocol: serde_json::Value| {
+        let views = if sweep == "A" {
+            ["z:0", "z:45", "z:-45"]
+        } else {
+            ["z:0", "z:20", "z:-20"]
+        };
+        let study = serde_json::json!({"study": {
+            "gt": format!("/data/bone/{name}.stl"), "views": views, "protocol": protocol,
+        }});
+        std::fs::write(
+            dir.join(sweep).join(name).join("summary.json"),
+            study.to_string(),
+        )
+        .unwrap();
+    };
+    let realistic = serde_json::json!({"Realistic": {"pose_deg": 1.0}});
+    say("A", "s1_lhip", serde_json::json!("Ideal"));
+    say("A", "s2_lhip", realistic.clone());
+    let mut cmd = bin();
+    cmd.args(["plan-views", "--sweep"]).arg(dir.join("A"));
+    fails_cleanly(
+        cmd,
+        &mixed,
+        &[
+            "s2_lhip",
+            "protocol realistic differs",
+            "a sweep is one protocol",
+        ],
+    );
+    say("A", "s2_lhip", serde_json::json!("Ideal"));
+    say("B", "s1_lhip", realistic);
+    let mut cmd = bin();
+    cmd.args(["plan-views", "--sweep"])
+        .arg(dir.join("A"))
+        .arg(dir.join("B"));
+    fails_cleanly(
+        cmd,
+        &mixed,
+        &[
+            "made under the realistic protocol",
+            "compared under one protocol",
+        ],
+    );
+    // The companion: under one protocol the same sweeps are compared.
+    say("B", "s1_lhip", serde_json::json!("Ideal"));
+    assert!(plan(&[], &dir.join("one-protocol")).status.success());
 }

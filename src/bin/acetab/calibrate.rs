@@ -90,6 +90,8 @@ pub(crate) struct Applied {
     pub(crate) source: PathBuf,
     /// study.views (None when absent).
     pub(crate) views: Option<Vec<String>>,
+    /// The kind of study.protocol, "ideal" or "realistic" (None when absent).
+    pub(crate) protocol: Option<&'static str>,
 }
 
 impl Applied {
@@ -111,6 +113,7 @@ pub(crate) fn applied_in(dir: &Path) -> Result<Applied, String> {
         estimator: CupEstimator::ObservedPart,
         source: dir.parent().map(Path::to_path_buf).unwrap_or_default(),
         views: None,
+        protocol: None,
     };
     let p = dir.join("summary.json");
     let Ok(text) = std::fs::read_to_string(&p) else {
@@ -164,6 +167,21 @@ pub(crate) fn applied_in(dir: &Path) -> Result<Applied, String> {
         }
         a.views = views;
     }
+    if let Some(x) = v.pointer("/study/protocol") {
+        // As summary.json writes a `Protocol`: "Ideal", or {"Realistic": its errors}.
+        a.protocol = Some(match x {
+            serde_json::Value::String(k) if k == "Ideal" => "ideal",
+            serde_json::Value::Object(m) if m.len() == 1 && m.contains_key("Realistic") => {
+                "realistic"
+            }
+            _ => {
+                return Err(format!(
+                    "{}: study.protocol = {x}: must be \"Ideal\" or {{\"Realistic\": ...}}",
+                    p.display()
+                ))
+            }
+        });
+    }
     if let Some(x) = v.pointer("/study/cup_estimator") {
         a.estimator = x.as_str().and_then(CupEstimator::parse).ok_or_else(|| {
             format!(
@@ -173,6 +191,20 @@ pub(crate) fn applied_in(dir: &Path) -> Result<Applied, String> {
         })?;
     }
     Ok(a)
+}
+
+/// The protocol kinds ("ideal", "realistic") the studies under `dirs` say they were made under,
+/// with the first study saying each.
+pub(crate) fn protocols_in(dirs: &[PathBuf]) -> Result<Vec<(&'static str, PathBuf)>, String> {
+    let mut out: Vec<(&'static str, PathBuf)> = Vec::new();
+    for d in study_dirs(dirs)? {
+        if let Some(k) = applied_in(&d)?.protocol {
+            if !out.iter().any(|(o, _)| *o == k) {
+                out.push((k, d));
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// What the flags ask to learn.
@@ -203,6 +235,8 @@ pub fn learn(
     // did not say (then the calibration does not either).
     let mut said: Option<(Vec<String>, &Path)> = None;
     let mut unsaid = false;
+    // The protocol the training studies were made under (all the same where they say).
+    let mut protocol: Option<(&str, &Path)> = None;
     for d in &dirs {
         if leave_out.contains(&subject_of(d)) {
             continue;
@@ -221,6 +255,17 @@ pub fn learn(
                 ))
             }
             Some(_) => {}
+        }
+        match (applied.protocol, protocol) {
+            (Some(k), None) => protocol = Some((k, d)),
+            (Some(k), Some((first_kind, first))) if k != first_kind => {
+                return Err(format!(
+                    "{}: protocol {k} differs from {}'s {first_kind}: a calibration is learned under one protocol (its bias and SD are that protocol's errors)",
+                    d.display(),
+                    first.display(),
+                ))
+            }
+            _ => {}
         }
         match (&applied.views, &said) {
             (None, _) => unsaid = true,

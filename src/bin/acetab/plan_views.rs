@@ -44,9 +44,11 @@ pub struct PlanViewsArgs {
     pub force: bool,
 }
 
-/// One sweep read: its views, cup estimator, meshes and runs.
+/// One sweep read: its views, protocol, cup estimator, meshes and runs.
 struct Sweep {
     views: String,
+    /// The protocol its studies say ("ideal", "realistic"), if they say.
+    protocol: Option<&'static str>,
     estimator: CupEstimator,
     meshes: Vec<String>,
     runs: Vec<PlanRun>,
@@ -62,6 +64,7 @@ fn read_sweep(
     let dirs = study_dirs(std::slice::from_ref(&sweep.to_path_buf()))
         .map_err(|e| e.replacen("--study", "--sweep", 1))?;
     let mut first: Option<(Vec<String>, CupEstimator, PathBuf)> = None;
+    let mut protocol: Option<(&'static str, PathBuf)> = None;
     let mut meshes = Vec::new();
     let mut runs = Vec::new();
     for d in &dirs {
@@ -94,6 +97,17 @@ fn read_sweep(
                     ));
                 }
             }
+        }
+        match (applied.protocol, &protocol) {
+            (Some(k), None) => protocol = Some((k, d.clone())),
+            (Some(k), Some((first_kind, at))) if k != *first_kind => {
+                return Err(format!(
+                    "{}: protocol {k} differs from {}'s {first_kind}: a sweep is one protocol",
+                    d.display(),
+                    at.display()
+                ))
+            }
+            _ => {}
         }
         let source = match sources.iter().position(|s| *s == applied.source) {
             Some(k) => k,
@@ -150,6 +164,7 @@ fn read_sweep(
     meshes.sort();
     Ok(Sweep {
         views: views.join(","),
+        protocol: protocol.map(|(k, _)| k),
         estimator,
         meshes,
         runs,
@@ -192,6 +207,24 @@ pub fn run(args: PlanViewsArgs) -> Result<(), String> {
         .map(|s| read_sweep(s, args.method, &mut all_sources))
         .collect::<Result<_, _>>()?;
     let names = source_names(&all_sources);
+    // View sets are compared under one protocol (a sweep that does not say is not held to one).
+    let said = || {
+        sweeps
+            .iter()
+            .zip(&args.sweep)
+            .filter_map(|(s, p)| Some((s.protocol?, p)))
+    };
+    if let Some(((k0, p0), (k, p))) = said().next().and_then(|first| {
+        said()
+            .find(|(k, _)| *k != first.0)
+            .map(|other| (first, other))
+    }) {
+        return Err(format!(
+            "--sweep {}: made under the {k} protocol, --sweep {} under the {k0}: view sets are compared under one protocol",
+            p.display(),
+            p0.display()
+        ));
+    }
     for (s, path) in sweeps.iter().zip(&args.sweep).skip(1) {
         if s.meshes != sweeps[0].meshes {
             let missing = |a: &Sweep, b: &Sweep| -> String {

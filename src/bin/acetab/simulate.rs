@@ -237,7 +237,24 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
             eprintln!("acetab: warning: {w}");
         }
     }
-    // With --calibrate-loso each mesh's own is learned when its study starts.
+    // With --calibrate-loso each mesh's own is learned when its study starts, from studies made
+    // under this study's protocol.
+    if let Some(train) = &calibrate_loso {
+        let ours = match protocol {
+            ProtocolArg::Ideal => "ideal",
+            ProtocolArg::Realistic => "realistic",
+        };
+        if let Some((theirs, d)) = crate::calibrate::protocols_in(std::slice::from_ref(train))?
+            .into_iter()
+            .find(|(k, _)| *k != ours)
+        {
+            return Err(format!(
+                "--calibrate-loso {}: {} was made under the {theirs} protocol, this study is {ours}: a calibration learned under one protocol does not describe the other's errors",
+                train.display(),
+                d.display()
+            ));
+        }
+    }
     let cal = if calibrate_loso.is_some() {
         acetab::pipeline::CupCalibration::none(cup_estimator)
     } else {
