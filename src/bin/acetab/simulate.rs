@@ -244,7 +244,8 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
             ProtocolArg::Ideal => "ideal",
             ProtocolArg::Realistic => "realistic",
         };
-        if let Some((theirs, d)) = crate::calibrate::protocols_in(std::slice::from_ref(train))?
+        if let Some((theirs, d)) = crate::calibrate::protocols_in(std::slice::from_ref(train))
+            .map_err(|e| e.replacen("--study", "--calibrate-loso", 1))?
             .into_iter()
             .find(|(k, _)| *k != ours)
         {
