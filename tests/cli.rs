@@ -933,10 +933,11 @@ fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
     }
     acetab::io::write_obj(&mesh, &meshes.join("small.obj")).unwrap();
     let out = dir.join("pop");
-    let run = || {
+    let run_with = |extra: &[&str]| {
         bin()
             .arg("simulate")
             .args(ONE_RUN.split(' '))
+            .args(extra)
             .arg("--gt")
             .arg(&meshes)
             .arg("--out")
@@ -944,6 +945,7 @@ fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
             .output()
             .unwrap()
     };
+    let run = || run_with(&[]);
     let o = run();
     let err = String::from_utf8_lossy(&o.stderr).into_owned();
     assert!(o.status.success(), "{err}");
@@ -965,28 +967,29 @@ fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
     assert_eq!(json["comparison_tolerance"], 1.05);
     assert_eq!(json["comparisons"].as_array().map(|a| a.len()), Some(0));
     assert!(out.join("population.png").is_file());
-    // Resumed: nothing is run again.
-    let o = run();
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(o.status.success(), "{err}");
-    assert_eq!(err.matches("done before, skipped").count(), 2, "{err}");
-    assert_eq!(
-        std::fs::read_to_string(out.join("population.csv")).unwrap(),
-        table
-    );
+    // Resumed: the meshes done are skipped (`skipped` of them), and the table is the one the
+    // sweep had.
+    let resumes = |skipped: usize| {
+        let o = run();
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        assert_eq!(
+            err.matches("done before, skipped").count(),
+            skipped,
+            "{err}"
+        );
+        assert_eq!(
+            std::fs::read_to_string(out.join("population.csv")).unwrap(),
+            table
+        );
+    };
+    // Nothing is run again.
+    resumes(2);
     // Resumed with another setting: refused, naming the mesh's summary and the setting, before
     // anything runs (the mesh not done, first in order, is not run), and the population table
     // is left as it was (it would have mixed two seeds under one).
     std::fs::remove_dir_all(out.join("big")).unwrap();
-    let o = bin()
-        .arg("simulate")
-        .args(ONE_RUN.split(' '))
-        .args(["--seed", "2", "--gt"])
-        .arg(&meshes)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
+    let o = run_with(&["--seed", "2"]);
     let err = String::from_utf8_lossy(&o.stderr).into_owned();
     assert!(!o.status.success(), "{err}");
     assert!(
@@ -1010,14 +1013,7 @@ fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
         .unwrap()
         .remove("srvf_alternations");
     std::fs::write(&summary, v.to_string()).unwrap();
-    let o = run();
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(o.status.success(), "{err}");
-    assert_eq!(err.matches("done before, skipped").count(), 1, "{err}");
-    assert_eq!(
-        std::fs::read_to_string(out.join("population.csv")).unwrap(),
-        table
-    );
+    resumes(1);
     // A mesh whose every run fails (no regularisation: the deformation flies off) is not lost
     // from the sweep: its study is written with each run's reason, the population table counts
     // its runs as failed, and the sweep ends with an error naming it (resumed too). A single

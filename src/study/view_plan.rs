@@ -156,6 +156,10 @@ fn corrections(
         .collect())
 }
 
+/// A run with a result, as `plan_rows` tallies it: the run, its fitted and its corrected cup,
+/// and the SD it would report (None where it did not resample or no model SD was learned).
+type Tallied<'a> = (&'a PlanRun, f64, f64, Option<f64>);
+
 /// The rows of one view set: one per source (named by `sources`, indexed by
 /// `PlanRun::source`) that has runs, then "all".
 pub fn plan_rows(
@@ -175,50 +179,48 @@ pub fn plan_rows(
     let step = 2.0;
     let row = |source: &str, pick: &dyn Fn(&PlanRun) -> bool| -> ViewSetRow {
         let sel: Vec<(&PlanRun, &Fix)> = runs.iter().zip(&fixes).filter(|(r, _)| pick(r)).collect();
-        let ok: Vec<(&PlanRun, f64, f64)> = sel
+        // The runs with a result: fitted and corrected cups, and the SD each would report (its
+        // resampled SD as the correction scales it and the model-error SD in quadrature; None
+        // where it did not resample or no SD was learned).
+        let ok: Vec<Tallied> = sel
             .iter()
-            .filter_map(|(r, x)| r.fitted_mm.map(|f| (*r, f, x.cup.corrected(f))))
-            .collect();
-        // The SD each run with a result would report: its resampled SD as the correction
-        // scales it and the model-error SD in quadrature; none unless every one resampled.
-        let sds: Option<Vec<f64>> = sel
-            .iter()
-            .filter(|(r, _)| r.fitted_mm.is_some())
-            .map(|(r, x)| {
-                let scaled = (1.0 - x.cup.shrink) * r.resample_sd_mm;
-                x.model_sd_mm
+            .filter_map(|(r, x)| {
+                let sd = x
+                    .model_sd_mm
                     .filter(|_| r.resample_sd_mm > 0.0)
-                    .map(|m| scaled.hypot(m))
+                    .map(|m| ((1.0 - x.cup.shrink) * r.resample_sd_mm).hypot(m));
+                r.fitted_mm.map(|f| (*r, f, x.cup.corrected(f), sd))
             })
+            .collect();
+        // Whether each is within its SD; the coverage only where every one has its SD.
+        let covered: Option<Vec<bool>> = ok
+            .iter()
+            .map(|(r, _, c, sd)| sd.map(|s| (c - r.truth_mm).abs() <= s))
             .collect();
         let n = sel.len() as f64;
         let k = ok.len().max(1) as f64;
-        let mean = |f: &dyn Fn(&(&PlanRun, f64, f64)) -> f64| ok.iter().map(f).sum::<f64>() / k;
-        let share = |f: &dyn Fn(&(&PlanRun, f64, f64)) -> bool| {
-            ok.iter().filter(|x| f(x)).count() as f64 / n.max(1.0)
-        };
+        let mean = |f: &dyn Fn(&Tallied) -> f64| ok.iter().map(f).sum::<f64>() / k;
+        let share =
+            |f: &dyn Fn(&Tallied) -> bool| ok.iter().filter(|x| f(x)).count() as f64 / n.max(1.0);
         let size = |d: f64| cat.nearest(d).catalogue_mm;
         ViewSetRow {
             views: views.to_string(),
             source: source.to_string(),
             runs: sel.len(),
             failed: sel.len() - ok.len(),
-            mae_mm: mean(&|(r, _, _)| r.mae_mm),
-            fitted_bias_mm: mean(&|(r, f, _)| f - r.truth_mm),
-            fitted_rms_mm: mean(&|(r, f, _)| (f - r.truth_mm).powi(2)).sqrt(),
-            bias_mm: mean(&|(r, _, c)| c - r.truth_mm),
-            rms_mm: mean(&|(r, _, c)| (c - r.truth_mm).powi(2)).sqrt(),
-            exact_size: share(&|(r, _, c)| size(*c) == size(r.truth_mm)),
-            within_1mm: share(&|(r, _, c)| (c - r.truth_mm).abs() <= 1.0),
-            within_one_size: share(&|(r, _, c)| (size(*c) - size(r.truth_mm)).abs() <= step + 1e-9),
-            sd_coverage: sds.filter(|v| !v.is_empty()).map(|v| {
-                let covered = ok
-                    .iter()
-                    .zip(&v)
-                    .filter(|((r, _, c), sd)| (c - r.truth_mm).abs() <= **sd)
-                    .count();
-                covered as f64 / v.len() as f64
+            mae_mm: mean(&|(r, _, _, _)| r.mae_mm),
+            fitted_bias_mm: mean(&|(r, f, _, _)| f - r.truth_mm),
+            fitted_rms_mm: mean(&|(r, f, _, _)| (f - r.truth_mm).powi(2)).sqrt(),
+            bias_mm: mean(&|(r, _, c, _)| c - r.truth_mm),
+            rms_mm: mean(&|(r, _, c, _)| (c - r.truth_mm).powi(2)).sqrt(),
+            exact_size: share(&|(r, _, c, _)| size(*c) == size(r.truth_mm)),
+            within_1mm: share(&|(r, _, c, _)| (c - r.truth_mm).abs() <= 1.0),
+            within_one_size: share(&|(r, _, c, _)| {
+                (size(*c) - size(r.truth_mm)).abs() <= step + 1e-9
             }),
+            sd_coverage: covered
+                .filter(|v| !v.is_empty())
+                .map(|v| v.iter().filter(|&&b| b).count() as f64 / v.len() as f64),
         }
     };
     let mut out = Vec::new();

@@ -193,6 +193,29 @@ pub(crate) fn applied_in(dir: &Path) -> Result<Applied, String> {
     Ok(a)
 }
 
+/// Hold the study `d` (its `applied` settings) to the protocol of the first study in `seen`
+/// that said one (`seen` is set by the first that does; a study that says none is not held):
+/// a different one is an error naming both, `why` saying why they must agree.
+pub(crate) fn hold_protocol(
+    seen: &mut Option<(&'static str, PathBuf)>,
+    applied: &Applied,
+    d: &Path,
+    why: &str,
+) -> Result<(), String> {
+    match (applied.protocol, &*seen) {
+        (Some(k), None) => *seen = Some((k, d.to_path_buf())),
+        (Some(k), Some((first_kind, first))) if k != *first_kind => {
+            return Err(format!(
+                "{}: protocol {k} differs from {}'s {first_kind}: {why}",
+                d.display(),
+                first.display(),
+            ))
+        }
+        _ => {}
+    }
+    Ok(())
+}
+
 /// The protocol kinds ("ideal", "realistic") the studies under `dirs` say they were made under,
 /// with the first study saying each.
 pub(crate) fn protocols_in(dirs: &[PathBuf]) -> Result<Vec<(&'static str, PathBuf)>, String> {
@@ -236,7 +259,7 @@ pub fn learn(
     let mut said: Option<(Vec<String>, &Path)> = None;
     let mut unsaid = false;
     // The protocol the training studies were made under (all the same where they say).
-    let mut protocol: Option<(&str, &Path)> = None;
+    let mut protocol: Option<(&'static str, PathBuf)> = None;
     for d in &dirs {
         if leave_out.contains(&subject_of(d)) {
             continue;
@@ -256,17 +279,12 @@ pub fn learn(
             }
             Some(_) => {}
         }
-        match (applied.protocol, protocol) {
-            (Some(k), None) => protocol = Some((k, d)),
-            (Some(k), Some((first_kind, first))) if k != first_kind => {
-                return Err(format!(
-                    "{}: protocol {k} differs from {}'s {first_kind}: a calibration is learned under one protocol (its bias and SD are that protocol's errors)",
-                    d.display(),
-                    first.display(),
-                ))
-            }
-            _ => {}
-        }
+        hold_protocol(
+            &mut protocol,
+            &applied,
+            d,
+            "a calibration is learned under one protocol (its bias and SD are that protocol's errors)",
+        )?;
         match (&applied.views, &said) {
             (None, _) => unsaid = true,
             (Some(v), None) => said = Some((v.clone(), d)),

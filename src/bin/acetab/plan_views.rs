@@ -4,7 +4,7 @@
 //! source of truths, the surface's MAE, the fitted cup's error, and the cup corrected by what
 //! the set's other subjects' runs teach (leave-one-subject-out).
 
-use crate::calibrate::{applied_in, study_dirs, subject_of};
+use crate::calibrate::{applied_in, hold_protocol, study_dirs, subject_of};
 use crate::common::{check_out, io_msg};
 use acetab::io::fill_dir_atomically;
 use acetab::pipeline::{CupEstimator, Learn};
@@ -98,17 +98,7 @@ fn read_sweep(
                 }
             }
         }
-        match (applied.protocol, &protocol) {
-            (Some(k), None) => protocol = Some((k, d.clone())),
-            (Some(k), Some((first_kind, at))) if k != *first_kind => {
-                return Err(format!(
-                    "{}: protocol {k} differs from {}'s {first_kind}: a sweep is one protocol",
-                    d.display(),
-                    at.display()
-                ))
-            }
-            _ => {}
-        }
+        hold_protocol(&mut protocol, &applied, d, "a sweep is one protocol")?;
         let source = match sources.iter().position(|s| *s == applied.source) {
             Some(k) => k,
             None => {
