@@ -181,6 +181,35 @@ impl Mesh {
         out
     }
 
+    /// The triangle counts of the mesh's connected pieces (triangles joined through shared
+    /// vertices), largest first.
+    pub fn piece_sizes(&self) -> Vec<usize> {
+        let mut parent: Vec<usize> = (0..self.vertices.len()).collect();
+        fn root(parent: &mut [usize], mut x: usize) -> usize {
+            while parent[x] != x {
+                parent[x] = parent[parent[x]];
+                x = parent[x];
+            }
+            x
+        }
+        for t in &self.triangles {
+            let [a, b, c] = t.map(|i| i as usize);
+            let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+            parent[ra] = rb;
+            let (rb, rc) = (root(&mut parent, b), root(&mut parent, c));
+            parent[rb] = rc;
+        }
+        let mut count = std::collections::HashMap::new();
+        for t in &self.triangles {
+            *count
+                .entry(root(&mut parent, t[0] as usize))
+                .or_insert(0usize) += 1;
+        }
+        let mut sizes: Vec<usize> = count.into_values().collect();
+        sizes.sort_unstable_by(|a, b| b.cmp(a));
+        sizes
+    }
+
     /// Keep only the listed triangles and the vertices they use (indices are compacted).
     pub fn submesh(&self, keep: &[usize]) -> Result<Mesh, MeshError> {
         let mut map = vec![u32::MAX; self.vertices.len()];
@@ -201,6 +230,9 @@ impl Mesh {
     }
 
     /// Weld vertices closer than `tol` mm (STL stores each triangle's corners separately).
+    /// Triangles that collapse to an edge or a point are dropped, and so is a triangle on the
+    /// same three vertices as an earlier one (either winding: files that list a face twice, or
+    /// both sides of it), which would otherwise hide every boundary edge under it.
     /// Coordinates beyond 2^53 tolerances (about 9,000 km at 1e-6 mm) are refused: their keys
     /// would no longer be whole numbers, and past 2^63 every vertex would share one.
     pub fn welded(&self, tol: f64) -> Result<Mesh, MeshError> {
@@ -238,6 +270,15 @@ impl Mesh {
             .iter()
             .map(|t| t.map(|i| remap[i as usize]))
             .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+            .collect();
+        let mut seen = std::collections::HashSet::new();
+        let triangles = triangles
+            .into_iter()
+            .filter(|t| {
+                let mut k = *t;
+                k.sort_unstable();
+                seen.insert(k)
+            })
             .collect();
         Mesh::new(vertices, triangles)
     }
@@ -333,6 +374,52 @@ mod tests {
         let w = soup.welded(1e-6).unwrap();
         assert_eq!(w.vertex_count(), 4);
         assert_eq!(w.boundary_edges().len(), 4);
+    }
+
+    #[test]
+    fn welding_drops_a_face_listed_twice_in_either_winding() {
+        let m = quad();
+        let mut v = soup_at(0.0).vertices;
+        let mut t = soup_at(0.0).triangles;
+        // The first face again, as listed, and the second turned over: both sides of it.
+        let n = v.len() as u32;
+        v.extend(t[0].map(|i| v[i as usize]));
+        v.extend([t[1][0], t[1][2], t[1][1]].map(|i| v[i as usize]));
+        t.push([n, n + 1, n + 2]);
+        t.push([n + 3, n + 4, n + 5]);
+        let twice = Mesh::new(v, t).unwrap();
+        assert_eq!(twice.triangles.len(), 4);
+        let w = twice.welded(1e-6).unwrap();
+        assert_eq!(w.triangles.len(), m.triangles.len());
+        assert_eq!(w.boundary_edges().len(), 4);
+        // Companion: the doubled faces themselves hide the quad's border (each border edge is
+        // then shared by two faces), which is what the weld must undo.
+        let kept = Mesh::new(
+            w.vertices.clone(),
+            [w.triangles.clone(), w.triangles.clone()].concat(),
+        )
+        .unwrap();
+        assert!(kept.boundary_edges().is_empty());
+    }
+
+    #[test]
+    fn pieces_are_counted_through_shared_vertices() {
+        let m = quad();
+        assert_eq!(m.piece_sizes(), vec![2]);
+        // The quad and a triangle apart from it: two pieces.
+        let mut v = m.vertices.clone();
+        let n = v.len() as u32;
+        v.extend([
+            Point3::new(5.0, 0.0, 0.0),
+            Point3::new(6.0, 0.0, 0.0),
+            Point3::new(5.0, 1.0, 0.0),
+        ]);
+        let mut t = m.triangles.clone();
+        t.push([n, n + 1, n + 2]);
+        assert_eq!(Mesh::new(v, t).unwrap().piece_sizes(), vec![2, 1]);
+        // Companion: the soup's triangles share no vertex until welded.
+        assert_eq!(soup_at(0.0).piece_sizes(), vec![1, 1]);
+        assert_eq!(soup_at(0.0).welded(1e-6).unwrap().piece_sizes(), vec![2]);
     }
 
     /// The quad's corners as a triangle soup moved by `shift` mm along x.

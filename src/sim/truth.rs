@@ -32,7 +32,7 @@ pub struct TruthError {
     pub reason: String,
 }
 
-/// The truth `gt` (a mesh file or `phantom`). A surface no sphere fits, one whose sphere's
+/// The truth `gt` (a mesh file or `phantom`). A mesh of several pieces, a surface no sphere fits, one whose sphere's
 /// radius is outside `PLAUSIBLE_RADIUS_MM`, one that covers more of its sphere than a socket
 /// (`MAX_COVERAGE_DEG`) or lies far from it (`MAX_SPHERE_RMS_MM`), or one the simulated views
 /// cannot see is refused.
@@ -45,6 +45,10 @@ pub fn load_truth(gt: &str) -> Result<Mesh, TruthError> {
         phantom(&PhantomParams::default()).mesh
     } else {
         let mesh = read_mesh(Path::new(gt)).map_err(|e| err(e.to_string()))?;
+        let pieces = mesh.piece_sizes();
+        if pieces.len() > 1 {
+            return Err(err(pieces_reason(&pieces)));
+        }
         ground_truth_surface(&mesh).map_err(|e| err(e.to_string()))?
     };
     let (placement, sphere) =
@@ -73,6 +77,19 @@ pub fn load_truth(gt: &str) -> Result<Mesh, TruthError> {
         )));
     }
     Ok(truth)
+}
+
+/// Why a mesh of several pieces is refused: how many, and their sizes (at most five listed).
+fn pieces_reason(pieces: &[usize]) -> String {
+    let shown: Vec<String> = pieces.iter().take(5).map(|n| n.to_string()).collect();
+    let more = if pieces.len() > 5 { ", ..." } else { "" };
+    format!(
+        "the mesh is {} separate pieces ({}{more} triangles): a truth is one acetabulum's \
+         surface in one piece; cut away the others (both hips in one file, or stray fragments \
+         of a segmentation)",
+        pieces.len(),
+        shown.join(", ")
+    )
 }
 
 /// How far round its fitted hemisphere (`fit_placement`) a surface reaches: the 99th percentile
@@ -177,6 +194,21 @@ mod tests {
             "{e}"
         );
         assert!(e.reason.contains("degrees from its dome's pole"), "{e}");
+        // The cap with a fragment beside it: two pieces, refused by name before any fit.
+        let mut v = h.vertices.clone();
+        let n = v.len() as u32;
+        v.extend([
+            Point3::new(90.0, 0.0, 0.0),
+            Point3::new(92.0, 0.0, 0.0),
+            Point3::new(90.0, 2.0, 0.0),
+        ]);
+        let mut t = h.triangles.clone();
+        t.push([n, n + 1, n + 2]);
+        let e = load_truth(&write("stray.stl", &Mesh::new(v, t).unwrap())).unwrap_err();
+        assert!(
+            e.to_string().contains("stray.stl") && e.reason.contains("2 separate pieces"),
+            "{e}"
+        );
         let e = load_truth(&write("cube.stl", &cube(40.0))).unwrap_err();
         assert!(
             e.to_string().contains("cube.stl") && e.reason.contains("mm RMS"),

@@ -47,7 +47,7 @@ case("missing_views.json", "missing field `views`", drop(["views"]))
 case("missing_template.json", "missing field `template`", drop(["template"]))
 case("missing_k.json", "views[0].k.fx", drop(["views", 0, "k"]))
 case("missing_fy.json", "views[1].k.fy", drop(["views", 1, "k", "fy"]))
-case("missing_height.json", "views[0].width/height", drop(["views", 0, "height"]))
+case("missing_height.json", "views[0].width/height = width 2048, height missing", drop(["views", 0, "height"]))
 case("missing_size_without_image.json", "views[2].width/height", lambda d: (drop(["views", 2, "height"])(d), drop(["views", 2, "width"])(d)))
 case("missing_closed.json", "closed/kind", drop(["views", 1, "contours", 0, "closed"]))
 case("closed_and_kind_disagree.json", "closed/kind", setv(["views", 1, "contours", 0, "kind"], "open"))
@@ -119,6 +119,10 @@ rows.append(("flat_plane.obj", "simulate", "ground truth sphere fit"))
 open(os.path.join(out, "far_away.obj"), "w").write(
     "v 1e38 0 0\nv -1e38 0 0\nv 0 1e38 0\nv 0 0 1e38\nf 1 2 3\nf 1 3 4\nf 2 3 4\nf 1 2 4\n")
 rows.append(("far_away.obj", "simulate", "is the mesh in millimetres?"))
+# Two hips (or a stray fragment) in one file: two separate pieces, refused before any fit.
+open(os.path.join(out, "two_pieces.obj"), "w").write(
+    "v 0 0 0\nv 30 0 0\nv 0 30 0\nv 100 0 0\nv 130 0 0\nv 100 30 0\nf 1 2 3\nf 4 5 6\n")
+rows.append(("two_pieces.obj", "simulate", "2 separate pieces"))
 with open(os.path.join(out, "expected.tsv"), "w") as f:
     f.write("# file\tcommand\texpected substring of the error\n")
     for r in rows:
