@@ -32,25 +32,26 @@ pub struct TruthError {
     pub reason: String,
 }
 
-/// The truth `gt` (a mesh file or `phantom`). A mesh of several pieces, a surface no sphere fits, one whose sphere's
+/// The truth `gt` (a mesh file or `phantom`). A surface no sphere fits, one whose sphere's
 /// radius is outside `PLAUSIBLE_RADIUS_MM`, one that covers more of its sphere than a socket
 /// (`MAX_COVERAGE_DEG`) or lies far from it (`MAX_SPHERE_RMS_MM`), or one the simulated views
-/// cannot see is refused.
+/// cannot see is refused; when the mesh is several pieces, the refusal says so.
 pub fn load_truth(gt: &str) -> Result<Mesh, TruthError> {
     let err = |reason: String| TruthError {
         gt: gt.to_string(),
         reason,
     };
+    let mut pieces = Vec::new();
     let truth = if gt == "phantom" {
         phantom(&PhantomParams::default()).mesh
     } else {
         let mesh = read_mesh(Path::new(gt)).map_err(|e| err(e.to_string()))?;
-        let pieces = mesh.piece_sizes();
-        if pieces.len() > 1 {
-            return Err(err(pieces_reason(&pieces)));
-        }
+        pieces = mesh.piece_sizes();
         ground_truth_surface(&mesh).map_err(|e| err(e.to_string()))?
     };
+    // A mesh of several pieces is taken as it is (an acetabulum's surface may come in parts);
+    // when it is refused, the pieces are named, as they are the likely cause.
+    let err = |reason: String| err(format!("{reason}{}", pieces_note(&pieces)));
     let (placement, sphere) =
         fit_placement(&truth).map_err(|e| err(format!("ground truth sphere fit: {e}")))?;
     let r = sphere.radius;
@@ -79,14 +80,17 @@ pub fn load_truth(gt: &str) -> Result<Mesh, TruthError> {
     Ok(truth)
 }
 
-/// Why a mesh of several pieces is refused: how many, and their sizes (at most five listed).
-fn pieces_reason(pieces: &[usize]) -> String {
+/// For a refusal of a mesh of several pieces: how many, and their sizes (at most five listed);
+/// empty for one piece.
+fn pieces_note(pieces: &[usize]) -> String {
+    if pieces.len() < 2 {
+        return String::new();
+    }
     let shown: Vec<String> = pieces.iter().take(5).map(|n| n.to_string()).collect();
     let more = if pieces.len() > 5 { ", ..." } else { "" };
     format!(
-        "the mesh is {} separate pieces ({}{more} triangles): a truth is one acetabulum's \
-         surface in one piece; cut away the others (both hips in one file, or stray fragments \
-         of a segmentation)",
+        "; the mesh is {} separate pieces ({}{more} triangles): a truth is one acetabulum's \
+         surface; cut away anything else (the other hip, stray fragments of a segmentation)",
         pieces.len(),
         shown.join(", ")
     )
@@ -194,21 +198,37 @@ mod tests {
             "{e}"
         );
         assert!(e.reason.contains("degrees from its dome's pole"), "{e}");
-        // The cap with a fragment beside it: two pieces, refused by name before any fit.
+        // Two caps 150 mm apart (both hips in one file): their sphere is no acetabulum's,
+        // and the refusal names the two pieces as the likely cause.
+        let n = h.vertices.len() as u32;
         let mut v = h.vertices.clone();
-        let n = v.len() as u32;
+        v.extend(
+            h.vertices
+                .iter()
+                .map(|p| p + nalgebra::Vector3::new(150.0, 0.0, 0.0)),
+        );
+        let mut t = h.triangles.clone();
+        t.extend(h.triangles.iter().map(|f| f.map(|i| i + n)));
+        let e = load_truth(&write("both.stl", &Mesh::new(v, t).unwrap())).unwrap_err();
+        assert!(
+            e.to_string().contains("both.stl") && e.reason.contains("2 separate pieces"),
+            "{e}"
+        );
+        // Companion: a fragment near the cap, inside its sphere's reach, leaves a socket that
+        // is used as it is (several pieces alone are not refused).
+        let mut v = h.vertices.clone();
         v.extend([
-            Point3::new(90.0, 0.0, 0.0),
-            Point3::new(92.0, 0.0, 0.0),
-            Point3::new(90.0, 2.0, 0.0),
+            Point3::new(0.0, 0.0, 1.0),
+            Point3::new(0.5, 0.0, 1.0),
+            Point3::new(0.0, 0.5, 1.0),
         ]);
         let mut t = h.triangles.clone();
         t.push([n, n + 1, n + 2]);
-        let e = load_truth(&write("stray.stl", &Mesh::new(v, t).unwrap())).unwrap_err();
-        assert!(
-            e.to_string().contains("stray.stl") && e.reason.contains("2 separate pieces"),
-            "{e}"
-        );
+        let near = Mesh::new(v, t).unwrap();
+        assert_eq!(near.piece_sizes().len(), 2);
+        assert!(load_truth(&write("near.stl", &near)).is_ok());
+        // A refusal of one piece names no pieces.
+        assert!(pieces_note(&[10]).is_empty());
         let e = load_truth(&write("cube.stl", &cube(40.0))).unwrap_err();
         assert!(
             e.to_string().contains("cube.stl") && e.reason.contains("mm RMS"),
