@@ -210,6 +210,17 @@ impl Mesh {
         sizes
     }
 
+    /// This mesh with one more triangle on three new corners (tests: a fragment beside it).
+    #[cfg(test)]
+    pub(crate) fn with_fragment(&self, corners: [Point3<f64>; 3]) -> Mesh {
+        let n = self.vertices.len() as u32;
+        let mut v = self.vertices.clone();
+        v.extend(corners);
+        let mut t = self.triangles.clone();
+        t.push([n, n + 1, n + 2]);
+        Mesh::new(v, t).expect("a mesh with one more triangle")
+    }
+
     /// Keep only the listed triangles and the vertices they use (indices are compacted).
     pub fn submesh(&self, keep: &[usize]) -> Result<Mesh, MeshError> {
         let mut map = vec![u32::MAX; self.vertices.len()];
@@ -407,16 +418,12 @@ mod tests {
         let m = quad();
         assert_eq!(m.piece_sizes(), vec![2]);
         // The quad and a triangle apart from it: two pieces.
-        let mut v = m.vertices.clone();
-        let n = v.len() as u32;
-        v.extend([
+        let apart = m.with_fragment([
             Point3::new(5.0, 0.0, 0.0),
             Point3::new(6.0, 0.0, 0.0),
             Point3::new(5.0, 1.0, 0.0),
         ]);
-        let mut t = m.triangles.clone();
-        t.push([n, n + 1, n + 2]);
-        assert_eq!(Mesh::new(v, t).unwrap().piece_sizes(), vec![2, 1]);
+        assert_eq!(apart.piece_sizes(), vec![2, 1]);
         // Companion: the soup's triangles share no vertex until welded.
         assert_eq!(soup_at(0.0).piece_sizes(), vec![1, 1]);
         assert_eq!(soup_at(0.0).welded(1e-6).unwrap().piece_sizes(), vec![2]);

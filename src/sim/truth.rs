@@ -216,15 +216,11 @@ mod tests {
         );
         // Companion: a fragment near the cap, inside its sphere's reach, leaves a socket that
         // is used as it is (several pieces alone are not refused).
-        let mut v = h.vertices.clone();
-        v.extend([
+        let near = h.with_fragment([
             Point3::new(0.0, 0.0, 1.0),
             Point3::new(0.5, 0.0, 1.0),
             Point3::new(0.0, 0.5, 1.0),
         ]);
-        let mut t = h.triangles.clone();
-        t.push([n, n + 1, n + 2]);
-        let near = Mesh::new(v, t).unwrap();
         assert_eq!(near.piece_sizes().len(), 2);
         assert!(load_truth(&write("near.stl", &near)).is_ok());
         // A refusal of one piece names no pieces.
