@@ -210,15 +210,20 @@ impl Mesh {
         sizes
     }
 
-    /// This mesh with one more triangle on three new corners (tests: a fragment beside it).
+    /// This mesh and `other` in one, sharing no vertex (tests: a second piece beside it).
     #[cfg(test)]
-    pub(crate) fn with_fragment(&self, corners: [Point3<f64>; 3]) -> Mesh {
+    pub(crate) fn joined(&self, other: &Mesh) -> Mesh {
         let n = self.vertices.len() as u32;
-        let mut v = self.vertices.clone();
-        v.extend(corners);
+        let v = [self.vertices.clone(), other.vertices.clone()].concat();
         let mut t = self.triangles.clone();
-        t.push([n, n + 1, n + 2]);
-        Mesh::new(v, t).expect("a mesh with one more triangle")
+        t.extend(other.triangles.iter().map(|f| f.map(|i| i + n)));
+        Mesh::new(v, t).expect("two meshes in one")
+    }
+
+    /// One triangle on `corners` (tests: a fragment).
+    #[cfg(test)]
+    pub(crate) fn triangle(corners: [Point3<f64>; 3]) -> Mesh {
+        Mesh::new(corners.to_vec(), vec![[0, 1, 2]]).expect("a triangle with an area")
     }
 
     /// Keep only the listed triangles and the vertices they use (indices are compacted).
@@ -276,19 +281,15 @@ impl Mesh {
             });
             remap.push(id);
         }
+        let mut seen = std::collections::HashSet::new();
         let triangles: Vec<[u32; 3]> = self
             .triangles
             .iter()
             .map(|t| t.map(|i| remap[i as usize]))
-            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
-            .collect();
-        let mut seen = std::collections::HashSet::new();
-        let triangles = triangles
-            .into_iter()
             .filter(|t| {
                 let mut k = *t;
                 k.sort_unstable();
-                seen.insert(k)
+                k[0] != k[1] && k[1] != k[2] && seen.insert(k)
             })
             .collect();
         Mesh::new(vertices, triangles)
@@ -418,11 +419,11 @@ mod tests {
         let m = quad();
         assert_eq!(m.piece_sizes(), vec![2]);
         // The quad and a triangle apart from it: two pieces.
-        let apart = m.with_fragment([
+        let apart = m.joined(&Mesh::triangle([
             Point3::new(5.0, 0.0, 0.0),
             Point3::new(6.0, 0.0, 0.0),
             Point3::new(5.0, 1.0, 0.0),
-        ]);
+        ]));
         assert_eq!(apart.piece_sizes(), vec![2, 1]);
         // Companion: the soup's triangles share no vertex until welded.
         assert_eq!(soup_at(0.0).piece_sizes(), vec![1, 1]);

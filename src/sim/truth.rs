@@ -200,27 +200,24 @@ mod tests {
         assert!(e.reason.contains("degrees from its dome's pole"), "{e}");
         // Two caps 150 mm apart (both hips in one file): their sphere is no acetabulum's,
         // and the refusal names the two pieces as the likely cause.
-        let n = h.vertices.len() as u32;
-        let mut v = h.vertices.clone();
-        v.extend(
+        let other = h.with_vertices(
             h.vertices
                 .iter()
-                .map(|p| p + nalgebra::Vector3::new(150.0, 0.0, 0.0)),
+                .map(|p| p + nalgebra::Vector3::new(150.0, 0.0, 0.0))
+                .collect(),
         );
-        let mut t = h.triangles.clone();
-        t.extend(h.triangles.iter().map(|f| f.map(|i| i + n)));
-        let e = load_truth(&write("both.stl", &Mesh::new(v, t).unwrap())).unwrap_err();
+        let e = load_truth(&write("both.stl", &h.joined(&other))).unwrap_err();
         assert!(
             e.to_string().contains("both.stl") && e.reason.contains("2 separate pieces"),
             "{e}"
         );
         // Companion: a fragment near the cap, inside its sphere's reach, leaves a socket that
         // is used as it is (several pieces alone are not refused).
-        let near = h.with_fragment([
+        let near = h.joined(&Mesh::triangle([
             Point3::new(0.0, 0.0, 1.0),
             Point3::new(0.5, 0.0, 1.0),
             Point3::new(0.0, 0.5, 1.0),
-        ]);
+        ]));
         assert_eq!(near.piece_sizes().len(), 2);
         assert!(load_truth(&write("near.stl", &near)).is_ok());
         // A refusal of one piece names no pieces.

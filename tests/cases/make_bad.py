@@ -119,7 +119,8 @@ rows.append(("flat_plane.obj", "simulate", "ground truth sphere fit"))
 open(os.path.join(out, "far_away.obj"), "w").write(
     "v 1e38 0 0\nv -1e38 0 0\nv 0 1e38 0\nv 0 0 1e38\nf 1 2 3\nf 1 3 4\nf 2 3 4\nf 1 2 4\n")
 rows.append(("far_away.obj", "simulate", "is the mesh in millimetres?"))
-# Two hips (or a stray fragment) in one file: two separate pieces, refused before any fit.
+# Two pieces in one file (two hips, a stray fragment): no sphere fits them, and the refusal names
+# the pieces.
 open(os.path.join(out, "two_pieces.obj"), "w").write(
     "v 0 0 0\nv 30 0 0\nv 0 30 0\nv 100 0 0\nv 130 0 0\nv 100 30 0\nf 1 2 3\nf 4 5 6\n")
 rows.append(("two_pieces.obj", "simulate", "2 separate pieces"))
