@@ -57,9 +57,17 @@ pub fn load_truth(gt: &str) -> Result<Mesh, TruthError> {
     let r = sphere.radius;
     let (lo, hi) = PLAUSIBLE_RADIUS_MM;
     if !(lo..=hi).contains(&r) {
+        // Too small, the likely cause is the unit; too large, a surface of more than the
+        // socket (a whole hemipelvis fits a sphere of about 150-200 mm) unless it is far larger.
+        let hint = if r < lo || r > 50.0 * hi {
+            "is the mesh in millimetres?"
+        } else {
+            "is it the acetabulum alone (the socket cut from the pelvis, not a whole hemipelvis \
+             or femur), and is the mesh in millimetres?"
+        };
         return Err(err(format!(
             "the fitted sphere's radius is {r:.3} mm, outside the {lo}-{hi} mm of an \
-             acetabulum: is the mesh in millimetres?"
+             acetabulum: {hint}"
         )));
     }
     let coverage = coverage_deg(&truth, &placement);
@@ -169,6 +177,35 @@ mod tests {
             [1, 7, 5],
         ];
         Mesh::new(v, f.to_vec()).unwrap()
+    }
+
+    /// A truth whose sphere is too small is asked about its unit; one too large, as a whole
+    /// hemipelvis would be, whether it is the socket alone; one far too large, about its unit
+    /// again.
+    #[test]
+    fn a_truth_of_the_wrong_size_is_asked_the_likely_question() {
+        let dir = tempfile::tempdir().unwrap();
+        let refuse = |name: &str, radius: f64| {
+            let p = dir.path().join(name);
+            write_stl_binary(&hemisphere(radius, 600), &p).unwrap();
+            load_truth(&p.to_string_lossy()).unwrap_err().reason
+        };
+        let cm = refuse("cm.stl", 2.5);
+        assert!(
+            cm.contains("is the mesh in millimetres?") && !cm.contains("alone"),
+            "{cm}"
+        );
+        let pelvis = refuse("pelvis.stl", 180.0);
+        assert!(
+            pelvis.contains("radius is 180.0") && pelvis.contains("the acetabulum alone"),
+            "{pelvis}"
+        );
+        let microns = refuse("microns.stl", 25_000.0);
+        assert!(!microns.contains("alone"), "{microns}");
+        // Companion: the same cap at a socket's size is taken.
+        let p = dir.path().join("cap.stl");
+        write_stl_binary(&hemisphere(25.0, 600), &p).unwrap();
+        assert!(load_truth(&p.to_string_lossy()).is_ok());
     }
 
     /// A hemisphere is a socket; a whole sphere (a femoral head given by mistake) reaches too
