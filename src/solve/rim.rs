@@ -1,12 +1,13 @@
 //! The cup's orientation from the rim: the acetabular rim is a circle on the cup sphere, and
 //! where an outline runs inside the sphere's projected limb it is that circle's projection. The
-//! circle (its axis and its height along the axis) is fitted to those outline points in every
-//! view at once, robustly (the best 70 % of the points: bridged notches and drift fall out), by
+//! outlines are sampled evenly along their length (so a rim clicked point by point and the same
+//! rim traced densely weigh alike), and the circle (its axis and its height along the axis) is
+//! fitted to the samples inside the limb in every view at once, robustly (the best 70 % of the points: bridged notches and drift fall out), by
 //! a grid over the axis then a shrinking pattern search. Inclination and anteversion follow
 //! Murray's radiographic definitions in the case's body frame (x lateral, y anterior, z
 //! superior; the lateral side is whichever way the cup opens).
 
-use crate::geom::{Curve, Segments, Sphere};
+use crate::geom::{polyline_length, resample_closed, resample_open, Curve, Segments, Sphere};
 use crate::views::Camera;
 use nalgebra::{Point2, Point3, Unit, Vector3};
 
@@ -17,7 +18,12 @@ const RIM_WITHIN: f64 = 0.93;
 const KEEP: f64 = 0.7;
 /// Samples of the projected circle.
 const CIRCLE_SAMPLES: usize = 72;
-/// Fewest rim points, over at least two views.
+/// Spacing of the outline samples, as an angle of the sphere's projected limb (radians): the
+/// same samples at any image resolution.
+const SAMPLE_RAD: f64 = 2.0 * std::f64::consts::PI / 180.0;
+/// The grid's quick look scores every this many samples.
+const COARSE_EVERY: usize = 3;
+/// Fewest rim samples (40 degrees of the limb in all), over at least two views.
 const MIN_POINTS: usize = 20;
 
 /// The rim circle fitted to the outlines, and the cup's orientation from it.
@@ -35,7 +41,7 @@ pub struct RimFit {
     pub anteversion_deg: f64,
     /// RMS distance of the kept rim points to the projected circle, pixels.
     pub rms_px: f64,
-    /// Rim points used (all views).
+    /// Rim samples used (all views; one every 2 degrees of the sphere's projected limb).
     pub points: usize,
 }
 
@@ -44,9 +50,9 @@ pub struct RimFit {
 #[non_exhaustive]
 pub enum RimError {
     /// Too few outline points inside the limb to trace a rim.
-    #[error("cup orientation: {points} outline points run inside the sphere's limb in {views} views; the rim needs {MIN_POINTS} in at least two")]
+    #[error("cup orientation: {points} outline samples (one every 2 degrees of the sphere's limb) run inside the limb in {views} views; the rim needs {MIN_POINTS} in at least two")]
     TooFewPoints {
-        /// Points found.
+        /// Samples found.
         points: usize,
         /// Views with any.
         views: usize,
@@ -98,9 +104,8 @@ pub fn rim_orientation(
         rim.push(
             curves
                 .iter()
-                .flat_map(|cv| cv.points.iter())
+                .flat_map(|cv| even_samples(cv, SAMPLE_RAD * rpx))
                 .filter(|p| (*p - cp).norm() < RIM_WITHIN * rpx)
-                .copied()
                 .collect(),
         );
     }
@@ -139,7 +144,12 @@ pub fn rim_orientation(
             }
             let segs = Segments::new(&circle, true);
             let mut hint = 0;
-            d2.extend(pts.iter().map(|p| segs.distance(p, &mut hint).powi(2)));
+            let every = if coarse { COARSE_EVERY } else { 1 };
+            d2.extend(
+                pts.iter()
+                    .step_by(every)
+                    .map(|p| segs.distance(p, &mut hint).powi(2)),
+            );
         }
         d2.sort_by(f64::total_cmp);
         let k = ((d2.len() as f64 * KEEP) as usize).max(1);
@@ -192,6 +202,21 @@ pub fn rim_orientation(
     })
 }
 
+/// `curve` sampled every `spacing` pixels along its length (its closing segment included when
+/// closed; an open one's ends kept); its points as they are if the spacing is not positive.
+fn even_samples(curve: &Curve, spacing: f64) -> Vec<Point2<f64>> {
+    let length = polyline_length(&curve.points, curve.closed);
+    if !(spacing > 0.0 && length.is_finite()) || curve.points.len() < 2 {
+        return curve.points.clone();
+    }
+    let n = (length / spacing).ceil() as usize;
+    if curve.closed {
+        resample_closed(&curve.points, n.max(3)).0
+    } else {
+        resample_open(&curve.points, n.max(1) + 1).0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -239,11 +264,68 @@ mod tests {
         assert!(ea2 >= 4.0, "{fit2:?}");
     }
 
+    /// Every outline's first half traced 20 times as densely (the same polyline, more points)
+    /// gives the rim the same orientation: the fit weighs the outlines by length, not by how
+    /// many points an annotator clicked. Companion: the same comparison with a phantom turned
+    /// 15 degrees in anteversion is told apart.
+    #[test]
+    fn a_rim_traced_unevenly_gives_the_same_orientation() {
+        let (_, sim) = phantom_case(3, 4).unwrap();
+        let uneven: Vec<Vec<Curve>> = sim
+            .observed
+            .iter()
+            .map(|curves| {
+                curves
+                    .iter()
+                    .map(|c| {
+                        let n = c.points.len();
+                        let mut points = Vec::new();
+                        for (i, p) in c.points.iter().enumerate() {
+                            points.push(*p);
+                            if i < n / 2 && i + 1 < n {
+                                let q = c.points[i + 1];
+                                points.extend((1..20).map(|k| p + (q - p) * (k as f64 / 20.0)));
+                            }
+                        }
+                        Curve {
+                            points,
+                            closed: c.closed,
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        let a = rim_orientation(&sim.cameras, &sim.observed, &sim.truth_sphere).unwrap();
+        let b = rim_orientation(&sim.cameras, &uneven, &sim.truth_sphere).unwrap();
+        let apart = |x: &RimFit, y: &RimFit| {
+            (x.anteversion_deg - y.anteversion_deg)
+                .abs()
+                .max((x.inclination_deg - y.inclination_deg).abs())
+        };
+        assert!(apart(&a, &b) < 0.5, "{a:?} {b:?}");
+        let turned = phantom(&PhantomParams {
+            anteversion_deg: 35.0,
+            ..Default::default()
+        })
+        .mesh;
+        let sim2 = crate::sim::simulate_case(
+            &turned,
+            &crate::sim::XrayGeometry::default(),
+            2.0,
+            &crate::sim::NoiseLevel::level(3).unwrap(),
+            4,
+        )
+        .unwrap();
+        let c = rim_orientation(&sim2.cameras, &sim2.observed, &sim2.truth_sphere).unwrap();
+        assert!(apart(&a, &c) >= 4.0, "{a:?} {c:?}");
+    }
+
     #[test]
     fn a_sphere_off_every_outline_is_refused() {
         let (_, sim) = phantom_case(1, 1).unwrap();
         let mut far = sim.truth_sphere;
-        far.radius *= 0.2; // every outline point lies outside its limb
+        // Three radii to the side (lateral): every outline lies outside its projected limb.
+        far.center[0] += 3.0 * far.radius;
         let e = rim_orientation(&sim.cameras, &sim.observed, &far).unwrap_err();
         assert!(matches!(e, RimError::TooFewPoints { .. }), "{e}");
     }
