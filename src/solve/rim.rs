@@ -2,8 +2,9 @@
 //! where an outline runs inside the sphere's projected limb it is that circle's projection. The
 //! outlines are sampled evenly along their length (so a rim clicked point by point and the same
 //! rim traced densely weigh alike), and the circle (its axis and its height along the axis) is
-//! fitted to the samples inside the limb in every view at once, robustly (the best 70 % of the points: bridged notches and drift fall out), by
-//! a grid over the axis then a shrinking pattern search. Inclination and anteversion follow
+//! fitted to the samples inside the limb in every view at once, robustly (the best 70 % of the
+//! samples: bridged notches and drift fall out), by a grid over the axis then a shrinking
+//! pattern search. Inclination and anteversion follow
 //! Murray's radiographic definitions in the case's body frame (x lateral, y anterior, z
 //! superior; the lateral side is whichever way the cup opens).
 
@@ -23,6 +24,10 @@ const CIRCLE_SAMPLES: usize = 72;
 const SAMPLE_RAD: f64 = 2.0 * std::f64::consts::PI / 180.0;
 /// The grid's quick look scores every this many samples.
 const COARSE_EVERY: usize = 3;
+/// Closest spacing of the samples, pixels, and most samples an outline gives (a sphere too
+/// small or an outline too long for any image is not sampled without end).
+const MIN_SPACING_PX: f64 = 0.5;
+const MAX_SAMPLES: usize = 20_000;
 /// Fewest rim samples (40 degrees of the limb in all), over at least two views.
 const MIN_POINTS: usize = 20;
 
@@ -209,7 +214,7 @@ fn even_samples(curve: &Curve, spacing: f64) -> Vec<Point2<f64>> {
     if !(spacing > 0.0 && length.is_finite()) || curve.points.len() < 2 {
         return curve.points.clone();
     }
-    let n = (length / spacing).ceil() as usize;
+    let n = ((length / spacing.max(MIN_SPACING_PX)).ceil() as usize).min(MAX_SAMPLES);
     if curve.closed {
         resample_closed(&curve.points, n.max(3)).0
     } else {
@@ -311,6 +316,24 @@ mod tests {
         assert!(apart(&a, &b) < 0.5, "{a:?} {b:?}");
         let c = turned_phantom_fit(4);
         assert!(apart(&a, &c) >= 4.0, "{a:?} {c:?}");
+    }
+
+    /// A sphere far too small or an outline far too long is sampled at a bounded count.
+    #[test]
+    fn the_samples_are_bounded() {
+        let square = |side: f64| Curve {
+            points: vec![
+                Point2::new(0.0, 0.0),
+                Point2::new(side, 0.0),
+                Point2::new(side, side),
+                Point2::new(0.0, side),
+            ],
+            closed: true,
+        };
+        assert_eq!(even_samples(&square(10.0), 1e-12).len(), 80);
+        assert_eq!(even_samples(&square(1e30), 1.0).len(), MAX_SAMPLES);
+        // Companion: a spacing the bounds leave alone gives its own count.
+        assert_eq!(even_samples(&square(10.0), 2.0).len(), 20);
     }
 
     #[test]
