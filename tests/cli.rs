@@ -299,6 +299,7 @@ fn a_view_whose_outline_disagrees_with_the_others_is_named_in_a_warning() {
     // As simulated, the views agree: no warning, and each view's outline distance is reported.
     let (err, report) = run(&case, "agree");
     assert!(!err.contains("do not agree"), "{err}");
+    assert!(report["pose_prior"].is_null(), "{report}");
     assert_eq!(
         report["log"]["outline_px_per_view"]
             .as_array()
@@ -325,6 +326,12 @@ fn a_view_whose_outline_disagrees_with_the_others_is_named_in_a_warning() {
     // the view that moved most.
     let (err, report) = moved_by(40.0, "moved");
     assert_eq!(report["log"]["fallback"], "refine-poses", "{report}");
+    // The report says under which prior the fallback refined them (the default's).
+    assert_eq!(
+        report["pose_prior"],
+        serde_json::json!([2.0, 5.0]),
+        "{report}"
+    );
     assert!(
         err.contains("warning: no shape met the views")
             && err.contains("view 1 (view1) moved most"),
@@ -607,6 +614,26 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
         // clap's value parsers refuse them: a usage error, exit 2.
         fails_cleanly_with(cmd, &out, &[flag, needle], 2);
     }
+    // The pose refinement's prior: two SDs above 0, and only with the refinement.
+    for (value, needle) in [
+        (
+            "1,-2",
+            "translation SD (mm) \"-2\" must be a number above 0",
+        ),
+        (
+            "nan,5",
+            "rotation SD (degrees) \"nan\" must be a number above 0",
+        ),
+        ("2", "expected DEG,MM"),
+    ] {
+        let mut cmd = bin();
+        cmd.args(["simulate", "--gt", "phantom", "--refine-poses"]);
+        cmd.args(["--pose-prior", value]);
+        fails_cleanly_with(cmd, &out, &["--pose-prior", needle], 2);
+    }
+    let mut cmd = bin();
+    cmd.args(["simulate", "--gt", "phantom", "--pose-prior", "1,2"]);
+    fails_cleanly_with(cmd, &out, &["--refine-poses"], 2);
     // The DPs on a device that the study does not open.
     let mut cmd = bin();
     cmd.args(["simulate", "--gt", "phantom", "--dp", "device"]);
@@ -1520,6 +1547,7 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
     );
     let study = &s["study"];
     assert_eq!(study["protocol"]["Realistic"]["pose_deg"], 1.0, "{study}");
+    assert!(study["pose_prior"].is_null(), "{study}");
     assert_eq!(study["calibration"], "shipped calibration/realistic.json");
     assert_eq!(study["provenance"]["command_line"][1], "simulate");
     assert_eq!(study["provenance"]["threads"], 1);
@@ -1540,7 +1568,14 @@ fn a_realistic_study_records_its_protocol_and_calibration() {
     // and model SD); the paper's calibration given for it is used, and warned of.
     let judet = ["--protocol", "realistic", "--uncertainty-samples", "0"];
     let views = ["--views", "z:0,z:45,z:-45"];
-    let s = phantom_study(&[&judet[..], &views[..]].concat(), &dir.join("judet"));
+    // (Its poses refined under a prior of its own, which the study records.)
+    let refined = ["--refine-poses", "--pose-prior", "1.5,3"];
+    let s = phantom_study(
+        &[&judet[..], &views[..], &refined[..]].concat(),
+        &dir.join("judet"),
+    );
+    assert_eq!(s["study"]["refine_poses"], true);
+    assert_eq!(s["study"]["pose_prior"], serde_json::json!([1.5, 3.0]));
     let own = acetab::pipeline::CupCalibration::shipped_realistic_judet();
     assert_eq!(
         s["study"]["calibration"],

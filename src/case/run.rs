@@ -63,6 +63,9 @@ pub struct CaseRunReport {
     pub method: String,
     /// Where the kernels ran.
     pub backend: String,
+    /// The pose refinement's prior SDs, [degrees, mm], when the views' poses were refined (asked
+    /// for, or by the `refine-poses` fallback); None when they were taken as given.
+    pub pose_prior: Option<[f64; 2]>,
     /// The cup and its uncertainty.
     pub cup: CupReport,
     /// Version, command line, backend and adapter, threads, seed.
@@ -229,6 +232,9 @@ fn run_loaded(
                 case: path.display().to_string(),
                 method: prm.method.name().into(),
                 backend: kernels.name().into(),
+                pose_prior: crate::pipeline::params_used(&rec, prm)
+                    .pose
+                    .map(|p| [p.sigma_deg, p.sigma_mm]),
                 cup: cup.clone(),
                 provenance: provenance.clone(),
                 sphere: rec.sphere,

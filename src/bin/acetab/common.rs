@@ -289,6 +289,26 @@ pub fn realistic(s: &str) -> Result<Box<Realistic>, String> {
     Ok(Box::new(Realistic(e)))
 }
 
+/// `--pose-prior DEG,MM`: the pose refinement's prior SDs (clap value parser), each finite and
+/// above 0.
+pub fn pose_prior(s: &str) -> Result<acetab::solve::PoseParams, String> {
+    let (deg, mm) = s
+        .split_once(',')
+        .ok_or_else(|| format!("{s:?}: expected DEG,MM (e.g. 2,5)"))?;
+    let number = |what: &str, v: &str| -> Result<f64, String> {
+        v.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite() && *x > 0.0)
+            .ok_or_else(|| format!("{what} {v:?} must be a number above 0"))
+    };
+    Ok(acetab::solve::PoseParams {
+        sigma_deg: number("rotation SD (degrees)", deg)?,
+        sigma_mm: number("translation SD (mm)", mm)?,
+        ..Default::default()
+    })
+}
+
 /// `--methods`: a list of study methods (clap value parser).
 #[derive(Clone, Debug)]
 pub struct Methods(pub Vec<acetab::study::StudyMethod>);

@@ -33,6 +33,11 @@ pub struct ReconstructArgs {
     /// the first view fixes the frame).
     #[arg(long)]
     pub refine_poses: bool,
+    /// The pose refinement's prior SDs, "DEG,MM": how far each view's rotation (degrees, about
+    /// the object) and translation (mm) may be off relative to the first view (default 2,5).
+    /// Set it to your setup's pose accuracy. Needs --refine-poses.
+    #[arg(long, requires = "refine_poses", value_parser = crate::common::pose_prior)]
+    pub pose_prior: Option<acetab::solve::PoseParams>,
     /// Resamples for the cup size's uncertainty (contour noise + bootstrap weights), 2 to 1000
     /// (one resample has no spread).
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(2..=1000))]
@@ -81,6 +86,7 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         backend,
         contours,
         refine_poses,
+        pose_prior,
         uncertainty_samples,
         calibration,
         prior,
@@ -109,7 +115,7 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
             ..Default::default()
         },
         contour_source: contours,
-        pose: refine_poses.then(acetab::solve::PoseParams::default),
+        pose: refine_poses.then(|| pose_prior.unwrap_or_default()),
         ..Default::default()
     };
     prm.deformation.shape_prior = shape_prior;

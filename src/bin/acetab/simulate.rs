@@ -63,6 +63,11 @@ pub struct SimulateArgs {
     /// --refine-poses`; prior SD 2 deg, 5 mm; the first view defines the frame).
     #[arg(long)]
     pub refine_poses: bool,
+    /// The pose refinement's prior SDs, "DEG,MM": how far each view's rotation (degrees, about
+    /// the object) and translation (mm) may be off relative to the first view (default 2,5).
+    /// Set it to your setup's pose accuracy. Needs --refine-poses.
+    #[arg(long, requires = "refine_poses", value_parser = crate::common::pose_prior)]
+    pub pose_prior: Option<acetab::solve::PoseParams>,
     /// Methods: srvf, icp, icp-normvec (every stage of ours, each on its own
     /// correspondences), and srvf-paper, icp-paper, icp-normvec-paper (the seed paper's
     /// protocol: the deformation alone, from the perturbed template).
@@ -182,6 +187,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         protocol,
         realistic,
         refine_poses,
+        pose_prior,
         methods,
         seed,
         threads,
@@ -311,7 +317,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
                     ..d
                 }
             },
-            pose: refine_poses.then(acetab::solve::PoseParams::default),
+            pose: refine_poses.then(|| pose_prior.unwrap_or_default()),
             cup: cal.correcting(acetab::pipeline::CupParams {
                 estimator: cup_estimator,
                 ..Default::default()
@@ -592,6 +598,7 @@ impl Study<'_> {
             "contours": format!("{:?}", cfg.params.contour_source),
             "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
             "w_obs": cfg.params.weights.obs, "refine_poses": cfg.params.pose.is_some(),
+            "pose_prior": cfg.params.pose.as_ref().map(|p| [p.sigma_deg, p.sigma_mm]),
             "cup_estimator": cfg.params.cup.estimator.name(),
             "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
             "correspondence_updates": cfg.params.deformation.correspondence_updates,
