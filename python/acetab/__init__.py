@@ -44,6 +44,7 @@ _RECON_OPTIONS = (
     "method",
     "catalogue",
     "refine_poses",
+    "pose_prior",
     "uncertainty_samples",
     "calibration",
     "seed",
@@ -74,8 +75,18 @@ def _options(options: Mapping[str, Any], allowed: Sequence[str], where: str) -> 
             v = _whole(v, k)
             if not 0 <= v <= 1000:
                 raise ValueError(f"uncertainty_samples={v}: must be 2 to 1000")
+        if k == "pose_prior" and v is not None:
+            v = _pose_prior(v)
         out[k] = v
     return json.dumps(out)
+
+
+def _pose_prior(v: Any) -> List[float]:
+    """``pose_prior``: the pose refinement's prior SDs (degrees, mm), two numbers above 0."""
+    a = _float_list(v, (2,), "pose_prior")
+    if not all(x > 0 for x in a):
+        raise ValueError(f"pose_prior={a}: the SDs (degrees, mm) must be above 0")
+    return a
 
 
 def reconstruct_case(
@@ -92,10 +103,13 @@ def reconstruct_case(
     removed. Returns report.json's object: ``cup`` (``diameter_mm``, ``catalogue_mm``,
     ``sd_mm``, ``probabilities``, ...), ``sphere``, ``views`` (intrinsics and where they came
     from, DICOM magnification), ``log``, ``calibration`` (which one, and whether it was learned
-    on the case's views), ``warnings``, ``provenance``.
+    on the case's views), ``warnings``, ``provenance``, ``pose_prior`` (the pose refinement's
+    prior SDs, None when the poses were taken as given).
 
     Options (the command line's flags, same defaults): ``method`` ("srvf", "icp",
     "icp-normvec"), ``catalogue`` ("40:70:2" or "44,46,48"), ``refine_poses`` (bool),
+    ``pose_prior`` (with ``refine_poses``: the refinement's prior SDs, (degrees, mm), default
+    (2, 5)),
     ``uncertainty_samples`` (2-1000, default 16), ``calibration`` (None: the shipped realistic
     one learned on the case's views, the AP and Judet views' or the paper's; "none"; or a file
     from ``acetab calibrate``), ``seed`` (default 1), ``contours``
@@ -210,8 +224,9 @@ def reconstruct(
 
     Returns ``vertices`` ((V, 3) float64, mm), ``faces`` ((F, 3) int64), ``cup`` (as in
     ``reconstruct_case``), ``sphere`` (``center``, ``radius``), ``log``, ``views``,
-    ``calibration``, ``warnings``, ``method``. Writes nothing. Raises AcetabError when the input is refused
-    (naming the field) or the reconstruction fails.
+    ``calibration``, ``warnings``, ``method``, ``pose_prior`` (the refinement's prior SDs, None
+    without it). Writes nothing. Raises AcetabError when the input is refused (naming the
+    field) or the reconstruction fails.
     """
     if len(cameras) != len(contours):
         raise ValueError(
@@ -280,6 +295,7 @@ def simulate(
     seed: int = 1,
     protocol: str = "ideal",
     refine_poses: bool = False,
+    pose_prior: Optional[Sequence[float]] = None,
     threads: Optional[int] = None,
     uncertainty_samples: int = 0,
     calibration: Optional[PathLike] = None,
@@ -290,7 +306,8 @@ def simulate(
 
     Each of ``runs`` runs per noise level (0-5) and method ("srvf", "icp", "icp-normvec" and the
     paper's variants) simulates the X-rays, reconstructs and measures. ``protocol``: "ideal" or
-    "realistic" (pose and magnification errors, partial outlines, annotation drift).
+    "realistic" (pose and magnification errors, partial outlines, annotation drift);
+    ``refine_poses`` and ``pose_prior`` as in ``reconstruct_case``.
     ``uncertainty_samples`` > 1 adds each run's cup uncertainty (``calibration`` as in
     ``reconstruct_case``; None: the protocol's shipped one); ``prior`` and ``cup_estimator`` as
     in ``reconstruct_case``. Seeded: the same arguments give the
@@ -308,6 +325,7 @@ def simulate(
         "seed": int(seed),
         "protocol": str(protocol),
         "refine_poses": bool(refine_poses),
+        "pose_prior": None if pose_prior is None else _pose_prior(pose_prior),
         "threads": None if threads is None else int(threads),
         "uncertainty_samples": int(uncertainty_samples),
         "calibration": None if calibration is None else os.fspath(calibration),

@@ -12,6 +12,7 @@ use acetab::engine::Kernels;
 use acetab::pipeline::{CupCalibration, CupEstimator, CupParams, ReconParams, UncertaintyParams};
 use acetab::report::{CupCatalogue, Provenance};
 use acetab::sim::{load_truth, Protocol, RealisticErrors};
+use acetab::solve::PoseParams;
 use acetab::study::{run_study, StudyConfig, StudyMethod};
 use nalgebra::Point2;
 use numpy::{PyArray1, PyArray2, PyReadonlyArray2};
@@ -44,6 +45,8 @@ struct ReconOptions {
     catalogue: String,
     #[serde(default)]
     refine_poses: bool,
+    #[serde(default)]
+    pose_prior: Option<[f64; 2]>,
     #[serde(default = "sixteen")]
     uncertainty_samples: u64,
     #[serde(default)]
@@ -132,6 +135,30 @@ fn calibration(
     })
 }
 
+/// The pose refinement's settings: none without `refine_poses`; its prior SDs (degrees, mm)
+/// from `pose_prior`, each finite and above 0, which needs `refine_poses`.
+fn pose_params(refine: bool, prior: Option<[f64; 2]>) -> PyResult<Option<PoseParams>> {
+    match (refine, prior) {
+        (false, None) => Ok(None),
+        (false, Some(_)) => Err(PyValueError::new_err(
+            "pose_prior: needs refine_poses=True (it is the refinement's prior)",
+        )),
+        (true, None) => Ok(Some(PoseParams::default())),
+        (true, Some([deg, mm])) => {
+            if !(deg.is_finite() && deg > 0.0 && mm.is_finite() && mm > 0.0) {
+                return Err(PyValueError::new_err(format!(
+                    "pose_prior=[{deg}, {mm}]: the SDs (degrees, mm) must be finite and above 0"
+                )));
+            }
+            Ok(Some(PoseParams {
+                sigma_deg: deg,
+                sigma_mm: mm,
+                ..Default::default()
+            }))
+        }
+    }
+}
+
 impl ReconOptions {
     /// The reconstruction's and the uncertainty's parameters, and the cup calibration to give
     /// each case (as `acetab reconstruct` does: by default the shipped one learned on its views).
@@ -168,7 +195,7 @@ impl ReconOptions {
                 ..Default::default()
             },
             contour_source,
-            pose: self.refine_poses.then(acetab::solve::PoseParams::default),
+            pose: pose_params(self.refine_poses, self.pose_prior)?,
             ..Default::default()
         };
         prm.deformation.shape_prior = shape_prior(&self.prior)?;
@@ -246,8 +273,12 @@ fn reconstruct_json<'py>(
     let (mesh, report) = py
         .detach(|| {
             let (rec, cup) = solve_case(&case, label, &prm, Kernels::Cpu, &up)?;
+            let pose_prior = acetab::pipeline::params_used(&rec, &prm)
+                .pose
+                .map(|p| [p.sigma_deg, p.sigma_mm]);
             let report = serde_json::json!({
                 "method": prm.method.name(),
+                "pose_prior": pose_prior,
                 "cup": cup,
                 "sphere": rec.sphere,
                 "log": rec.log,
@@ -371,6 +402,8 @@ struct StudyOptions {
     #[serde(default)]
     refine_poses: bool,
     #[serde(default)]
+    pose_prior: Option<[f64; 2]>,
+    #[serde(default)]
     threads: Option<usize>,
     #[serde(default)]
     uncertainty_samples: u64,
@@ -443,7 +476,7 @@ fn simulate_json(py: Python<'_>, options_json: &str) -> PyResult<String> {
         seed: o.seed,
         threads,
         params: ReconParams {
-            pose: o.refine_poses.then(acetab::solve::PoseParams::default),
+            pose: pose_params(o.refine_poses, o.pose_prior)?,
             deformation: acetab::pipeline::DeformationParams {
                 shape_prior: shape_prior(&o.prior)?,
                 ..Default::default()

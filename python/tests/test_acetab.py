@@ -174,6 +174,10 @@ def test_bad_values_are_refused_by_name_before_the_engine():
     refused(r"template\['radius'\] = inf: must be finite", infinite_radius)
     refused(r"seed=-5", seed=-5)
     refused(r"uncertainty_samples=-1", uncertainty_samples=-1)
+    refused(r"pose_prior=\[1\.0, -2\.0\]: the SDs", refine_poses=True, pose_prior=(1, -2))
+    refused(r"pose_prior\[1\] = nan: must be finite", refine_poses=True, pose_prior=(1, math.nan))
+    refused(r"pose_prior: shape \(3,\)", refine_poses=True, pose_prior=(1, 2, 3))
+    refused(r"pose_prior: needs refine_poses", pose_prior=(1, 2))
     # The companions: a whole-number float, a scaled K and numpy integers are taken as given.
     cameras, contours, template = case_arrays(CASE)
     ref = acetab.reconstruct(cameras, contours, template, uncertainty_samples=2)
@@ -185,6 +189,13 @@ def test_bad_values_are_refused_by_name_before_the_engine():
         cameras, contours, template, uncertainty_samples=np.int64(2), seed=np.uint8(1)
     )
     assert same["cup"]["diameter_mm"] == ref["cup"]["diameter_mm"]
+    # A prior of the pose refinement's own reaches the engine, as numpy numbers too.
+    refined = acetab.reconstruct(
+        cameras, contours, template, uncertainty_samples=2, refine_poses=True,
+        pose_prior=np.array([1.5, 3]),
+    )
+    assert refined["pose_prior"] == [1.5, 3.0]
+    assert ref["pose_prior"] is None
     with pytest.raises(acetab.AcetabError, match=r"^gt=no_such_mesh\.stl"):
         acetab.simulate("no_such_mesh.stl", levels=[1], runs=1)
 
