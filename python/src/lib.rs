@@ -136,27 +136,31 @@ fn calibration(
 }
 
 /// The pose refinement's settings: none without `refine_poses`; its prior SDs (degrees, mm)
-/// from `pose_prior`, each finite and above 0, which needs `refine_poses`.
+/// from `pose_prior`, which needs `refine_poses` (checked as the engine checks them:
+/// `PoseParams::invalid`).
 fn pose_params(refine: bool, prior: Option<[f64; 2]>) -> PyResult<Option<PoseParams>> {
-    match (refine, prior) {
-        (false, None) => Ok(None),
-        (false, Some(_)) => Err(PyValueError::new_err(
-            "pose_prior: needs refine_poses=True (it is the refinement's prior)",
-        )),
-        (true, None) => Ok(Some(PoseParams::default())),
-        (true, Some([deg, mm])) => {
-            if !(deg.is_finite() && deg > 0.0 && mm.is_finite() && mm > 0.0) {
-                return Err(PyValueError::new_err(format!(
-                    "pose_prior=[{deg}, {mm}]: the SDs (degrees, mm) must be finite and above 0"
-                )));
-            }
-            Ok(Some(PoseParams {
-                sigma_deg: deg,
-                sigma_mm: mm,
-                ..Default::default()
-            }))
-        }
+    if !refine {
+        return match prior {
+            None => Ok(None),
+            Some(_) => Err(PyValueError::new_err(
+                "pose_prior: needs refine_poses=True (it is the refinement's prior)",
+            )),
+        };
     }
+    let p = match prior {
+        Some([sigma_deg, sigma_mm]) => PoseParams {
+            sigma_deg,
+            sigma_mm,
+            ..Default::default()
+        },
+        None => PoseParams::default(),
+    };
+    if let Some((field, v)) = p.invalid() {
+        return Err(PyValueError::new_err(format!(
+            "pose_prior: {field} = {v}: the SDs (degrees, mm) must be finite and above 0"
+        )));
+    }
+    Ok(Some(p))
 }
 
 impl ReconOptions {
@@ -275,7 +279,7 @@ fn reconstruct_json<'py>(
             let (rec, cup) = solve_case(&case, label, &prm, Kernels::Cpu, &up)?;
             let pose_prior = acetab::pipeline::params_used(&rec, &prm)
                 .pose
-                .map(|p| [p.sigma_deg, p.sigma_mm]);
+                .map(|p| p.prior_sds());
             let report = serde_json::json!({
                 "method": prm.method.name(),
                 "pose_prior": pose_prior,

@@ -234,7 +234,7 @@ fn run_loaded(
                 backend: kernels.name().into(),
                 pose_prior: crate::pipeline::params_used(&rec, prm)
                     .pose
-                    .map(|p| [p.sigma_deg, p.sigma_mm]),
+                    .map(|p| p.prior_sds()),
                 cup: cup.clone(),
                 provenance: provenance.clone(),
                 sphere: rec.sphere,

@@ -48,6 +48,11 @@ impl Default for PoseParams {
 }
 
 impl PoseParams {
+    /// The prior's two SDs, [degrees, mm], as reports record them.
+    pub fn prior_sds(&self) -> [f64; 2] {
+        [self.sigma_deg, self.sigma_mm]
+    }
+
     /// The first SD that is not finite and > 0, as (field, value), the field named as in
     /// `ReconParams` (`pose.sigma_deg`, ...); None when all can weight the energy.
     pub fn invalid(&self) -> Option<(&'static str, f64)> {

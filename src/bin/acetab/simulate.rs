@@ -598,7 +598,7 @@ impl Study<'_> {
             "contours": format!("{:?}", cfg.params.contour_source),
             "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
             "w_obs": cfg.params.weights.obs, "refine_poses": cfg.params.pose.is_some(),
-            "pose_prior": cfg.params.pose.as_ref().map(|p| [p.sigma_deg, p.sigma_mm]),
+            "pose_prior": cfg.params.pose.as_ref().map(acetab::solve::PoseParams::prior_sds),
             "cup_estimator": cfg.params.cup.estimator.name(),
             "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
             "correspondence_updates": cfg.params.deformation.correspondence_updates,
