@@ -267,6 +267,7 @@ enum TapSource<'a> {
 /// each start column l < n - b (the tap's sample is p = l + its offset), tap by tap: the DP's
 /// per-step tables, all steps in one buffer. One tight loop per tap (it vectorises), each value
 /// computed as the per-value expressions below always were.
+#[inline(always)]
 fn fill_taps(
     prepared: &[PreparedStep],
     n: usize,
@@ -326,8 +327,44 @@ fn fill_taps(
 }
 
 /// The banded DP's tables (into `tables`) and its path from (0, 0) to (n-1, n-1), or None when
-/// the band cuts every path.
+/// the band cuts every path. Compiled for AVX2 too, which runs where the CPU has it (4 doubles
+/// a vector against SSE2's 2): only separate multiplies and adds are emitted either way (Rust
+/// never fuses them into a multiply-add), so both give the same tables to the bit.
 fn band_path(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    steps: &[(usize, usize)],
+    band: &[(usize, usize)],
+    anchor: Option<Anchor>,
+    tables: &mut (Vec<f64>, Vec<u32>),
+    scratch: &mut Scratch,
+) -> Option<Vec<(usize, usize)>> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { band_path_avx2(q1, q2, steps, band, anchor, tables, scratch) };
+    }
+    band_path_in(q1, q2, steps, band, anchor, tables, scratch)
+}
+
+/// `band_path_in` compiled with AVX2 (call only where the CPU has it).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn band_path_avx2(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    steps: &[(usize, usize)],
+    band: &[(usize, usize)],
+    anchor: Option<Anchor>,
+    tables: &mut (Vec<f64>, Vec<u32>),
+    scratch: &mut Scratch,
+) -> Option<Vec<(usize, usize)>> {
+    band_path_in(q1, q2, steps, band, anchor, tables, scratch)
+}
+
+/// `band_path`'s body.
+#[inline(always)]
+fn band_path_in(
     q1: &[Vector2<f64>],
     q2: &[Vector2<f64>],
     steps: &[(usize, usize)],
@@ -396,15 +433,75 @@ fn band_path(
         by.extend(an.b.iter().map(|v| v.y));
         fill_taps(prepared, n, pstarts, px, py, TapSource::Positions(bx, by));
     }
-    // Row by row: for each step, every cell of the row it can reach at once (the candidates of
-    // one step over a run of columns), then the best step per cell. Per cell this is the same
-    // arithmetic, in the same order, with the same strict "<" over the steps in order, as a
-    // cell-by-cell loop: the same costs and back-pointers to the bit.
+    // Then the rows, one after another (`relax_rows`).
     let widest = (0..n).map(|i| hi[i] + 1 - lo[i]).max().unwrap_or(0);
     cand.clear();
     cand.resize(widest, 0.0);
     near.clear();
     near.resize(widest, 0.0);
+    let shape = Taps {
+        qx: x1,
+        qy: y1,
+        tx: wx,
+        ty: wy,
+    };
+    let position = anchored.map(|_| Taps {
+        qx: ax,
+        qy: ay,
+        tx: px,
+        ty: py,
+    });
+    let band = Band {
+        lo: &lo,
+        hi: &hi,
+        offset: &offset,
+    };
+    let tables = Tables {
+        cost: &mut cost[..],
+        back: &mut back[..],
+    };
+    let steps_at = StepTables {
+        prepared,
+        starts,
+        shape: &shape,
+        position: position.as_ref(),
+        weight,
+    };
+    relax_rows(&steps_at, &band, tables, cand, near);
+    trace_band(back, &lo, &hi, steps)
+}
+
+/// A band's rows (`band_rows`' layout).
+struct Band<'a> {
+    lo: &'a [usize],
+    hi: &'a [usize],
+    offset: &'a [usize],
+}
+
+/// The DP's tables being filled: costs (row 0's start cell set) and back-pointers.
+struct Tables<'a> {
+    cost: &'a mut [f64],
+    back: &'a mut [u32],
+}
+
+/// The steps and their tap tables (see `fill_taps`), with the position term's when anchored.
+struct StepTables<'a> {
+    prepared: &'a [PreparedStep],
+    starts: &'a [usize],
+    shape: &'a Taps<'a>,
+    position: Option<&'a Taps<'a>>,
+    weight: f64,
+}
+
+/// Row by row: for each step, every cell of the row it can reach at once (the candidates of
+/// one step over a run of columns), then the best step per cell. Per cell this is the same
+/// arithmetic, in the same order, with the same strict "<" over the steps in order, as a
+/// cell-by-cell loop: the same costs and back-pointers to the bit.
+#[inline(always)]
+fn relax_rows(steps: &StepTables, band: &Band, tables: Tables, cand: &mut [f64], near: &mut [f64]) {
+    let Band { lo, hi, offset } = *band;
+    let Tables { cost, back } = tables;
+    let n = lo.len();
     for i in 1..n {
         // Rows before i are final: read from `done`, write row i.
         let (done, rest) = cost.split_at_mut(offset[i]);
@@ -412,7 +509,7 @@ fn band_path(
         let arg_row = &mut back[offset[i]..offset[i + 1]];
         best_row.fill(f64::INFINITY);
         arg_row.fill(u32::MAX);
-        for (si, st) in prepared.iter().enumerate() {
+        for (si, st) in steps.prepared.iter().enumerate() {
             if st.a > i {
                 continue;
             }
@@ -425,51 +522,34 @@ fn band_path(
             }
             let m = j1 + 1 - j0;
             let l0 = j0 - st.b;
-            let cols = n - st.b;
-            let base = starts[si];
-            let prev = &done[offset[k] + l0 - lo[k]..][..m];
             let at = j0 - lo[i];
-            let best = &mut best_row[at..][..m];
-            let arg = &mut arg_row[at..][..m];
-            let shape = Taps {
-                qx: x1,
-                qy: y1,
-                tx: wx,
-                ty: wy,
-            };
-            let position = anchored.map(|_| Taps {
-                qx: ax,
-                qy: ay,
-                tx: px,
-                ty: py,
-            });
             let run = Run {
                 k,
-                first: base + l0,
-                stride: cols,
+                first: steps.starts[si] + l0,
+                stride: n - st.b,
             };
             let out = Out {
-                prev,
-                best,
-                arg,
+                prev: &done[offset[k] + l0 - lo[k]..][..m],
+                best: &mut best_row[at..][..m],
+                arg: &mut arg_row[at..][..m],
                 step: si as u32,
             };
-            match (st.a, position) {
-                (1, None) => relax::<1, false>(&shape, &shape, 0.0, &run, out, cand),
-                (2, None) => relax::<2, false>(&shape, &shape, 0.0, &run, out, cand),
-                (3, None) => relax::<3, false>(&shape, &shape, 0.0, &run, out, cand),
-                (4, None) => relax::<4, false>(&shape, &shape, 0.0, &run, out, cand),
-                (5, None) => relax::<5, false>(&shape, &shape, 0.0, &run, out, cand),
-                (1, Some(p)) => relax::<1, true>(&shape, &p, weight, &run, out, cand),
-                (2, Some(p)) => relax::<2, true>(&shape, &p, weight, &run, out, cand),
-                (3, Some(p)) => relax::<3, true>(&shape, &p, weight, &run, out, cand),
-                (4, Some(p)) => relax::<4, true>(&shape, &p, weight, &run, out, cand),
-                (5, Some(p)) => relax::<5, true>(&shape, &p, weight, &run, out, cand),
-                (a, p) => relax_any(a, &shape, p.as_ref(), weight, &run, out, cand, near),
+            let (shape, weight) = (steps.shape, steps.weight);
+            match (st.a, steps.position) {
+                (1, None) => relax::<1, false>(shape, shape, 0.0, &run, out, cand),
+                (2, None) => relax::<2, false>(shape, shape, 0.0, &run, out, cand),
+                (3, None) => relax::<3, false>(shape, shape, 0.0, &run, out, cand),
+                (4, None) => relax::<4, false>(shape, shape, 0.0, &run, out, cand),
+                (5, None) => relax::<5, false>(shape, shape, 0.0, &run, out, cand),
+                (1, Some(p)) => relax::<1, true>(shape, p, weight, &run, out, cand),
+                (2, Some(p)) => relax::<2, true>(shape, p, weight, &run, out, cand),
+                (3, Some(p)) => relax::<3, true>(shape, p, weight, &run, out, cand),
+                (4, Some(p)) => relax::<4, true>(shape, p, weight, &run, out, cand),
+                (5, Some(p)) => relax::<5, true>(shape, p, weight, &run, out, cand),
+                (a, p) => relax_any(a, shape, p, weight, &run, out, cand, near),
             }
         }
     }
-    trace_band(back, &lo, &hi, steps)
 }
 
 /// A banded DP's costs and back-pointers, row-major (`band_rows`' layout).
@@ -574,6 +654,7 @@ fn keep_better(out: Out, cand: &[f64]) {
 /// `relax` for a step of any length: the candidates of the run first (into `cand`, the
 /// position term into `near`), tap by tap, then the comparison.
 #[allow(clippy::too_many_arguments)]
+#[inline(always)]
 fn relax_any(
     a: usize,
     shape: &Taps,
@@ -1155,6 +1236,56 @@ mod tests {
     fn row_wise_dp_gives_the_cell_by_cell_tables_to_the_bit() {
         for (k, (ours, oracle)) in table_cases().into_iter().enumerate() {
             assert!(same_tables(&ours, &oracle), "case {k}");
+        }
+    }
+
+    /// `band_path` runs its AVX2 build where the CPU has it; the plain build (SSE2 on x86-64)
+    /// must give the same tables, so a result does not depend on the machine's vectors.
+    #[test]
+    fn the_plain_build_gives_the_vectorised_builds_tables_to_the_bit() {
+        let mut seed = 7u64;
+        for &n in &[30usize, 120, 200] {
+            for anchored in [false, true] {
+                let (q1, q2) = (random_q(n, &mut seed), random_q(n, &mut seed));
+                let (a, b) = (random_q(n, &mut seed), random_q(n, &mut seed));
+                let anchor = anchored.then_some(Anchor {
+                    a: &a,
+                    b: &b,
+                    weight: 3.0,
+                });
+                let hint = dp_warp(&q2, &q1, &coprime_steps(3)).path;
+                let band = band_around(&hint, 1, n, 6);
+                let steps = coprime_steps(if n == 30 { 7 } else { 5 });
+                let (mut plain, mut dispatched) =
+                    ((Vec::new(), Vec::new()), (Vec::new(), Vec::new()));
+                let p = band_path_in(
+                    &q1,
+                    &q2,
+                    &steps,
+                    &band,
+                    anchor,
+                    &mut plain,
+                    &mut Scratch::default(),
+                );
+                let d = band_path(
+                    &q1,
+                    &q2,
+                    &steps,
+                    &band,
+                    anchor,
+                    &mut dispatched,
+                    &mut Scratch::default(),
+                );
+                assert_eq!(p, d, "n {n}, anchored {anchored}");
+                assert!(
+                    same_tables(&plain, &dispatched),
+                    "n {n}, anchored {anchored}"
+                );
+                assert!(same_tables(
+                    &plain,
+                    &cellwise(&q1, &q2, &steps, &band, anchor)
+                ));
+            }
         }
     }
 
