@@ -433,75 +433,15 @@ fn band_path_in(
         by.extend(an.b.iter().map(|v| v.y));
         fill_taps(prepared, n, pstarts, px, py, TapSource::Positions(bx, by));
     }
-    // Then the rows, one after another (`relax_rows`).
+    // Row by row: for each step, every cell of the row it can reach at once (the candidates of
+    // one step over a run of columns), then the best step per cell. Per cell this is the same
+    // arithmetic, in the same order, with the same strict "<" over the steps in order, as a
+    // cell-by-cell loop: the same costs and back-pointers to the bit.
     let widest = (0..n).map(|i| hi[i] + 1 - lo[i]).max().unwrap_or(0);
     cand.clear();
     cand.resize(widest, 0.0);
     near.clear();
     near.resize(widest, 0.0);
-    let shape = Taps {
-        qx: x1,
-        qy: y1,
-        tx: wx,
-        ty: wy,
-    };
-    let position = anchored.map(|_| Taps {
-        qx: ax,
-        qy: ay,
-        tx: px,
-        ty: py,
-    });
-    let band = Band {
-        lo: &lo,
-        hi: &hi,
-        offset: &offset,
-    };
-    let tables = Tables {
-        cost: &mut cost[..],
-        back: &mut back[..],
-    };
-    let steps_at = StepTables {
-        prepared,
-        starts,
-        shape: &shape,
-        position: position.as_ref(),
-        weight,
-    };
-    relax_rows(&steps_at, &band, tables, cand, near);
-    trace_band(back, &lo, &hi, steps)
-}
-
-/// A band's rows (`band_rows`' layout).
-struct Band<'a> {
-    lo: &'a [usize],
-    hi: &'a [usize],
-    offset: &'a [usize],
-}
-
-/// The DP's tables being filled: costs (row 0's start cell set) and back-pointers.
-struct Tables<'a> {
-    cost: &'a mut [f64],
-    back: &'a mut [u32],
-}
-
-/// The steps and their tap tables (see `fill_taps`), with the position term's when anchored.
-struct StepTables<'a> {
-    prepared: &'a [PreparedStep],
-    starts: &'a [usize],
-    shape: &'a Taps<'a>,
-    position: Option<&'a Taps<'a>>,
-    weight: f64,
-}
-
-/// Row by row: for each step, every cell of the row it can reach at once (the candidates of
-/// one step over a run of columns), then the best step per cell. Per cell this is the same
-/// arithmetic, in the same order, with the same strict "<" over the steps in order, as a
-/// cell-by-cell loop: the same costs and back-pointers to the bit.
-#[inline(always)]
-fn relax_rows(steps: &StepTables, band: &Band, tables: Tables, cand: &mut [f64], near: &mut [f64]) {
-    let Band { lo, hi, offset } = *band;
-    let Tables { cost, back } = tables;
-    let n = lo.len();
     for i in 1..n {
         // Rows before i are final: read from `done`, write row i.
         let (done, rest) = cost.split_at_mut(offset[i]);
@@ -509,7 +449,7 @@ fn relax_rows(steps: &StepTables, band: &Band, tables: Tables, cand: &mut [f64],
         let arg_row = &mut back[offset[i]..offset[i + 1]];
         best_row.fill(f64::INFINITY);
         arg_row.fill(u32::MAX);
-        for (si, st) in steps.prepared.iter().enumerate() {
+        for (si, st) in prepared.iter().enumerate() {
             if st.a > i {
                 continue;
             }
@@ -522,34 +462,51 @@ fn relax_rows(steps: &StepTables, band: &Band, tables: Tables, cand: &mut [f64],
             }
             let m = j1 + 1 - j0;
             let l0 = j0 - st.b;
+            let cols = n - st.b;
+            let base = starts[si];
+            let prev = &done[offset[k] + l0 - lo[k]..][..m];
             let at = j0 - lo[i];
+            let best = &mut best_row[at..][..m];
+            let arg = &mut arg_row[at..][..m];
+            let shape = Taps {
+                qx: x1,
+                qy: y1,
+                tx: wx,
+                ty: wy,
+            };
+            let position = anchored.map(|_| Taps {
+                qx: ax,
+                qy: ay,
+                tx: px,
+                ty: py,
+            });
             let run = Run {
                 k,
-                first: steps.starts[si] + l0,
-                stride: n - st.b,
+                first: base + l0,
+                stride: cols,
             };
             let out = Out {
-                prev: &done[offset[k] + l0 - lo[k]..][..m],
-                best: &mut best_row[at..][..m],
-                arg: &mut arg_row[at..][..m],
+                prev,
+                best,
+                arg,
                 step: si as u32,
             };
-            let (shape, weight) = (steps.shape, steps.weight);
-            match (st.a, steps.position) {
-                (1, None) => relax::<1, false>(shape, shape, 0.0, &run, out, cand),
-                (2, None) => relax::<2, false>(shape, shape, 0.0, &run, out, cand),
-                (3, None) => relax::<3, false>(shape, shape, 0.0, &run, out, cand),
-                (4, None) => relax::<4, false>(shape, shape, 0.0, &run, out, cand),
-                (5, None) => relax::<5, false>(shape, shape, 0.0, &run, out, cand),
-                (1, Some(p)) => relax::<1, true>(shape, p, weight, &run, out, cand),
-                (2, Some(p)) => relax::<2, true>(shape, p, weight, &run, out, cand),
-                (3, Some(p)) => relax::<3, true>(shape, p, weight, &run, out, cand),
-                (4, Some(p)) => relax::<4, true>(shape, p, weight, &run, out, cand),
-                (5, Some(p)) => relax::<5, true>(shape, p, weight, &run, out, cand),
-                (a, p) => relax_any(a, shape, p, weight, &run, out, cand, near),
+            match (st.a, position) {
+                (1, None) => relax::<1, false>(&shape, &shape, 0.0, &run, out, cand),
+                (2, None) => relax::<2, false>(&shape, &shape, 0.0, &run, out, cand),
+                (3, None) => relax::<3, false>(&shape, &shape, 0.0, &run, out, cand),
+                (4, None) => relax::<4, false>(&shape, &shape, 0.0, &run, out, cand),
+                (5, None) => relax::<5, false>(&shape, &shape, 0.0, &run, out, cand),
+                (1, Some(p)) => relax::<1, true>(&shape, &p, weight, &run, out, cand),
+                (2, Some(p)) => relax::<2, true>(&shape, &p, weight, &run, out, cand),
+                (3, Some(p)) => relax::<3, true>(&shape, &p, weight, &run, out, cand),
+                (4, Some(p)) => relax::<4, true>(&shape, &p, weight, &run, out, cand),
+                (5, Some(p)) => relax::<5, true>(&shape, &p, weight, &run, out, cand),
+                (a, p) => relax_any(a, &shape, p.as_ref(), weight, &run, out, cand, near),
             }
         }
     }
+    trace_band(back, &lo, &hi, steps)
 }
 
 /// A banded DP's costs and back-pointers, row-major (`band_rows`' layout).
