@@ -344,7 +344,7 @@ fn band_path(
         // SAFETY: the CPU has AVX2, checked just above.
         return unsafe { band_path_avx2(q1, q2, steps, band, anchor, tables, scratch) };
     }
-    band_path_in(q1, q2, steps, band, anchor, tables, scratch)
+    band_path_in::<false>(q1, q2, steps, band, anchor, tables, scratch)
 }
 
 /// `band_path_in` compiled with AVX2 (call only where the CPU has it).
@@ -359,12 +359,13 @@ fn band_path_avx2(
     tables: &mut (Vec<f64>, Vec<u32>),
     scratch: &mut Scratch,
 ) -> Option<Vec<(usize, usize)>> {
-    band_path_in(q1, q2, steps, band, anchor, tables, scratch)
+    band_path_in::<true>(q1, q2, steps, band, anchor, tables, scratch)
 }
 
-/// `band_path`'s body.
+/// `band_path`'s body; with `AVX2` (only inside `band_path_avx2`) the fused relaxation of runs
+/// of four cells or more goes through `relax_avx2`.
 #[inline(always)]
-fn band_path_in(
+fn band_path_in<const AVX2: bool>(
     q1: &[Vector2<f64>],
     q2: &[Vector2<f64>],
     steps: &[(usize, usize)],
@@ -445,10 +446,9 @@ fn band_path_in(
     for i in 1..n {
         // Rows before i are final: read from `done`, write row i.
         let (done, rest) = cost.split_at_mut(offset[i]);
+        // Row i still holds the INFINITY and u32::MAX the tables were filled with.
         let best_row = &mut rest[..offset[i + 1] - offset[i]];
         let arg_row = &mut back[offset[i]..offset[i + 1]];
-        best_row.fill(f64::INFINITY);
-        arg_row.fill(u32::MAX);
         for (si, st) in prepared.iter().enumerate() {
             if st.a > i {
                 continue;
@@ -491,6 +491,28 @@ fn band_path_in(
                 arg,
                 step: si as u32,
             };
+            #[cfg(target_arch = "x86_64")]
+            if AVX2 && m >= LANES && (1..=5).contains(&st.a) {
+                // SAFETY: AVX2 is only set inside `band_path_avx2`, which runs where the CPU has
+                // AVX2; the run holds m >= LANES cells (checked here), and `relax_avx2` reads
+                // only inside the slices it takes (bounds checked). Steps of 1-5 samples
+                // (the `_` arms are step 5).
+                unsafe {
+                    match (st.a, position) {
+                        (1, None) => relax_avx2::<1, false>(&shape, &shape, 0.0, &run, out),
+                        (2, None) => relax_avx2::<2, false>(&shape, &shape, 0.0, &run, out),
+                        (3, None) => relax_avx2::<3, false>(&shape, &shape, 0.0, &run, out),
+                        (4, None) => relax_avx2::<4, false>(&shape, &shape, 0.0, &run, out),
+                        (_, None) => relax_avx2::<5, false>(&shape, &shape, 0.0, &run, out),
+                        (1, Some(p)) => relax_avx2::<1, true>(&shape, &p, weight, &run, out),
+                        (2, Some(p)) => relax_avx2::<2, true>(&shape, &p, weight, &run, out),
+                        (3, Some(p)) => relax_avx2::<3, true>(&shape, &p, weight, &run, out),
+                        (4, Some(p)) => relax_avx2::<4, true>(&shape, &p, weight, &run, out),
+                        (_, Some(p)) => relax_avx2::<5, true>(&shape, &p, weight, &run, out),
+                    }
+                }
+                continue;
+            }
             match (st.a, position) {
                 (1, None) => relax::<1, false>(&shape, &shape, 0.0, &run, out, cand),
                 (2, None) => relax::<2, false>(&shape, &shape, 0.0, &run, out, cand),
@@ -605,6 +627,103 @@ fn keep_better(out: Out, cand: &[f64]) {
         let take = v < best[t];
         best[t] = if take { v } else { best[t] };
         arg[t] = if take { out.step } else { arg[t] };
+    }
+}
+
+/// A step's row-curve samples and its taps' table entries over a run of `m` cells (bounds
+/// checked here, once a run), x and y apart.
+type LaneTaps<'a, const A: usize> = ([f64; A], [f64; A], [&'a [f64]; A], [&'a [f64]; A]);
+
+#[inline(always)]
+fn lane_taps<'a, const A: usize>(t: &Taps<'a>, run: &Run, m: usize) -> LaneTaps<'a, A> {
+    let at = |r: usize| run.first + r * run.stride;
+    (
+        std::array::from_fn(|r| t.qx[run.k + r]),
+        std::array::from_fn(|r| t.qy[run.k + r]),
+        std::array::from_fn(|r| &t.tx[at(r)..][..m]),
+        std::array::from_fn(|r| &t.ty[at(r)..][..m]),
+    )
+}
+
+/// Cells `relax_avx2` takes at a time: one AVX2 vector of doubles.
+const LANES: usize = 4;
+
+/// `relax` with AVX2 intrinsics, four cells a vector: per cell the same operations in the same
+/// order (the taps' squared differences summed from 0.0, each as dx * dx + dy * dy, then the
+/// position term times `weight`, then prev + cost against the best with a strict "<"), so the
+/// same costs and back-pointers to the bit, without the scalar tail a run of 13 cells leaves:
+/// the last four cells end at the run's end, and the cells they share with the four before are
+/// computed again from the same inputs and compared again, which changes nothing (a cost equal
+/// to the best is not strictly lower). Needs at least four cells.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn relax_avx2<const A: usize, const POSITION: bool>(
+    shape: &Taps,
+    position: &Taps,
+    weight: f64,
+    run: &Run,
+    out: Out,
+) {
+    use std::arch::x86_64::*;
+    let Out {
+        prev,
+        best,
+        arg,
+        step,
+    } = out;
+    let m = prev.len();
+    debug_assert!(m >= LANES && best.len() == m && arg.len() == m);
+    let (sqx, sqy, stx, sty) = lane_taps::<A>(shape, run, m);
+    let sum = |qx: &[f64; A], qy: &[f64; A], tx: &[&[f64]; A], ty: &[&[f64]; A], t0: usize| {
+        let mut c = _mm256_setzero_pd();
+        for r in 0..A {
+            // SAFETY: t0 + LANES <= m, the length of every tap slice.
+            let (wx, wy) = unsafe {
+                (
+                    _mm256_loadu_pd(tx[r].as_ptr().add(t0)),
+                    _mm256_loadu_pd(ty[r].as_ptr().add(t0)),
+                )
+            };
+            let dx = _mm256_sub_pd(_mm256_set1_pd(qx[r]), wx);
+            let dy = _mm256_sub_pd(_mm256_set1_pd(qy[r]), wy);
+            c = _mm256_add_pd(
+                c,
+                _mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
+            );
+        }
+        c
+    };
+    let near = POSITION.then(|| lane_taps::<A>(position, run, m));
+    let w = _mm256_set1_pd(weight);
+    let steps = _mm_set1_epi32(step as i32);
+    // The low 32 bits of each 64-bit lane, in order.
+    let low = _mm256_setr_epi32(0, 2, 4, 6, 0, 0, 0, 0);
+    let mut t = 0;
+    loop {
+        let t0 = t.min(m - LANES);
+        let mut c = sum(&sqx, &sqy, &stx, &sty, t0);
+        if let Some((pqx, pqy, ptx, pty)) = &near {
+            c = _mm256_add_pd(c, _mm256_mul_pd(w, sum(pqx, pqy, ptx, pty, t0)));
+        }
+        // SAFETY: t0 + LANES <= m = prev.len() = best.len() = arg.len().
+        unsafe {
+            let v = _mm256_add_pd(_mm256_loadu_pd(prev.as_ptr().add(t0)), c);
+            let b = _mm256_loadu_pd(best.as_ptr().add(t0));
+            let take = _mm256_cmp_pd::<_CMP_LT_OQ>(v, b);
+            // min(v, b) is v where v < b and b otherwise (b also where either is NaN): the
+            // blend by `take`, written as a plain store (a blend into the loaded value is
+            // compiled as a masked store, which later loads of the same cells wait on).
+            _mm256_storeu_pd(best.as_mut_ptr().add(t0), _mm256_min_pd(v, b));
+            let take32 =
+                _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(_mm256_castpd_si256(take), low));
+            let a = arg.as_mut_ptr().add(t0) as *mut __m128i;
+            _mm_storeu_si128(a, _mm_blendv_epi8(_mm_loadu_si128(a), steps, take32));
+        }
+        if t0 + LANES == m {
+            break;
+        }
+        t += LANES;
     }
 }
 
@@ -1215,7 +1334,7 @@ mod tests {
                 let steps = coprime_steps(if n == 30 { 7 } else { 5 });
                 let (mut plain, mut dispatched) =
                     ((Vec::new(), Vec::new()), (Vec::new(), Vec::new()));
-                let p = band_path_in(
+                let p = band_path_in::<false>(
                     &q1,
                     &q2,
                     &steps,
