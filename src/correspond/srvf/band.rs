@@ -1,8 +1,8 @@
 //! The banded DP as a problem another engine can solve: what one DP of an alignment asks (the two
 //! SRVFs, the step set, the band's rows and the position term), the trait an engine implements
 //! to return its back-pointers (the GPU's `srvf_band` kernel through the study's batcher), and
-//! the traceback that turns them into a path. The host's own banded DP (`dp::band_path`) is the
-//! reference every such engine is tested against.
+//! the traceback that turns them into a path. The host's own banded DP
+//! (`band_tables::band_path`) is the reference every such engine is tested against.
 
 use super::curve::Anchor;
 use nalgebra::Vector2;

@@ -2,6 +2,7 @@
 
 mod align;
 mod band;
+mod band_tables;
 mod batch;
 mod curve;
 mod dp;

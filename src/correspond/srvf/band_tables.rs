@@ -1,0 +1,793 @@
+//! The host's banded DP: the cost and back-pointer tables of `dp::dp_in_band`, row by row (every
+//! step's candidates over a run of cells at once, fused with the comparison), built for the
+//! baseline x86-64 and for AVX2 and chosen at run time, the same tables to the bit either way.
+//! The reference every engine's banded DP (`BandSolver`, the GPU's `srvf_band`) is tested
+//! against; its own oracle is the cell-by-cell loop in the tests.
+
+use super::band::trace_band;
+use super::curve::Anchor;
+use super::dp::{band_rows, prepare, PreparedStep};
+use nalgebra::Vector2;
+
+/// The working memory of a banded DP, kept between DPs: the per-step tap tables (all steps in
+/// one buffer, step `si` from `starts[si]`), the candidate rows and the band's row layout.
+#[derive(Default)]
+pub(super) struct Scratch {
+    prepared: Vec<PreparedStep>,
+    prepared_for: Vec<(usize, usize)>,
+    starts: Vec<usize>,
+    /// The position tables' starts (the same layout as `starts`).
+    pstarts: Vec<usize>,
+    wx: Vec<f64>,
+    wy: Vec<f64>,
+    px: Vec<f64>,
+    py: Vec<f64>,
+    x1: Vec<f64>,
+    y1: Vec<f64>,
+    x2: Vec<f64>,
+    y2: Vec<f64>,
+    ax: Vec<f64>,
+    ay: Vec<f64>,
+    bx: Vec<f64>,
+    by: Vec<f64>,
+    cand: Vec<f64>,
+    near: Vec<f64>,
+}
+
+/// What the tap tables hold: q2 interpolated at the tap and times the step's sqrt slope (the
+/// SRVF part), or B's positions interpolated at the tap (the position term), x and y apart.
+enum TapSource<'a> {
+    Scaled(&'a [f64], &'a [f64]),
+    Positions(&'a [f64], &'a [f64]),
+}
+
+/// Fill `starts`, and `x`, `y` with the source's value at every tap (p, u) of every step, for
+/// each start column l < n - b (the tap's sample is p = l + its offset), tap by tap: the DP's
+/// per-step tables, all steps in one buffer. One tight loop per tap (it vectorises), each value
+/// computed as the per-value expressions below always were.
+#[inline(always)]
+fn fill_taps(
+    prepared: &[PreparedStep],
+    n: usize,
+    starts: &mut Vec<usize>,
+    x: &mut Vec<f64>,
+    y: &mut Vec<f64>,
+    source: TapSource,
+) {
+    starts.clear();
+    let total: usize = prepared
+        .iter()
+        .map(|st| st.taps.len() * n.saturating_sub(st.b))
+        .sum();
+    x.clear();
+    x.resize(total, 0.0);
+    y.clear();
+    y.resize(total, 0.0);
+    let mut at = 0;
+    for st in prepared {
+        starts.push(at);
+        let cols = n.saturating_sub(st.b);
+        if cols == 0 {
+            continue;
+        }
+        for &(off, u) in &st.taps {
+            let (tx, ty) = (&mut x[at..at + cols], &mut y[at..at + cols]);
+            match source {
+                TapSource::Scaled(qx, qy) => {
+                    let s = st.sqrt_slope;
+                    if u == 0.0 {
+                        let (qx, qy) = (&qx[off..off + cols], &qy[off..off + cols]);
+                        for l in 0..cols {
+                            tx[l] = qx[l] * s;
+                            ty[l] = qy[l] * s;
+                        }
+                    } else {
+                        // p + 1 <= n - 1: off <= b - 1 and l < n - b.
+                        let (qx, qy) = (&qx[off..off + cols + 1], &qy[off..off + cols + 1]);
+                        for l in 0..cols {
+                            tx[l] = (qx[l] + (qx[l + 1] - qx[l]) * u) * s;
+                            ty[l] = (qy[l] + (qy[l + 1] - qy[l]) * u) * s;
+                        }
+                    }
+                }
+                TapSource::Positions(bx, by) => {
+                    for l in 0..cols {
+                        let p = l + off;
+                        let p1 = (p + 1).min(n - 1);
+                        tx[l] = bx[p] + (bx[p1] - bx[p]) * u;
+                        ty[l] = by[p] + (by[p1] - by[p]) * u;
+                    }
+                }
+            }
+            at += cols;
+        }
+    }
+}
+
+/// The banded DP's tables (into `tables`) and its path from (0, 0) to (n-1, n-1), or None when
+/// the band cuts every path. Compiled for AVX2 too, which runs where the CPU has it (4 doubles
+/// a vector against SSE2's 2): only separate multiplies and adds are emitted either way (Rust
+/// never fuses them into a multiply-add), so both give the same tables to the bit.
+pub(super) fn band_path(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    steps: &[(usize, usize)],
+    band: &[(usize, usize)],
+    anchor: Option<Anchor>,
+    tables: &mut (Vec<f64>, Vec<u32>),
+    scratch: &mut Scratch,
+) -> Option<Vec<(usize, usize)>> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { band_path_avx2(q1, q2, steps, band, anchor, tables, scratch) };
+    }
+    band_path_in::<false>(q1, q2, steps, band, anchor, tables, scratch)
+}
+
+/// `band_path_in` compiled with AVX2 (call only where the CPU has it).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn band_path_avx2(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    steps: &[(usize, usize)],
+    band: &[(usize, usize)],
+    anchor: Option<Anchor>,
+    tables: &mut (Vec<f64>, Vec<u32>),
+    scratch: &mut Scratch,
+) -> Option<Vec<(usize, usize)>> {
+    band_path_in::<true>(q1, q2, steps, band, anchor, tables, scratch)
+}
+
+/// `band_path`'s body; with `AVX2` (only inside `band_path_avx2`) the fused relaxation of runs
+/// of four cells or more goes through `relax_avx2`.
+#[inline(always)]
+fn band_path_in<const AVX2: bool>(
+    q1: &[Vector2<f64>],
+    q2: &[Vector2<f64>],
+    steps: &[(usize, usize)],
+    band: &[(usize, usize)],
+    anchor: Option<Anchor>,
+    tables: &mut (Vec<f64>, Vec<u32>),
+    scratch: &mut Scratch,
+) -> Option<Vec<(usize, usize)>> {
+    let n = q1.len();
+    debug_assert_eq!(n, q2.len());
+    let Scratch {
+        prepared,
+        prepared_for,
+        starts,
+        pstarts,
+        wx,
+        wy,
+        px,
+        py,
+        x1,
+        y1,
+        x2,
+        y2,
+        ax,
+        ay,
+        bx,
+        by,
+        cand,
+        near,
+    } = scratch;
+    if prepared_for.as_slice() != steps {
+        *prepared = prepare(steps);
+        *prepared_for = steps.to_vec();
+    }
+    let (lo, hi, offset) = band_rows(band, n);
+    let cells = offset[n];
+    let (cost, back) = tables;
+    cost.clear();
+    cost.resize(cells, f64::INFINITY);
+    back.clear();
+    back.resize(cells, u32::MAX);
+    cost[0] = 0.0;
+    x1.clear();
+    y1.clear();
+    x1.extend(q1.iter().map(|v| v.x));
+    y1.extend(q1.iter().map(|v| v.y));
+    // q2 at every tap of every step, times the step's sqrt slope, for each start column l
+    // (0 <= l < n - b): it does not depend on the row, so it is computed once, not per cell.
+    // x and y apart, so the row loops below run over contiguous columns (SIMD).
+    x2.clear();
+    y2.clear();
+    x2.extend(q2.iter().map(|v| v.x));
+    y2.extend(q2.iter().map(|v| v.y));
+    fill_taps(prepared, n, starts, wx, wy, TapSource::Scaled(x2, y2));
+    // B's positions at the same taps (not scaled: the position term ignores the slope).
+    let weight = anchor.map_or(0.0, |a| a.weight);
+    let anchored = anchor.filter(|_| weight > 0.0);
+    if let Some(an) = anchored {
+        ax.clear();
+        ay.clear();
+        ax.extend(an.a.iter().map(|v| v.x));
+        ay.extend(an.a.iter().map(|v| v.y));
+        bx.clear();
+        by.clear();
+        bx.extend(an.b.iter().map(|v| v.x));
+        by.extend(an.b.iter().map(|v| v.y));
+        fill_taps(prepared, n, pstarts, px, py, TapSource::Positions(bx, by));
+    }
+    // Row by row: for each step, every cell of the row it can reach at once (the candidates of
+    // one step over a run of columns), then the best step per cell. Per cell this is the same
+    // arithmetic, in the same order, with the same strict "<" over the steps in order, as a
+    // cell-by-cell loop: the same costs and back-pointers to the bit.
+    let widest = (0..n).map(|i| hi[i] + 1 - lo[i]).max().unwrap_or(0);
+    cand.clear();
+    cand.resize(widest, 0.0);
+    near.clear();
+    near.resize(widest, 0.0);
+    for i in 1..n {
+        // Rows before i are final: read from `done`, write row i.
+        let (done, rest) = cost.split_at_mut(offset[i]);
+        // Row i still holds the INFINITY and u32::MAX the tables were filled with.
+        let best_row = &mut rest[..offset[i + 1] - offset[i]];
+        let arg_row = &mut back[offset[i]..offset[i + 1]];
+        for (si, st) in prepared.iter().enumerate() {
+            if st.a > i {
+                continue;
+            }
+            let k = i - st.a;
+            // Columns j of row i whose predecessor l = j - b lies in row k's band.
+            let j0 = lo[i].max(lo[k] + st.b);
+            let j1 = hi[i].min(hi[k] + st.b);
+            if j0 > j1 {
+                continue;
+            }
+            let m = j1 + 1 - j0;
+            let l0 = j0 - st.b;
+            let cols = n - st.b;
+            let base = starts[si];
+            let prev = &done[offset[k] + l0 - lo[k]..][..m];
+            let at = j0 - lo[i];
+            let best = &mut best_row[at..][..m];
+            let arg = &mut arg_row[at..][..m];
+            let shape = Taps {
+                qx: x1,
+                qy: y1,
+                tx: wx,
+                ty: wy,
+            };
+            let position = anchored.map(|_| Taps {
+                qx: ax,
+                qy: ay,
+                tx: px,
+                ty: py,
+            });
+            let run = Run {
+                k,
+                first: base + l0,
+                stride: cols,
+            };
+            let out = Out {
+                prev,
+                best,
+                arg,
+                step: si as u32,
+            };
+            #[cfg(target_arch = "x86_64")]
+            if AVX2 && m >= LANES && (1..=5).contains(&st.a) {
+                // SAFETY: AVX2 is only set inside `band_path_avx2`, which runs where the CPU has
+                // AVX2; the run holds m >= LANES cells (checked here), and `relax_avx2` reads
+                // only inside the slices it takes (bounds checked). Steps of 1-5 samples
+                // (the `_` arms are step 5).
+                unsafe {
+                    match (st.a, position) {
+                        (1, None) => relax_avx2::<1, false>(&shape, &shape, 0.0, &run, out),
+                        (2, None) => relax_avx2::<2, false>(&shape, &shape, 0.0, &run, out),
+                        (3, None) => relax_avx2::<3, false>(&shape, &shape, 0.0, &run, out),
+                        (4, None) => relax_avx2::<4, false>(&shape, &shape, 0.0, &run, out),
+                        (_, None) => relax_avx2::<5, false>(&shape, &shape, 0.0, &run, out),
+                        (1, Some(p)) => relax_avx2::<1, true>(&shape, &p, weight, &run, out),
+                        (2, Some(p)) => relax_avx2::<2, true>(&shape, &p, weight, &run, out),
+                        (3, Some(p)) => relax_avx2::<3, true>(&shape, &p, weight, &run, out),
+                        (4, Some(p)) => relax_avx2::<4, true>(&shape, &p, weight, &run, out),
+                        (_, Some(p)) => relax_avx2::<5, true>(&shape, &p, weight, &run, out),
+                    }
+                }
+                continue;
+            }
+            match (st.a, position) {
+                (1, None) => relax::<1, false>(&shape, &shape, 0.0, &run, out, cand),
+                (2, None) => relax::<2, false>(&shape, &shape, 0.0, &run, out, cand),
+                (3, None) => relax::<3, false>(&shape, &shape, 0.0, &run, out, cand),
+                (4, None) => relax::<4, false>(&shape, &shape, 0.0, &run, out, cand),
+                (5, None) => relax::<5, false>(&shape, &shape, 0.0, &run, out, cand),
+                (1, Some(p)) => relax::<1, true>(&shape, &p, weight, &run, out, cand),
+                (2, Some(p)) => relax::<2, true>(&shape, &p, weight, &run, out, cand),
+                (3, Some(p)) => relax::<3, true>(&shape, &p, weight, &run, out, cand),
+                (4, Some(p)) => relax::<4, true>(&shape, &p, weight, &run, out, cand),
+                (5, Some(p)) => relax::<5, true>(&shape, &p, weight, &run, out, cand),
+                (a, p) => relax_any(a, &shape, p.as_ref(), weight, &run, out, cand, near),
+            }
+        }
+    }
+    trace_band(back, &lo, &hi, steps)
+}
+
+/// A banded DP's costs and back-pointers, row-major (`band_rows`' layout).
+pub(super) type CostTables = (Vec<f64>, Vec<u32>);
+
+/// One tap's table entries over a run of cells, x and y.
+type TapRun<'a> = (&'a [f64], &'a [f64]);
+
+/// One part of a step's cost: the row curve's samples (q1, or A's positions) and the tap tables
+/// of the column curve (q2 scaled by the step's sqrt slope, or B's positions), x and y apart.
+struct Taps<'a> {
+    qx: &'a [f64],
+    qy: &'a [f64],
+    tx: &'a [f64],
+    ty: &'a [f64],
+}
+
+/// Where one step's candidates of a row read: the predecessor row k (the samples k..k+a of the
+/// row curve) and, in the tap tables, the first candidate's entry of tap 0 and the distance
+/// from one tap's entries to the next's.
+struct Run {
+    k: usize,
+    first: usize,
+    stride: usize,
+}
+
+/// A run of cells of row i, and the predecessors' costs they are relaxed from by one step.
+struct Out<'a> {
+    prev: &'a [f64],
+    best: &'a mut [f64],
+    arg: &'a mut [u32],
+    step: u32,
+}
+
+/// Relax a run of cells by one step of A samples, fused: per cell the step's SRVF cost (and,
+/// with POSITION, the position term times `weight`), then the predecessor's cost plus it against
+/// the best so far (a strict "<"). The sums run over the taps in order from 0.0, as `relax_any`
+/// does, so the costs and back-pointers are the same to the bit; with A fixed the tap loop
+/// unrolls and the cells vectorise, with no candidate row stored between passes.
+#[inline(always)]
+fn relax<const A: usize, const POSITION: bool>(
+    shape: &Taps,
+    position: &Taps,
+    weight: f64,
+    run: &Run,
+    out: Out,
+    cand: &mut [f64],
+) {
+    let m = out.prev.len();
+    let q: [(f64, f64); A] = std::array::from_fn(|r| (shape.qx[run.k + r], shape.qy[run.k + r]));
+    let w: [TapRun; A] = std::array::from_fn(|r| {
+        let at = run.first + r * run.stride;
+        (&shape.tx[at..][..m], &shape.ty[at..][..m])
+    });
+    let (pq, pw): ([(f64, f64); A], [TapRun; A]) = if POSITION {
+        (
+            std::array::from_fn(|r| (position.qx[run.k + r], position.qy[run.k + r])),
+            std::array::from_fn(|r| {
+                let at = run.first + r * run.stride;
+                (&position.tx[at..][..m], &position.ty[at..][..m])
+            }),
+        )
+    } else {
+        ([(0.0, 0.0); A], [(&[][..], &[][..]); A])
+    };
+    // The candidates first (no branch: the cells vectorise), then the comparison as selects.
+    let cand = &mut cand[..m];
+    for (t, cand) in cand.iter_mut().enumerate() {
+        let mut c = 0.0;
+        for r in 0..A {
+            let dx = q[r].0 - w[r].0[t];
+            let dy = q[r].1 - w[r].1[t];
+            c += dx * dx + dy * dy;
+        }
+        if POSITION {
+            let mut e = 0.0;
+            for r in 0..A {
+                let dx = pq[r].0 - pw[r].0[t];
+                let dy = pq[r].1 - pw[r].1[t];
+                e += dx * dx + dy * dy;
+            }
+            c += weight * e;
+        }
+        *cand = c;
+    }
+    keep_better(out, cand);
+}
+
+/// best = prev + cand where that is strictly lower, its back-pointer the step's.
+#[inline(always)]
+fn keep_better(out: Out, cand: &[f64]) {
+    let m = cand.len();
+    let (prev, best, arg) = (&out.prev[..m], &mut out.best[..m], &mut out.arg[..m]);
+    for t in 0..m {
+        let v = prev[t] + cand[t];
+        let take = v < best[t];
+        best[t] = if take { v } else { best[t] };
+        arg[t] = if take { out.step } else { arg[t] };
+    }
+}
+
+/// A step's row-curve samples and its taps' table entries over a run of `m` cells (bounds
+/// checked here, once a run), x and y apart.
+type LaneTaps<'a, const A: usize> = ([f64; A], [f64; A], [&'a [f64]; A], [&'a [f64]; A]);
+
+#[inline(always)]
+fn lane_taps<'a, const A: usize>(t: &Taps<'a>, run: &Run, m: usize) -> LaneTaps<'a, A> {
+    let at = |r: usize| run.first + r * run.stride;
+    (
+        std::array::from_fn(|r| t.qx[run.k + r]),
+        std::array::from_fn(|r| t.qy[run.k + r]),
+        std::array::from_fn(|r| &t.tx[at(r)..][..m]),
+        std::array::from_fn(|r| &t.ty[at(r)..][..m]),
+    )
+}
+
+/// Cells `relax_avx2` takes at a time: one AVX2 vector of doubles.
+const LANES: usize = 4;
+
+/// `relax` with AVX2 intrinsics, four cells a vector: per cell the same operations in the same
+/// order (the taps' squared differences summed from 0.0, each as dx * dx + dy * dy, then the
+/// position term times `weight`, then prev + cost against the best with a strict "<"), so the
+/// same costs and back-pointers to the bit, without the scalar tail a run of 13 cells leaves:
+/// the last four cells end at the run's end, and the cells they share with the four before are
+/// computed again from the same inputs and compared again, which changes nothing (a cost equal
+/// to the best is not strictly lower). Needs at least four cells.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn relax_avx2<const A: usize, const POSITION: bool>(
+    shape: &Taps,
+    position: &Taps,
+    weight: f64,
+    run: &Run,
+    out: Out,
+) {
+    use std::arch::x86_64::*;
+    let Out {
+        prev,
+        best,
+        arg,
+        step,
+    } = out;
+    let m = prev.len();
+    debug_assert!(m >= LANES && best.len() == m && arg.len() == m);
+    let (sqx, sqy, stx, sty) = lane_taps::<A>(shape, run, m);
+    let sum = |qx: &[f64; A], qy: &[f64; A], tx: &[&[f64]; A], ty: &[&[f64]; A], t0: usize| {
+        let mut c = _mm256_setzero_pd();
+        for r in 0..A {
+            // SAFETY: t0 + LANES <= m, the length of every tap slice.
+            let (wx, wy) = unsafe {
+                (
+                    _mm256_loadu_pd(tx[r].as_ptr().add(t0)),
+                    _mm256_loadu_pd(ty[r].as_ptr().add(t0)),
+                )
+            };
+            let dx = _mm256_sub_pd(_mm256_set1_pd(qx[r]), wx);
+            let dy = _mm256_sub_pd(_mm256_set1_pd(qy[r]), wy);
+            c = _mm256_add_pd(
+                c,
+                _mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
+            );
+        }
+        c
+    };
+    let near = POSITION.then(|| lane_taps::<A>(position, run, m));
+    let w = _mm256_set1_pd(weight);
+    let steps = _mm_set1_epi32(step as i32);
+    // The low 32 bits of each 64-bit lane, in order.
+    let low = _mm256_setr_epi32(0, 2, 4, 6, 0, 0, 0, 0);
+    let mut t = 0;
+    loop {
+        let t0 = t.min(m - LANES);
+        let mut c = sum(&sqx, &sqy, &stx, &sty, t0);
+        if let Some((pqx, pqy, ptx, pty)) = &near {
+            c = _mm256_add_pd(c, _mm256_mul_pd(w, sum(pqx, pqy, ptx, pty, t0)));
+        }
+        // SAFETY: t0 + LANES <= m = prev.len() = best.len() = arg.len().
+        unsafe {
+            let v = _mm256_add_pd(_mm256_loadu_pd(prev.as_ptr().add(t0)), c);
+            let b = _mm256_loadu_pd(best.as_ptr().add(t0));
+            let take = _mm256_cmp_pd::<_CMP_LT_OQ>(v, b);
+            // min(v, b) is v where v < b and b otherwise (b also where either is NaN): the
+            // blend by `take`, written as a plain store (a blend into the loaded value is
+            // compiled as a masked store, which later loads of the same cells wait on).
+            _mm256_storeu_pd(best.as_mut_ptr().add(t0), _mm256_min_pd(v, b));
+            let take32 =
+                _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(_mm256_castpd_si256(take), low));
+            let a = arg.as_mut_ptr().add(t0) as *mut __m128i;
+            _mm_storeu_si128(a, _mm_blendv_epi8(_mm_loadu_si128(a), steps, take32));
+        }
+        if t0 + LANES == m {
+            break;
+        }
+        t += LANES;
+    }
+}
+
+/// `relax` for a step of any length: the candidates of the run first (into `cand`, the
+/// position term into `near`), tap by tap, then the comparison.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn relax_any(
+    a: usize,
+    shape: &Taps,
+    position: Option<&Taps>,
+    weight: f64,
+    run: &Run,
+    out: Out,
+    cand: &mut [f64],
+    near: &mut [f64],
+) {
+    let m = out.prev.len();
+    let part = |taps: &Taps, into: &mut [f64]| {
+        into.fill(0.0);
+        for r in 0..a {
+            let (qx, qy) = (taps.qx[run.k + r], taps.qy[run.k + r]);
+            let at = run.first + r * run.stride;
+            let (tx, ty) = (&taps.tx[at..][..m], &taps.ty[at..][..m]);
+            for ((c, &tx), &ty) in into.iter_mut().zip(tx).zip(ty) {
+                let dx = qx - tx;
+                let dy = qy - ty;
+                *c += dx * dx + dy * dy;
+            }
+        }
+    };
+    let c = &mut cand[..m];
+    part(shape, c);
+    if let Some(p) = position {
+        let e = &mut near[..m];
+        part(p, e);
+        for (c, &e) in c.iter_mut().zip(e.iter()) {
+            *c += weight * e;
+        }
+    }
+    keep_better(out, c);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::correspond::srvf::dp::tests::random_q;
+    use crate::correspond::srvf::dp::{band_around, coprime_steps, dp_warp, finish_warp, Warp};
+
+    /// `dp_in_band` filling `tables` with the banded costs and back-pointers (row-major, row i
+    /// holding the band's columns of row i).
+    #[cfg(test)]
+    fn dp_in_band_tables(
+        q1: &[Vector2<f64>],
+        q2: &[Vector2<f64>],
+        steps: &[(usize, usize)],
+        band: &[(usize, usize)],
+        anchor: Option<Anchor>,
+        tables: &mut (Vec<f64>, Vec<u32>),
+    ) -> Warp {
+        let path = band_path(q1, q2, steps, band, anchor, tables, &mut Scratch::default());
+        finish_warp(q1, q2, path.expect("the test bands hold a path"), anchor)
+    }
+
+    /// `value(step, p, u)` at every tap (p, u) of every step, for each start column l < n - b (the
+    /// tap's sample is l + its offset), laid out tap by tap: the DP's per-step tables.
+    #[cfg(test)]
+    fn tap_table<T>(
+        prepared: &[PreparedStep],
+        n: usize,
+        value: impl Fn(&PreparedStep, usize, f64) -> T,
+    ) -> Vec<Vec<T>> {
+        prepared
+            .iter()
+            .map(|st| {
+                let cols = n.saturating_sub(st.b);
+                let mut v = Vec::with_capacity(st.taps.len() * cols);
+                for &(off, u) in &st.taps {
+                    for l in 0..cols {
+                        v.push(value(st, l + off, u));
+                    }
+                }
+                v
+            })
+            .collect()
+    }
+
+    /// The DP as it was before the row-wise loops (commit 663b1dc): cell by cell, skipping a
+    /// step whose predecessor already costs more than the best so far. The oracle of
+    /// `dp_in_band`'s costs and back-pointers, bit for bit.
+    fn cellwise(
+        q1: &[Vector2<f64>],
+        q2: &[Vector2<f64>],
+        steps: &[(usize, usize)],
+        band: &[(usize, usize)],
+        anchor: Option<Anchor>,
+    ) -> Tables {
+        let n = q1.len();
+        let prepared = prepare(steps);
+        let (lo, hi, offset) = band_rows(band, n);
+        let mut cost = vec![f64::INFINITY; offset[n]];
+        let mut back = vec![u32::MAX; offset[n]];
+        cost[0] = 0.0;
+        let warped = tap_table(&prepared, n, |st, p, u| {
+            let (qx, qy) = if u == 0.0 {
+                (q2[p].x, q2[p].y)
+            } else {
+                (
+                    q2[p].x + (q2[p + 1].x - q2[p].x) * u,
+                    q2[p].y + (q2[p + 1].y - q2[p].y) * u,
+                )
+            };
+            (qx * st.sqrt_slope, qy * st.sqrt_slope)
+        });
+        let weight = anchor.map_or(0.0, |a| a.weight);
+        let (pa, placed): (&[Vector2<f64>], Vec<Vec<Vector2<f64>>>) = match anchor {
+            Some(an) if weight > 0.0 => (
+                an.a,
+                tap_table(&prepared, n, |_, p, u| {
+                    an.b[p] + (an.b[(p + 1).min(n - 1)] - an.b[p]) * u
+                }),
+            ),
+            _ => (&[], Vec::new()),
+        };
+        for i in 1..n {
+            for j in lo[i]..=hi[i] {
+                let mut best = f64::INFINITY;
+                let mut arg = u32::MAX;
+                for (si, st) in prepared.iter().enumerate() {
+                    if st.a > i || st.b > j {
+                        continue;
+                    }
+                    let (k, l) = (i - st.a, j - st.b);
+                    if l < lo[k] || l > hi[k] {
+                        continue;
+                    }
+                    let prev = cost[offset[k] + l - lo[k]];
+                    if prev >= best {
+                        continue;
+                    }
+                    let mut c = 0.0;
+                    let cols = n - st.b;
+                    for r in 0..st.a {
+                        let (qx, qy) = warped[si][r * cols + l];
+                        let dx = q1[k + r].x - qx;
+                        let dy = q1[k + r].y - qy;
+                        c += dx * dx + dy * dy;
+                    }
+                    if weight > 0.0 {
+                        let mut e = 0.0;
+                        for r in 0..st.a {
+                            e += (pa[k + r] - placed[si][r * cols + l]).norm_squared();
+                        }
+                        c += weight * e;
+                    }
+                    let c = prev + c;
+                    if c < best {
+                        best = c;
+                        arg = si as u32;
+                    }
+                }
+                cost[offset[i] + j - lo[i]] = best;
+                back[offset[i] + j - lo[i]] = arg;
+            }
+        }
+        (cost, back)
+    }
+
+    /// Whether two DP tables are the same to the bit (costs) and exactly (back-pointers).
+    fn same_tables(a: &Tables, b: &Tables) -> bool {
+        a.0.len() == b.0.len()
+            && a.0
+                .iter()
+                .zip(&b.0)
+                .all(|(x, y)| x.to_bits() == y.to_bits())
+            && a.1 == b.1
+    }
+
+    /// (random SRVFs, positions, a band around a wandering path, anchored or not) x sizes.
+    /// Costs and back-pointers of one DP.
+    type Tables = (Vec<f64>, Vec<u32>);
+
+    /// (the row-wise tables, the oracle's) for each case.
+    fn table_cases() -> Vec<(Tables, Tables)> {
+        let mut out = Vec::new();
+        let mut seed = 99u64;
+        for &n in &[9usize, 30, 65, 120] {
+            for anchored in [false, true] {
+                for banded in [false, true] {
+                    let (q1, q2) = (random_q(n, &mut seed), random_q(n, &mut seed));
+                    let (a, b) = (random_q(n, &mut seed), random_q(n, &mut seed));
+                    let anchor = anchored.then_some(Anchor {
+                        a: &a,
+                        b: &b,
+                        weight: 3.0,
+                    });
+                    let band = if banded {
+                        let hint = dp_warp(&q2, &q1, &coprime_steps(3)).path;
+                        band_around(&hint, 1, n, 4)
+                    } else {
+                        vec![(1usize, n - 1); n]
+                    };
+                    // n = 30 with steps up to 7 samples long: the general relaxation
+                    // (`relax_any`) as well as the fused one.
+                    let steps = coprime_steps(if n == 30 { 7 } else { 5 });
+                    let mut tables = (Vec::new(), Vec::new());
+                    let w = dp_in_band_tables(&q1, &q2, &steps, &band, anchor, &mut tables);
+                    let oracle = cellwise(&q1, &q2, &steps, &band, anchor);
+                    assert!(w.path.first() == Some(&(0, 0)));
+                    out.push((tables, oracle));
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn row_wise_dp_gives_the_cell_by_cell_tables_to_the_bit() {
+        for (k, (ours, oracle)) in table_cases().into_iter().enumerate() {
+            assert!(same_tables(&ours, &oracle), "case {k}");
+        }
+    }
+
+    /// `band_path` runs its AVX2 build where the CPU has it; the plain build (SSE2 on x86-64)
+    /// must give the same tables, so a result does not depend on the machine's vectors.
+    #[test]
+    fn the_plain_build_gives_the_vectorised_builds_tables_to_the_bit() {
+        let mut seed = 7u64;
+        for &n in &[30usize, 120, 200] {
+            for anchored in [false, true] {
+                let (q1, q2) = (random_q(n, &mut seed), random_q(n, &mut seed));
+                let (a, b) = (random_q(n, &mut seed), random_q(n, &mut seed));
+                let anchor = anchored.then_some(Anchor {
+                    a: &a,
+                    b: &b,
+                    weight: 3.0,
+                });
+                let hint = dp_warp(&q2, &q1, &coprime_steps(3)).path;
+                let band = band_around(&hint, 1, n, 6);
+                let steps = coprime_steps(if n == 30 { 7 } else { 5 });
+                let (mut plain, mut dispatched) =
+                    ((Vec::new(), Vec::new()), (Vec::new(), Vec::new()));
+                let p = band_path_in::<false>(
+                    &q1,
+                    &q2,
+                    &steps,
+                    &band,
+                    anchor,
+                    &mut plain,
+                    &mut Scratch::default(),
+                );
+                let d = band_path(
+                    &q1,
+                    &q2,
+                    &steps,
+                    &band,
+                    anchor,
+                    &mut dispatched,
+                    &mut Scratch::default(),
+                );
+                assert_eq!(p, d, "n {n}, anchored {anchored}");
+                assert!(
+                    same_tables(&plain, &dispatched),
+                    "n {n}, anchored {anchored}"
+                );
+                assert!(same_tables(
+                    &plain,
+                    &cellwise(&q1, &q2, &steps, &band, anchor)
+                ));
+            }
+        }
+    }
+
+    #[test]
+    fn a_table_one_back_pointer_or_one_ulp_off_is_not_the_same() {
+        let ((cost, back), oracle) = table_cases().swap_remove(5);
+        let mut moved = back.clone();
+        let at = moved.iter().position(|&s| s != u32::MAX && s != 0).unwrap();
+        moved[at] = 0;
+        assert!(!same_tables(&(cost.clone(), moved), &oracle));
+        let mut nudged = cost.clone();
+        let at = nudged
+            .iter()
+            .position(|c| c.is_finite() && *c > 0.0)
+            .unwrap();
+        nudged[at] = f64::from_bits(nudged[at].to_bits() + 1);
+        assert!(!same_tables(&(nudged, back), &oracle));
+    }
+}
