@@ -410,8 +410,10 @@ fn keep_better(out: Out, cand: &[f64]) {
 
 /// A step's row-curve samples and its taps' table entries over a run of `m` cells (bounds
 /// checked here, once a run), x and y apart.
+#[cfg(target_arch = "x86_64")]
 type LaneTaps<'a, const A: usize> = ([f64; A], [f64; A], [&'a [f64]; A], [&'a [f64]; A]);
 
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn lane_taps<'a, const A: usize>(t: &Taps<'a>, run: &Run, m: usize) -> LaneTaps<'a, A> {
     let at = |r: usize| run.first + r * run.stride;
@@ -424,6 +426,7 @@ fn lane_taps<'a, const A: usize>(t: &Taps<'a>, run: &Run, m: usize) -> LaneTaps<
 }
 
 /// Cells `relax_avx2` takes at a time: one AVX2 vector of doubles.
+#[cfg(target_arch = "x86_64")]
 const LANES: usize = 4;
 
 /// `relax` with AVX2 intrinsics, four cells a vector: per cell the same operations in the same
