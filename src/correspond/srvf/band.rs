@@ -113,6 +113,55 @@ pub fn trace_band(
     Some(path)
 }
 
+/// One coprime step (a, b) prepared for the inner loop: sqrt of its slope and, for each of the
+/// `a` samples it covers, the integer offset into q2 and the interpolation fraction.
+/// Shared by the host's f64 DP (`band_tables`) and the f32 tables of the GPU kernel and its twin.
+pub(crate) struct PreparedStep {
+    pub a: usize,
+    pub b: usize,
+    pub sqrt_slope: f64,
+    pub taps: Vec<(usize, f64)>,
+}
+
+pub(crate) fn prepare(steps: &[(usize, usize)]) -> Vec<PreparedStep> {
+    steps
+        .iter()
+        .map(|&(a, b)| PreparedStep {
+            a,
+            b,
+            sqrt_slope: (b as f64 / a as f64).sqrt(),
+            taps: (0..a)
+                .map(|r| {
+                    let y = (r * b) as f64 / a as f64;
+                    let off = (r * b) / a;
+                    (off, y - off as f64)
+                })
+                .collect(),
+        })
+        .collect()
+}
+
+/// A band's rows as stored: each row's first and last column (clamped; row 0 holds only the
+/// start cell; an empty row is kept one cell wide so every row can be reached) and where each
+/// row starts in the row-major storage (n + 1 offsets, the last the cell count).
+pub(crate) fn band_rows(band: &[(usize, usize)], n: usize) -> (Vec<usize>, Vec<usize>, Vec<usize>) {
+    let mut lo = vec![0usize; n];
+    let mut hi = vec![0usize; n];
+    let mut offset = vec![0usize; n + 1];
+    for i in 1..n {
+        lo[i] = band[i].0.max(1);
+        hi[i] = band[i].1.min(n - 1);
+        if hi[i] < lo[i] {
+            hi[i] = lo[i].min(n - 1);
+            lo[i] = hi[i];
+        }
+    }
+    for i in 0..n {
+        offset[i + 1] = offset[i] + (hi[i] + 1 - lo[i]);
+    }
+    (lo, hi, offset)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

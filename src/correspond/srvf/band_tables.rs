@@ -4,9 +4,8 @@
 //! The reference every engine's banded DP (`BandSolver`, the GPU's `srvf_band`) is tested
 //! against; its own oracle is the cell-by-cell loop in the tests.
 
-use super::band::trace_band;
+use super::band::{band_rows, prepare, trace_band, PreparedStep};
 use super::curve::Anchor;
-use super::dp::{band_rows, prepare, PreparedStep};
 use nalgebra::Vector2;
 
 /// The working memory of a banded DP, kept between DPs: the per-step tap tables (all steps in

@@ -3,7 +3,7 @@
 //! increasing gamma with gamma(0) = 0, gamma(1) = 1, whose pieces join grid nodes by steps from
 //! the coprime neighbourhood {(a, b): 1 <= a, b <= N, gcd(a, b) = 1}.
 
-use super::band::{trace_band, BandProblem, DpOn};
+use super::band::{band_rows, trace_band, BandProblem, DpOn};
 use super::band_tables::{band_path, CostTables, Scratch};
 use super::curve::{interp, Anchor};
 use nalgebra::Vector2;
@@ -125,34 +125,6 @@ pub(super) fn feasible_band(n: usize, steps: &[(usize, usize)]) -> Vec<(usize, u
         .collect()
 }
 
-/// One coprime step (a, b) prepared for the inner loop: sqrt of its slope and, for each of the
-/// `a` samples it covers, the integer offset into q2 and the interpolation fraction.
-/// Shared by the f64 DP here and the f32 tables of the GPU kernel and its twin.
-pub(crate) struct PreparedStep {
-    pub a: usize,
-    pub b: usize,
-    pub sqrt_slope: f64,
-    pub taps: Vec<(usize, f64)>,
-}
-
-pub(crate) fn prepare(steps: &[(usize, usize)]) -> Vec<PreparedStep> {
-    steps
-        .iter()
-        .map(|&(a, b)| PreparedStep {
-            a,
-            b,
-            sqrt_slope: (b as f64 / a as f64).sqrt(),
-            taps: (0..a)
-                .map(|r| {
-                    let y = (r * b) as f64 / a as f64;
-                    let off = (r * b) / a;
-                    (off, y - off as f64)
-                })
-                .collect(),
-        })
-        .collect()
-}
-
 /// DP restricted to the cells (i, j) with band[i].0 <= j <= band[i].1 (row 0 is the start).
 /// Costs are kept only inside the band (row-major, one offset per row), so memory and time are
 /// O(cells in the band); the per-step interpolation taps are precomputed, and the sum matches
@@ -215,27 +187,6 @@ pub(super) fn finish_warp(
         w.energy += an.energy(&samples);
     }
     w
-}
-
-/// A band's rows as stored: each row's first and last column (clamped; row 0 holds only the
-/// start cell; an empty row is kept one cell wide so every row can be reached) and where each
-/// row starts in the row-major storage (n + 1 offsets, the last the cell count).
-pub(crate) fn band_rows(band: &[(usize, usize)], n: usize) -> (Vec<usize>, Vec<usize>, Vec<usize>) {
-    let mut lo = vec![0usize; n];
-    let mut hi = vec![0usize; n];
-    let mut offset = vec![0usize; n + 1];
-    for i in 1..n {
-        lo[i] = band[i].0.max(1);
-        hi[i] = band[i].1.min(n - 1);
-        if hi[i] < lo[i] {
-            hi[i] = lo[i].min(n - 1);
-            lo[i] = hi[i];
-        }
-    }
-    for i in 0..n {
-        offset[i + 1] = offset[i] + (hi[i] + 1 - lo[i]);
-    }
-    (lo, hi, offset)
 }
 
 /// Grids up to this size are solved exactly by the coarse-to-fine DP (`dp_many::warp_fast`).

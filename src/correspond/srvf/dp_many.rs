@@ -4,9 +4,9 @@
 //! together. On the host every job runs exactly as it would alone (`dp::dp_in_band`), so the
 //! results are the same to the bit as one job at a time.
 
-use super::band::{trace_band, BandProblem, DpOn};
+use super::band::{band_rows, trace_band, BandProblem, DpOn};
 use super::curve::{best_rotation, dist2, rotate, Anchor};
-use super::dp::{band_around, band_rows, dp_in_band, feasible_band, finish_warp};
+use super::dp::{band_around, dp_in_band, feasible_band, finish_warp};
 use super::dp::{Warp, EXACT_DP_MAX};
 use super::SrvfParams;
 use nalgebra::Vector2;

@@ -12,10 +12,10 @@ pub use align::{
     align, align_closed, align_on, align_open, align_partial, Alignment, CurveKind, SrvfError,
     SrvfParams, MAX_SAMPLES, MIN_SAMPLES,
 };
+pub(crate) use band::prepare as prepare_steps;
 pub use band::{trace_band, BandProblem, BandSolver, DpOn, NO_STEP};
 pub use batch::{align_batch, aligned_b, AlignProblem};
 pub use curve::{best_rotation, dist2, inner, rotate, srvf, Anchor};
-pub(crate) use dp::prepare as prepare_steps;
 pub use dp::{coprime_steps, dp_warp, edge_cost, traceback, warp_from_path, CurvePair, Warp};
 
 #[cfg(test)]
