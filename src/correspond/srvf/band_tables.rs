@@ -407,21 +407,35 @@ fn keep_better(out: Out, cand: &[f64]) {
     }
 }
 
-/// A step's row-curve samples and its taps' table entries over a run of `m` cells (bounds
-/// checked here, once a run), x and y apart.
+/// A step's row-curve samples and where its taps' table entries over a run of `m` cells start,
+/// x and y apart: the reads checked once for the whole run (the last tap's m entries lie in the
+/// tables, and the samples k..k+A in the row curve), not once a tap.
 #[cfg(target_arch = "x86_64")]
-type LaneTaps<'a, const A: usize> = ([f64; A], [f64; A], [&'a [f64]; A], [&'a [f64]; A]);
+type LaneTaps<const A: usize> = ([f64; A], [f64; A], [*const f64; A], [*const f64; A]);
 
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn lane_taps<'a, const A: usize>(t: &Taps<'a>, run: &Run, m: usize) -> LaneTaps<'a, A> {
+fn lane_taps<const A: usize>(t: &Taps, run: &Run, m: usize) -> LaneTaps<A> {
+    let end = run.first + (A - 1) * run.stride + m;
+    assert!(
+        A >= 1
+            && end <= t.tx.len()
+            && end <= t.ty.len()
+            && run.k + A <= t.qx.len()
+            && run.k + A <= t.qy.len(),
+        "a step's reads leave its tables"
+    );
     let at = |r: usize| run.first + r * run.stride;
-    (
-        std::array::from_fn(|r| t.qx[run.k + r]),
-        std::array::from_fn(|r| t.qy[run.k + r]),
-        std::array::from_fn(|r| &t.tx[at(r)..][..m]),
-        std::array::from_fn(|r| &t.ty[at(r)..][..m]),
-    )
+    // SAFETY: every index below is at most the ones checked just above (taps r < A start at
+    // at(r) <= at(A - 1) and run m entries; samples k + r < k + A).
+    unsafe {
+        (
+            std::array::from_fn(|r| *t.qx.get_unchecked(run.k + r)),
+            std::array::from_fn(|r| *t.qy.get_unchecked(run.k + r)),
+            std::array::from_fn(|r| t.tx.as_ptr().add(at(r))),
+            std::array::from_fn(|r| t.ty.as_ptr().add(at(r))),
+        )
+    }
 }
 
 /// Cells `relax_avx2` takes at a time: one AVX2 vector of doubles.
@@ -455,14 +469,15 @@ unsafe fn relax_avx2<const A: usize, const POSITION: bool>(
     let m = prev.len();
     debug_assert!(m >= LANES && best.len() == m && arg.len() == m);
     let (sqx, sqy, stx, sty) = lane_taps::<A>(shape, run, m);
-    let sum = |qx: &[f64; A], qy: &[f64; A], tx: &[&[f64]; A], ty: &[&[f64]; A], t0: usize| {
+    let sum = |qx: &[f64; A], qy: &[f64; A], tx: &[*const f64; A], ty: &[*const f64; A], t0| {
         let mut c = _mm256_setzero_pd();
         for r in 0..A {
-            // SAFETY: t0 + LANES <= m, the length of every tap slice.
+            // SAFETY: t0 + LANES <= m, and each tap's m entries lie in its table
+            // (`lane_taps` checked it).
             let (wx, wy) = unsafe {
                 (
-                    _mm256_loadu_pd(tx[r].as_ptr().add(t0)),
-                    _mm256_loadu_pd(ty[r].as_ptr().add(t0)),
+                    _mm256_loadu_pd(tx[r].add(t0)),
+                    _mm256_loadu_pd(ty[r].add(t0)),
                 )
             };
             let dx = _mm256_sub_pd(_mm256_set1_pd(qx[r]), wx);
