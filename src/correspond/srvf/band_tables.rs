@@ -140,7 +140,7 @@ fn band_path_avx2(
 }
 
 /// `band_path`'s body; with `AVX2` (only inside `band_path_avx2`) the fused relaxation of runs
-/// of four cells or more goes through `relax_avx2`.
+/// of four cells or more goes through `relax_avx2` (`relax_step`).
 #[inline(always)]
 fn band_path_in<const AVX2: bool>(
     q1: &[Vector2<f64>],
@@ -268,39 +268,17 @@ fn band_path_in<const AVX2: bool>(
                 arg,
                 step: si as u32,
             };
-            #[cfg(target_arch = "x86_64")]
-            if AVX2 && m >= LANES && (1..=5).contains(&st.a) {
-                // SAFETY: AVX2 is only set inside `band_path_avx2`, which runs where the CPU has
-                // AVX2; the run holds m >= LANES cells (checked here), and `relax_avx2` reads
-                // only inside the slices it takes (bounds checked). Steps of 1-5 samples
-                // (the `_` arms are step 5).
-                unsafe {
-                    match (st.a, position) {
-                        (1, None) => relax_avx2::<1, false>(&shape, &shape, 0.0, &run, out),
-                        (2, None) => relax_avx2::<2, false>(&shape, &shape, 0.0, &run, out),
-                        (3, None) => relax_avx2::<3, false>(&shape, &shape, 0.0, &run, out),
-                        (4, None) => relax_avx2::<4, false>(&shape, &shape, 0.0, &run, out),
-                        (_, None) => relax_avx2::<5, false>(&shape, &shape, 0.0, &run, out),
-                        (1, Some(p)) => relax_avx2::<1, true>(&shape, &p, weight, &run, out),
-                        (2, Some(p)) => relax_avx2::<2, true>(&shape, &p, weight, &run, out),
-                        (3, Some(p)) => relax_avx2::<3, true>(&shape, &p, weight, &run, out),
-                        (4, Some(p)) => relax_avx2::<4, true>(&shape, &p, weight, &run, out),
-                        (_, Some(p)) => relax_avx2::<5, true>(&shape, &p, weight, &run, out),
-                    }
-                }
-                continue;
-            }
             match (st.a, position) {
-                (1, None) => relax::<1, false>(&shape, &shape, 0.0, &run, out, cand),
-                (2, None) => relax::<2, false>(&shape, &shape, 0.0, &run, out, cand),
-                (3, None) => relax::<3, false>(&shape, &shape, 0.0, &run, out, cand),
-                (4, None) => relax::<4, false>(&shape, &shape, 0.0, &run, out, cand),
-                (5, None) => relax::<5, false>(&shape, &shape, 0.0, &run, out, cand),
-                (1, Some(p)) => relax::<1, true>(&shape, &p, weight, &run, out, cand),
-                (2, Some(p)) => relax::<2, true>(&shape, &p, weight, &run, out, cand),
-                (3, Some(p)) => relax::<3, true>(&shape, &p, weight, &run, out, cand),
-                (4, Some(p)) => relax::<4, true>(&shape, &p, weight, &run, out, cand),
-                (5, Some(p)) => relax::<5, true>(&shape, &p, weight, &run, out, cand),
+                (1, None) => relax_step::<1, false, AVX2>(&shape, &shape, 0.0, &run, out, cand),
+                (2, None) => relax_step::<2, false, AVX2>(&shape, &shape, 0.0, &run, out, cand),
+                (3, None) => relax_step::<3, false, AVX2>(&shape, &shape, 0.0, &run, out, cand),
+                (4, None) => relax_step::<4, false, AVX2>(&shape, &shape, 0.0, &run, out, cand),
+                (5, None) => relax_step::<5, false, AVX2>(&shape, &shape, 0.0, &run, out, cand),
+                (1, Some(p)) => relax_step::<1, true, AVX2>(&shape, &p, weight, &run, out, cand),
+                (2, Some(p)) => relax_step::<2, true, AVX2>(&shape, &p, weight, &run, out, cand),
+                (3, Some(p)) => relax_step::<3, true, AVX2>(&shape, &p, weight, &run, out, cand),
+                (4, Some(p)) => relax_step::<4, true, AVX2>(&shape, &p, weight, &run, out, cand),
+                (5, Some(p)) => relax_step::<5, true, AVX2>(&shape, &p, weight, &run, out, cand),
                 (a, p) => relax_any(a, &shape, p.as_ref(), weight, &run, out, cand, near),
             }
         }
@@ -338,6 +316,27 @@ struct Out<'a> {
     best: &'a mut [f64],
     arg: &'a mut [u32],
     step: u32,
+}
+
+/// One step of A samples relaxed over a run: four cells a vector (`relax_avx2`) in the AVX2
+/// build where the run holds four cells or more, else `relax`; the same tables either way.
+#[inline(always)]
+fn relax_step<const A: usize, const POSITION: bool, const AVX2: bool>(
+    shape: &Taps,
+    position: &Taps,
+    weight: f64,
+    run: &Run,
+    out: Out,
+    cand: &mut [f64],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if AVX2 && out.prev.len() >= LANES {
+        // SAFETY: AVX2 is only set inside `band_path_avx2`, which runs where the CPU has AVX2;
+        // the run holds at least LANES cells (checked here), and `relax_avx2` checks its reads
+        // of the tap tables once for the run (`lane_taps`).
+        return unsafe { relax_avx2::<A, POSITION>(shape, position, weight, run, out) };
+    }
+    relax::<A, POSITION>(shape, position, weight, run, out, cand)
 }
 
 /// Relax a run of cells by one step of A samples, fused: per cell the step's SRVF cost (and,
