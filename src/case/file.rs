@@ -381,9 +381,9 @@ impl CaseFile {
             path: path.to_path_buf(),
             source,
         })?;
-        let file: CaseFile = serde_json::from_str(&text).map_err(|e| CaseError::Json {
+        let file: CaseFile = crate::io::parse_json(&text).map_err(|message| CaseError::Json {
             path: path.to_path_buf(),
-            message: e.to_string(),
+            message,
         })?;
         file.validate(path)
     }

@@ -1,8 +1,10 @@
-//! Files in and out: mesh files (STL, PLY, OBJ), X-ray DICOM files and atomic writes, so that a failed run never
+//! Files in and out: mesh files (STL, PLY, OBJ), X-ray DICOM files, JSON read with the failing
+//! field named, and atomic writes, so that a failed run never
 //! leaves a half-written file or folder behind.
 
 mod atomic;
 mod dicom;
+mod json;
 mod mesh_file;
 mod shown;
 
@@ -11,6 +13,7 @@ pub use dicom::{
     is_dicom, read_dicom_geometry, read_dicom_image, write_dicom_xray, DicomError, DicomGeometry,
     DicomXray, SpacingTag,
 };
+pub use json::parse_json;
 pub use mesh_file::{
     read_mesh, write_mesh, write_obj, write_ply, write_ply_with, write_stl_ascii, write_stl_binary,
     MeshIoError, Rgb,

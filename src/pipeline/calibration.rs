@@ -401,9 +401,9 @@ impl CupCalibration {
     /// Parse and check calibration JSON (`path` names it in errors).
     pub fn parse(text: &str, path: &Path) -> Result<CupCalibration, CalibrationError> {
         let c: CupCalibration =
-            serde_json::from_str(text).map_err(|e| CalibrationError::Parse {
+            crate::io::parse_json(text).map_err(|reason| CalibrationError::Parse {
                 path: path.to_path_buf(),
-                reason: e.to_string(),
+                reason,
             })?;
         if c.cup_estimator().is_none() {
             return Err(CalibrationError::Field {

@@ -187,9 +187,9 @@ impl PriorFile {
     /// Parse and check prior JSON (`path` names it in errors): the format, the grid, the modes,
     /// every mesh's field, and that there are enough meshes for the modes.
     pub fn parse(text: &str, path: &Path) -> Result<PriorFile, PriorFileError> {
-        let f: PriorFile = serde_json::from_str(text).map_err(|e| PriorFileError::Parse {
+        let f: PriorFile = crate::io::parse_json(text).map_err(|reason| PriorFileError::Parse {
             path: path.to_path_buf(),
-            reason: e.to_string(),
+            reason,
         })?;
         let field = |field: String, value: String, expected: String| PriorFileError::Field {
             path: path.to_path_buf(),
