@@ -6,7 +6,7 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering,
 };
-use faer::sparse::{Argsort, Pair, SparseColMat, SymbolicSparseColMat};
+use faer::sparse::{Pair, SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, Mat, Par, Side};
 use std::collections::HashMap;
 
@@ -290,7 +290,9 @@ struct Analysis {
     /// The parameters `keys` has no diagonal block for (`undiagonal`).
     undiagonal: Vec<usize>,
     csc: SymbolicSparseColMat<usize>,
-    argsort: Argsort<usize>,
+    /// Where each lower-triangle entry, in `NormalEquations::fill_lower`'s order, sits among
+    /// `csc`'s values (column by column, rows ascending; no entry appears twice).
+    slot: Vec<usize>,
     chol: SymbolicCholesky<usize>,
 }
 
@@ -299,6 +301,8 @@ struct CachedPattern {
     /// The factor's values and the factorisation's scratch, sized by the analysis, reused by
     /// every solve on this pattern.
     l_values: Vec<f64>,
+    /// H's values in `csc`'s order, refilled by every solve.
+    h_values: Vec<f64>,
     mem: MemBuffer,
 }
 
@@ -313,13 +317,14 @@ impl CachedPattern {
         .map_err(|e| LinearSolveError::Faer(format!("{e:?}")))?;
         Ok(CachedPattern {
             l_values: vec![0.0; chol.len_val()],
+            h_values: vec![0.0; analysis.slot.len()],
             analysis,
             mem,
         })
     }
 }
 
-/// The symbolic analysis of the lower-triangle entries `NormalEquations::lower_entries` lays
+/// The symbolic analysis of the lower-triangle entries `NormalEquations::fill_lower` lays
 /// out on `layout` for `n` parameters in blocks of `block_size` (their (row, column) pairs
 /// listed here in the same order).
 fn analyse(
@@ -344,8 +349,23 @@ fn analyse(
     for &i in &undiagonal {
         idx.push(Pair { row: i, col: i });
     }
-    let (csc, argsort) =
+    let (csc, _) =
         SymbolicSparseColMat::try_new_from_indices(n, n, &idx).map_err(|e| faer_err(&e))?;
+    // The entries are distinct, so csc holds each once, by column, rows ascending: each
+    // entry's slot is found by a binary search in its column.
+    let (col_ptr, row_idx) = (csc.col_ptr(), csc.row_idx());
+    let slot = idx
+        .iter()
+        .map(|e| {
+            let (from, to) = (col_ptr[e.col], col_ptr[e.col + 1]);
+            row_idx[from..to]
+                .binary_search(&e.row)
+                .map(|k| from + k)
+                .ok()
+        })
+        .collect::<Option<Vec<usize>>>()
+        .filter(|_| row_idx.len() == idx.len())
+        .ok_or_else(|| LinearSolveError::Faer("an entry of the layout was lost".into()))?;
     let chol = factorize_symbolic_cholesky(
         csc.as_ref(),
         Side::Lower,
@@ -359,7 +379,7 @@ fn analyse(
         keys: layout,
         undiagonal,
         csc,
-        argsort,
+        slot,
         chol,
     })
 }
@@ -454,23 +474,22 @@ impl NormalEquations {
         d
     }
 
-    /// Lower-triangle values of H + diag(damping) laid out on `layout`, a sorted superset of
-    /// this system's block pattern, in an order fixed by the layout alone (`analyse` lists
-    /// their (row, column) pairs in the same order), then a diagonal entry for each parameter
-    /// in `undiagonal` (those the layout has no diagonal block for). Layout blocks this system
-    /// lacks are zeros (a diagonal one gets the damping, at least 1, as a parameter no row
-    /// touches does).
-    fn lower_entries(
-        &self,
-        layout: &[(u32, u32)],
-        undiagonal: &[usize],
-        damping: &[f64],
-    ) -> Vec<f64> {
+    /// H + diag(damping)'s lower triangle on `a`'s layout into `out`, each value at its slot
+    /// among the CSC values: layout block by block, each block's entries row by row, then one
+    /// diagonal entry for each parameter in `a.undiagonal` (those the layout has no diagonal
+    /// block for). Layout blocks this system lacks are zeros (a diagonal one gets the damping,
+    /// at least 1, as a parameter no row touches does).
+    fn fill_lower(&self, an: &Analysis, damping: &[f64], out: &mut [f64]) {
         let bs = self.block_size;
-        let mut values = Vec::with_capacity(layout.len() * bs * bs);
         let zeros = vec![0.0; bs * bs];
         let mut mine = self.keys.iter().peekable();
-        for &(p, q) in layout {
+        let mut slots = an.slot.iter();
+        let mut put = |v: f64| {
+            if let Some(&at) = slots.next() {
+                out[at] = v;
+            }
+        };
+        for &(p, q) in &an.keys {
             let blk = match mine.peek() {
                 Some(&&(k, at)) if k == (p, q) => {
                     mine.next();
@@ -492,15 +511,13 @@ impl NormalEquations {
                             damping[row].max(1.0)
                         };
                     }
-                    values.push(v);
+                    put(v);
                 }
             }
         }
-        // Parameters the layout has no diagonal block for still need a diagonal entry.
-        for &i in undiagonal {
-            values.push(damping[i].max(1.0));
+        for &i in &an.undiagonal {
+            put(damping[i].max(1.0));
         }
-        values
     }
 
     /// Solve (H + diag(damping)) delta = -g. The symbolic factorisation (fill-reducing ordering,
@@ -512,7 +529,6 @@ impl NormalEquations {
         damping: &[f64],
         cache: &mut SymbolicCache,
     ) -> Result<Vec<f64>, LinearSolveError> {
-        let faer_err = |e: &dyn std::fmt::Debug| LinearSolveError::Faer(format!("{e:?}"));
         let pattern = self.pattern();
         let kept = cache.entry.as_ref().filter(|c| {
             let a = &c.analysis;
@@ -528,14 +544,13 @@ impl NormalEquations {
         // Invariant: the entry was matched or filled just above.
         let c = cache.entry.as_mut().expect("cached pattern present");
         let a = &*c.analysis;
-        let values = self.lower_entries(&a.keys, &a.undiagonal, damping);
-        let h = SparseColMat::new_from_argsort(a.csc.clone(), &a.argsort, &values)
-            .map_err(|e| faer_err(&e))?;
+        self.fill_lower(a, damping, &mut c.h_values);
+        let h = SparseColMatRef::new(a.csc.as_ref(), &c.h_values);
         let llt = a
             .chol
             .factorize_numeric_llt(
                 &mut c.l_values,
-                h.as_ref(),
+                h,
                 Side::Lower,
                 Default::default(),
                 PAR,
