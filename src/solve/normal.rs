@@ -6,7 +6,7 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering,
 };
-use faer::sparse::{Pair, SparseColMatRef, SymbolicSparseColMat};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, Mat, Par, Side};
 use std::collections::HashMap;
 
@@ -333,39 +333,8 @@ fn analyse(
     layout: Vec<(u32, u32)>,
 ) -> Result<Analysis, LinearSolveError> {
     let faer_err = |e: &dyn std::fmt::Debug| LinearSolveError::Faer(format!("{e:?}"));
-    let bs = block_size;
-    let mut idx = Vec::new();
-    for &(p, q) in &layout {
-        for a in 0..bs {
-            for b in 0..bs {
-                let (row, col) = (p as usize * bs + a, q as usize * bs + b);
-                if row >= col {
-                    idx.push(Pair { row, col });
-                }
-            }
-        }
-    }
-    let undiagonal = undiagonal(n, bs, &layout);
-    for &i in &undiagonal {
-        idx.push(Pair { row: i, col: i });
-    }
-    let (csc, _) =
-        SymbolicSparseColMat::try_new_from_indices(n, n, &idx).map_err(|e| faer_err(&e))?;
-    // The entries are distinct, so csc holds each once, by column, rows ascending: each
-    // entry's slot is found by a binary search in its column.
-    let (col_ptr, row_idx) = (csc.col_ptr(), csc.row_idx());
-    let slot = idx
-        .iter()
-        .map(|e| {
-            let (from, to) = (col_ptr[e.col], col_ptr[e.col + 1]);
-            row_idx[from..to]
-                .binary_search(&e.row)
-                .map(|k| from + k)
-                .ok()
-        })
-        .collect::<Option<Vec<usize>>>()
-        .filter(|_| row_idx.len() == idx.len())
-        .ok_or_else(|| LinearSolveError::Faer("an entry of the layout was lost".into()))?;
+    let undiagonal = undiagonal(n, block_size, &layout);
+    let (csc, slot) = lower_csc(n, block_size, &layout, &undiagonal)?;
     let chol = factorize_symbolic_cholesky(
         csc.as_ref(),
         Side::Lower,
@@ -382,6 +351,63 @@ fn analyse(
         slot,
         chol,
     })
+}
+
+/// The CSC structure (by column, rows ascending) of the lower-triangle entries that
+/// `NormalEquations::fill_lower` lists for `layout` (sorted block pairs, row block >= column
+/// block, within `n`) and `undiagonal`, and where each of those entries, in that order, sits in
+/// it. Built directly: going through `layout` in order gives each column's rows ascending (a
+/// column's blocks come in row-block order), and an `undiagonal` entry is its column's first.
+fn lower_csc(
+    n: usize,
+    bs: usize,
+    layout: &[(u32, u32)],
+    undiagonal: &[usize],
+) -> Result<(SymbolicSparseColMat<usize>, Vec<usize>), LinearSolveError> {
+    let lost = || LinearSolveError::Faer("a layout entry lies outside the system".into());
+    let mut count = vec![0usize; n + 1];
+    let entries = |p: u32, q: u32| {
+        (0..bs).flat_map(move |a| {
+            (0..bs).filter_map(move |b| {
+                let (row, col) = (p as usize * bs + a, q as usize * bs + b);
+                (row >= col).then_some((row, col))
+            })
+        })
+    };
+    for &(p, q) in layout {
+        for (row, col) in entries(p, q) {
+            if row >= n {
+                return Err(lost());
+            }
+            count[col] += 1;
+        }
+    }
+    for &i in undiagonal {
+        *count.get_mut(i).ok_or_else(lost)? += 1;
+    }
+    let mut col_ptr = vec![0usize; n + 1];
+    for c in 0..n {
+        col_ptr[c + 1] = col_ptr[c] + count[c];
+    }
+    let mut next = col_ptr[..n].to_vec();
+    for &i in undiagonal {
+        next[i] += 1;
+    }
+    let mut row_idx = vec![0usize; col_ptr[n]];
+    let mut slot = Vec::with_capacity(col_ptr[n]);
+    for &(p, q) in layout {
+        for (row, col) in entries(p, q) {
+            row_idx[next[col]] = row;
+            slot.push(next[col]);
+            next[col] += 1;
+        }
+    }
+    for &i in undiagonal {
+        row_idx[col_ptr[i]] = i;
+        slot.push(col_ptr[i]);
+    }
+    let csc = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
+    Ok((csc, slot))
 }
 
 /// The parameters `layout` (sorted block pairs) has no diagonal block for, in order: they
@@ -590,6 +616,51 @@ impl NormalEquations {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `lower_csc` against faer's own construction from the (row, column) list, on random
+    /// layouts with and without diagonal blocks; the companion: a structure with one row moved
+    /// is told apart.
+    #[test]
+    fn the_direct_csc_equals_faers_from_the_entry_list() {
+        use faer::sparse::Pair;
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..20 {
+            let (bs, blocks) = (rng.random_range(1..5usize), rng.random_range(1..9u32));
+            let n = bs * blocks as usize + rng.random_range(0..3usize);
+            let mut layout: Vec<(u32, u32)> = (0..blocks)
+                .flat_map(|p| (0..=p).map(move |q| (p, q)))
+                .filter(|_| rng.random_range(0..3) > 0)
+                .collect();
+            layout.sort_unstable();
+            let und = undiagonal(n, bs, &layout);
+            let (csc, slot) = lower_csc(n, bs, &layout, &und).unwrap();
+            let mut idx = Vec::new();
+            for &(p, q) in &layout {
+                for a in 0..bs {
+                    for b in 0..bs {
+                        let (row, col) = (p as usize * bs + a, q as usize * bs + b);
+                        if row >= col {
+                            idx.push(Pair { row, col });
+                        }
+                    }
+                }
+            }
+            idx.extend(und.iter().map(|&i| Pair { row: i, col: i }));
+            let (faer, _) = SymbolicSparseColMat::try_new_from_indices(n, n, &idx).unwrap();
+            assert_eq!(csc.col_ptr(), faer.col_ptr());
+            assert_eq!(csc.row_idx(), faer.row_idx());
+            for (e, &at) in idx.iter().zip(&slot) {
+                assert_eq!(csc.row_idx()[at], e.row);
+                assert!(csc.col_ptr()[e.col] <= at && at < csc.col_ptr()[e.col + 1]);
+            }
+            if csc.row_idx().len() > 1 {
+                let mut moved = csc.row_idx().to_vec();
+                moved[0] = (moved[0] + 1) % n;
+                assert_ne!(moved.as_slice(), faer.row_idx());
+            }
+        }
+    }
 
     /// Rows like the deformation's: 12-parameter blocks, up to four a row, some entries zero.
     fn node_problem(seed: u64) -> Linearization {
