@@ -134,14 +134,21 @@ impl Mesh {
 
     /// Every triangle side as an undirected edge (i < j), sorted, with repeats.
     fn sorted_sides(&self) -> Vec<[u32; 2]> {
-        let mut e: Vec<[u32; 2]> = self
+        // Sorted as one u64 per side (i in the high half): the same order as the pairs', with
+        // one comparison instead of two.
+        let mut e: Vec<u64> = self
             .triangles
             .iter()
             .flat_map(|t| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
-            .map(|[a, b]| if a < b { [a, b] } else { [b, a] })
+            .map(|[a, b]| {
+                let (i, j) = if a < b { (a, b) } else { (b, a) };
+                (u64::from(i) << 32) | u64::from(j)
+            })
             .collect();
         e.sort_unstable();
-        e
+        e.into_iter()
+            .map(|k| [(k >> 32) as u32, k as u32])
+            .collect()
     }
 
     /// Unique undirected edges (i < j).
