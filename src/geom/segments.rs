@@ -1,34 +1,27 @@
 //! A polyline prepared for many point-distance queries: the same distances as
-//! `distance_to_polyline`, to the bit, with the segments that cannot be nearer than the best found
-//! so far skipped by a cheap bound.
+//! `distance_to_polyline`, to the bit. The segments are kept as columns (start, direction,
+//! squared length), so that a query measures several segments at a time.
 
 use super::distance_to_polyline;
-use nalgebra::{Point2, Vector2};
+use nalgebra::Point2;
 
-/// One segment: its start, direction, squared length (floored as `distance_to_polyline` floors
-/// it), and the circle about its midpoint that holds it.
-#[derive(Clone, Copy, Debug)]
-struct Segment {
-    a: Point2<f64>,
-    ab: Vector2<f64>,
-    len2: f64,
-    mid: Point2<f64>,
-    half: f64,
-}
-
-/// A polyline's segments, ready for `distance`.
+/// A polyline's segments, ready for `distance`: segment i runs from (ax[i], ay[i]) along
+/// (bx[i], by[i]); len2[i] is its squared length, floored as `distance_to_polyline` floors it.
 #[derive(Clone, Debug)]
 pub struct Segments {
-    segs: Vec<Segment>,
-    /// The polyline itself, for the cases the bound does not serve (fewer than two points, a
+    ax: Vec<f64>,
+    ay: Vec<f64>,
+    bx: Vec<f64>,
+    by: Vec<f64>,
+    len2: Vec<f64>,
+    /// The polyline itself, for the cases the columns do not serve (fewer than two points, a
     /// non-finite query).
     points: Vec<Point2<f64>>,
     closed: bool,
 }
 
-/// Relative slack on the skipping bound, far above the rounding of the bound's few operations:
-/// a segment is skipped only when it is certainly farther than the best one so far.
-const SLACK: f64 = 1e-9;
+/// Segments measured together (one pass of the inner loop).
+const LANES: usize = 8;
 
 impl Segments {
     /// The segments of `p` (its closing segment included when `closed`).
@@ -39,57 +32,82 @@ impl Segments {
             _ if closed => n,
             _ => n - 1,
         };
-        let segs = (0..count)
-            .map(|i| {
-                let (a, b) = (p[i], p[(i + 1) % n]);
-                let ab = b - a;
-                Segment {
-                    a,
-                    ab,
-                    len2: ab.norm_squared().max(f64::MIN_POSITIVE),
-                    mid: a + ab * 0.5,
-                    half: 0.5 * ab.norm(),
-                }
-            })
-            .collect();
-        Segments {
-            segs,
+        let mut out = Segments {
+            ax: Vec::with_capacity(count),
+            ay: Vec::with_capacity(count),
+            bx: Vec::with_capacity(count),
+            by: Vec::with_capacity(count),
+            len2: Vec::with_capacity(count),
             points: p.to_vec(),
             closed,
+        };
+        for i in 0..count {
+            let (a, b) = (p[i], p[(i + 1) % n]);
+            let ab = b - a;
+            out.ax.push(a.x);
+            out.ay.push(a.y);
+            out.bx.push(ab.x);
+            out.by.push(ab.y);
+            out.len2.push(ab.norm_squared().max(f64::MIN_POSITIVE));
         }
+        out
     }
 
-    /// Distance from `q` to the polyline, equal to `distance_to_polyline(q, p, closed)`.
-    /// `hint` is the segment to try first (the nearest one of the previous query, when queries
-    /// run along a curve); it is updated to this query's nearest segment.
+    /// Distance from `q` to the polyline, equal to `distance_to_polyline(q, p, closed)`: each
+    /// segment's squared distance is computed with the same operations in the same order, and
+    /// the square root of their least is the least of their square roots. `hint` is set to the
+    /// nearest segment (the first of equals).
     pub fn distance(&self, q: &Point2<f64>, hint: &mut usize) -> f64 {
-        if self.segs.is_empty() || !(q.x.is_finite() && q.y.is_finite()) {
-            // No segments, or no bound holds for such a point: the plain scan.
+        if self.ax.is_empty() || !(q.x.is_finite() && q.y.is_finite()) {
             return distance_to_polyline(q, &self.points, self.closed);
         }
-        let exact = |s: &Segment| {
-            let t = ((q - s.a).dot(&s.ab) / s.len2).clamp(0.0, 1.0);
-            (q - (s.a + t * s.ab)).norm()
-        };
-        let start = (*hint).min(self.segs.len() - 1);
-        let mut best = exact(&self.segs[start]);
-        let mut arg = start;
-        for (i, s) in self.segs.iter().enumerate() {
-            if i == start {
-                continue;
-            }
-            let reach = (best + s.half) * (1.0 + SLACK);
-            if (q - s.mid).norm_squared() > reach * reach {
-                continue;
-            }
-            let d = exact(s);
-            if d < best {
-                best = d;
-                arg = i;
-            }
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            let (d2, arg) = unsafe { self.nearest_avx2(q.x, q.y) };
+            *hint = arg;
+            return d2.sqrt();
         }
+        let (d2, arg) = self.nearest(q.x, q.y);
         *hint = arg;
-        best
+        d2.sqrt()
+    }
+
+    /// `nearest` compiled with AVX2 (call only where the CPU has it).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn nearest_avx2(&self, qx: f64, qy: f64) -> (f64, usize) {
+        self.nearest(qx, qy)
+    }
+
+    /// The least squared distance from (qx, qy) to a segment, and that segment (the first of
+    /// equals; NaN distances are passed over, as `f64::min` passes them).
+    #[inline(always)]
+    fn nearest(&self, qx: f64, qy: f64) -> (f64, usize) {
+        let n = self.ax.len();
+        let (mut best, mut arg) = (f64::INFINITY, 0);
+        let mut d2 = [0.0; LANES];
+        let mut i = 0;
+        while i < n {
+            let m = (n - i).min(LANES);
+            let (ax, ay) = (&self.ax[i..i + m], &self.ay[i..i + m]);
+            let (bx, by, l2) = (&self.bx[i..i + m], &self.by[i..i + m], &self.len2[i..i + m]);
+            for k in 0..m {
+                // As distance_to_polyline: t = ((q - a) . ab / |ab|^2) in [0, 1], then
+                // |q - (a + t ab)|^2 (x term first).
+                let t = (((qx - ax[k]) * bx[k] + (qy - ay[k]) * by[k]) / l2[k]).clamp(0.0, 1.0);
+                let (dx, dy) = (qx - (ax[k] + t * bx[k]), qy - (ay[k] + t * by[k]));
+                d2[k] = dx * dx + dy * dy;
+            }
+            for (k, &d) in d2[..m].iter().enumerate() {
+                if d < best {
+                    best = d;
+                    arg = i + k;
+                }
+            }
+            i += m;
+        }
+        (best, arg)
     }
 }
 
