@@ -44,8 +44,8 @@ mod tests {
 
     #[test]
     fn a_wrong_type_names_the_field_and_the_value() {
-        let e = parse_json::<Case>(r#"{"views": [{"k": {"fx": 1}}, {"k": {"fx": "x"}}]}"#)
-            .unwrap_err();
+        let e =
+            parse_json::<Case>(r#"{"views": [{"k": {"fx": 1}}, {"k": {"fx": "x"}}]}"#).unwrap_err();
         assert!(e.starts_with("field views[1].k.fx: "), "{e}");
         assert!(e.contains("string \"x\""), "{e}");
         assert!(e.contains("line 1"), "{e}");

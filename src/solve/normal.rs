@@ -703,7 +703,10 @@ mod tests {
         for seed in 0..5 {
             let l = node_problem(seed);
             let plain = l.assemble::<0>();
-            assert!(same_bits(&plain, &l.assemble::<NODE_BLOCK>()), "seed {seed}");
+            assert!(
+                same_bits(&plain, &l.assemble::<NODE_BLOCK>()),
+                "seed {seed}"
+            );
             assert!(same_bits(&plain, &l.normal_equations()), "seed {seed}");
             #[cfg(target_arch = "x86_64")]
             if std::arch::is_x86_feature_detected!("avx2") {
