@@ -120,9 +120,19 @@ pub fn rim_orientation(
         return Err(RimError::TooFewPoints { points, views });
     }
     let mut d2 = Vec::with_capacity(points);
+    // The circle's (cos, sin) at its samples' angles, the same every evaluation.
+    let turn = |samples: usize| -> Vec<(f64, f64)> {
+        (0..samples)
+            .map(|k| {
+                let t = k as f64 * std::f64::consts::TAU / samples as f64;
+                (t.cos(), t.sin())
+            })
+            .collect()
+    };
+    let (coarse_turn, fine_turn) = (turn(36), turn(CIRCLE_SAMPLES));
     // `coarse`: the rim points against a 36-point circle (the grid's quick look).
     let mut cost = |n: &Vector3<f64>, h: f64, coarse: bool| -> f64 {
-        let samples = if coarse { 36 } else { CIRCLE_SAMPLES };
+        let trig = if coarse { &coarse_turn } else { &fine_turn };
         let u = n
             .cross(&if n.x.abs() < 0.9 {
                 Vector3::x()
@@ -138,11 +148,9 @@ pub fn rim_orientation(
             if pts.is_empty() {
                 continue;
             }
-            let circle: Vec<Point2<f64>> = (0..samples)
-                .filter_map(|k| {
-                    let t = k as f64 * std::f64::consts::TAU / samples as f64;
-                    cam.project(&(cc + (u * t.cos() + v * t.sin()) * rr)).ok()
-                })
+            let circle: Vec<Point2<f64>> = trig
+                .iter()
+                .filter_map(|&(c, s)| cam.project(&(cc + (u * c + v * s) * rr)).ok())
                 .collect();
             if circle.len() < 3 {
                 return f64::INFINITY;
