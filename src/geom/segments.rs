@@ -55,22 +55,17 @@ impl Segments {
 
     /// Distance from `q` to the polyline, equal to `distance_to_polyline(q, p, closed)`: each
     /// segment's squared distance is computed with the same operations in the same order, and
-    /// the square root of their least is the least of their square roots. `hint` is set to the
-    /// nearest segment (the first of equals).
-    pub fn distance(&self, q: &Point2<f64>, hint: &mut usize) -> f64 {
+    /// the square root of their least is the least of their square roots.
+    pub fn distance(&self, q: &Point2<f64>) -> f64 {
         if self.ax.is_empty() || !(q.x.is_finite() && q.y.is_finite()) {
             return distance_to_polyline(q, &self.points, self.closed);
         }
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2, checked just above.
-            let (d2, arg) = unsafe { self.nearest_avx2(q.x, q.y) };
-            *hint = arg;
-            return d2.sqrt();
+            return unsafe { self.nearest_avx2(q.x, q.y) }.0.sqrt();
         }
-        let (d2, arg) = self.nearest(q.x, q.y);
-        *hint = arg;
-        d2.sqrt()
+        self.nearest(q.x, q.y).0.sqrt()
     }
 
     /// `nearest` compiled with AVX2 (call only where the CPU has it).
@@ -139,14 +134,13 @@ mod tests {
             for n in [1, 2, 3, 36, 72, 250] {
                 let p = ragged(n, &mut seed);
                 let segs = Segments::new(&p, closed);
-                let mut hint = 0;
                 for _ in 0..400 {
                     let q = Point2::new(
                         300.0 * lcg(&mut seed) - 150.0,
                         200.0 * lcg(&mut seed) - 100.0,
                     );
                     let want = distance_to_polyline(&q, &p, closed);
-                    let got = segs.distance(&q, &mut hint);
+                    let got = segs.distance(&q);
                     assert_eq!(
                         got.to_bits(),
                         want.to_bits(),
@@ -156,7 +150,7 @@ mod tests {
             }
         }
         let none = Segments::new(&[], true);
-        assert_eq!(none.distance(&Point2::origin(), &mut 0), f64::INFINITY);
+        assert_eq!(none.distance(&Point2::origin()), f64::INFINITY);
     }
 
     #[test]
@@ -167,8 +161,8 @@ mod tests {
         let p = ragged(72, &mut seed);
         let q = Point2::new(20.0, -10.0);
         let segs = Segments::new(&p, true);
-        let mut hint = 0;
-        let got = segs.distance(&q, &mut hint);
+        let got = segs.distance(&q);
+        let (_, hint) = segs.nearest(q.x, q.y);
         let second = (0..p.len())
             .filter(|&i| i != hint)
             .map(|i| distance_to_polyline(&q, &[p[i], p[(i + 1) % p.len()]], false))

@@ -214,10 +214,9 @@ fn add_view(
         return false;
     };
     let to_model = Segments::new(&model.points, true);
-    let mut hint = 0;
     for c in curves {
         for q in &c.points {
-            add(to_model.distance(q, &mut hint).powi(2));
+            add(to_model.distance(q).powi(2));
         }
     }
     if curves.iter().all(|c| c.closed) {
@@ -225,12 +224,10 @@ fn add_view(
             .iter()
             .map(|c| Segments::new(&c.points, true))
             .collect();
-        let mut hints = vec![0; curves.len()];
         for q in &model.points {
             let d = to_observed
                 .iter()
-                .zip(hints.iter_mut())
-                .map(|(c, h)| c.distance(q, h))
+                .map(|c| c.distance(q))
                 .fold(f64::INFINITY, f64::min);
             add(d * d);
         }

@@ -643,10 +643,7 @@ mod tests {
                 }
                 let far = |from: &[Point2<f64>], to: &[Point2<f64>]| {
                     let segs = crate::geom::Segments::new(to, true);
-                    let mut hint = 0;
-                    from.iter()
-                        .map(|p| segs.distance(p, &mut hint))
-                        .fold(0.0, f64::max)
+                    from.iter().map(|p| segs.distance(p)).fold(0.0, f64::max)
                 };
                 assert!(far(&c.points, outline) <= 0.5 * std::f64::consts::SQRT_2 * pitch + 1e-9);
                 assert!(far(outline, &c.points) <= pitch);

@@ -9,10 +9,10 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, Mat, Par, Side};
 use std::collections::HashMap;
+use std::sync::Arc;
 
 /// The deformation graph's parameters per node (`graph::NODE_PARAMS`).
 const NODE_BLOCK: usize = super::graph::NODE_PARAMS;
-use std::sync::Arc;
 
 /// Residuals r and a Jacobian J stored row by row, each row as (block, bs values) pairs.
 #[derive(Clone, Debug)]
@@ -139,9 +139,8 @@ impl Linearization {
                             continue;
                         }
                         let d = &mut dst[a * bs..(a + 1) * bs];
-                        if BS > 0 && d.len() == BS && vq.len() == BS {
-                            // The arrays' lengths were just checked; `add_scaled` is the
-                            // same loop with the length known.
+                        if BS > 0 {
+                            // bs is BS here: the same loop with the length known.
                             add_scaled::<BS>(d, va, vq);
                         } else {
                             for b in 0..bs {
@@ -366,21 +365,12 @@ fn lower_csc(
 ) -> Result<(SymbolicSparseColMat<usize>, Vec<usize>), LinearSolveError> {
     let lost = || LinearSolveError::Faer("a layout entry lies outside the system".into());
     let mut count = vec![0usize; n + 1];
-    let entries = |p: u32, q: u32| {
-        (0..bs).flat_map(move |a| {
-            (0..bs).filter_map(move |b| {
-                let (row, col) = (p as usize * bs + a, q as usize * bs + b);
-                (row >= col).then_some((row, col))
-            })
-        })
-    };
     for &(p, q) in layout {
-        for (row, col) in entries(p, q) {
-            if row >= n {
-                return Err(lost());
-            }
-            count[col] += 1;
+        // A block's last row is among its lower entries (p >= q).
+        if (p as usize + 1) * bs > n {
+            return Err(lost());
         }
+        for_each_lower(p, q, bs, |_, col, _| count[col] += 1);
     }
     for &i in undiagonal {
         *count.get_mut(i).ok_or_else(lost)? += 1;
@@ -396,11 +386,11 @@ fn lower_csc(
     let mut row_idx = vec![0usize; col_ptr[n]];
     let mut slot = Vec::with_capacity(col_ptr[n]);
     for &(p, q) in layout {
-        for (row, col) in entries(p, q) {
+        for_each_lower(p, q, bs, |row, col, _| {
             row_idx[next[col]] = row;
             slot.push(next[col]);
             next[col] += 1;
-        }
+        });
     }
     for &i in undiagonal {
         row_idx[col_ptr[i]] = i;
@@ -408,6 +398,21 @@ fn lower_csc(
     }
     let csc = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
     Ok((csc, slot))
+}
+
+/// The lower-triangle entries (row >= column) of block (p, q) in blocks of `bs`, row by row:
+/// `f(row, column, index in the block)`. `lower_csc` lays the structure out and `fill_lower`
+/// the values in this one order.
+#[inline(always)]
+fn for_each_lower(p: u32, q: u32, bs: usize, mut f: impl FnMut(usize, usize, usize)) {
+    for a in 0..bs {
+        for b in 0..bs {
+            let (row, col) = (p as usize * bs + a, q as usize * bs + b);
+            if row >= col {
+                f(row, col, a * bs + b);
+            }
+        }
+    }
 }
 
 /// The parameters `layout` (sorted block pairs) has no diagonal block for, in order: they
@@ -523,23 +528,17 @@ impl NormalEquations {
                 }
                 _ => None,
             };
-            for a in 0..bs {
-                for b in 0..bs {
-                    let (row, col) = (p as usize * bs + a, q as usize * bs + b);
-                    if row < col {
-                        continue;
-                    }
-                    let mut v = blk.unwrap_or(&zeros)[a * bs + b];
-                    if row == col {
-                        v += if blk.is_some() {
-                            damping[row]
-                        } else {
-                            damping[row].max(1.0)
-                        };
-                    }
-                    put(v);
+            for_each_lower(p, q, bs, |row, col, k| {
+                let mut v = blk.unwrap_or(&zeros)[k];
+                if row == col {
+                    v += if blk.is_some() {
+                        damping[row]
+                    } else {
+                        damping[row].max(1.0)
+                    };
                 }
-            }
+                put(v);
+            });
         }
         for &i in &an.undiagonal {
             put(damping[i].max(1.0));

@@ -156,13 +156,8 @@ pub fn rim_orientation(
                 return f64::INFINITY;
             }
             let segs = Segments::new(&circle, true);
-            let mut hint = 0;
             let every = if coarse { COARSE_EVERY } else { 1 };
-            d2.extend(
-                pts.iter()
-                    .step_by(every)
-                    .map(|p| segs.distance(p, &mut hint).powi(2)),
-            );
+            d2.extend(pts.iter().step_by(every).map(|p| segs.distance(p).powi(2)));
         }
         d2.sort_by(f64::total_cmp);
         let k = ((d2.len() as f64 * KEEP) as usize).max(1);
