@@ -2,6 +2,7 @@
 //! template vertices; observed contours are pixel polylines annotated on the X-ray.
 
 mod alpha_shape;
+mod bulk_order;
 mod curve_file;
 mod silhouette;
 
