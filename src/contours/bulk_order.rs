@@ -80,7 +80,10 @@ pub(super) fn in_bulk_load_order(sites: Vec<Site>) -> Vec<Site> {
     }
     keys.sort_unstable();
     let sorted: Vec<Site> = keys.iter().map(|k| sites[k.3 as usize]).collect();
-    if strictly_sorted(&sorted, c0) && strictly_sorted(&sorted, centroid(&sorted)) {
+    // Strict under the sorted list's centroid: then spade keeps this order. It is also the
+    // order spade gives the input as it came (`c0`'s): `keys` sorted it so, and two sites tied
+    // under c0 (equal distance, x and y, so one position) would be tied here too.
+    if strictly_sorted(&sorted, centroid(&sorted)) {
         sorted
     } else {
         sites

@@ -63,24 +63,24 @@ impl Segments {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2, checked just above.
-            return unsafe { self.nearest_avx2(q.x, q.y) }.0.sqrt();
+            return unsafe { self.nearest_avx2(q.x, q.y) }.sqrt();
         }
-        self.nearest(q.x, q.y).0.sqrt()
+        self.nearest(q.x, q.y).sqrt()
     }
 
     /// `nearest` compiled with AVX2 (call only where the CPU has it).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn nearest_avx2(&self, qx: f64, qy: f64) -> (f64, usize) {
+    fn nearest_avx2(&self, qx: f64, qy: f64) -> f64 {
         self.nearest(qx, qy)
     }
 
-    /// The least squared distance from (qx, qy) to a segment, and that segment (the first of
-    /// equals; NaN distances are passed over, as `f64::min` passes them).
+    /// The least squared distance from (qx, qy) to a segment (NaN distances are passed over,
+    /// as `f64::min` passes them).
     #[inline(always)]
-    fn nearest(&self, qx: f64, qy: f64) -> (f64, usize) {
+    fn nearest(&self, qx: f64, qy: f64) -> f64 {
         let n = self.ax.len();
-        let (mut best, mut arg) = (f64::INFINITY, 0);
+        let mut best = f64::INFINITY;
         let mut d2 = [0.0; LANES];
         let mut i = 0;
         while i < n {
@@ -94,15 +94,14 @@ impl Segments {
                 let (dx, dy) = (qx - (ax[k] + t * bx[k]), qy - (ay[k] + t * by[k]));
                 d2[k] = dx * dx + dy * dy;
             }
-            for (k, &d) in d2[..m].iter().enumerate() {
+            for &d in &d2[..m] {
                 if d < best {
                     best = d;
-                    arg = i + k;
                 }
             }
             i += m;
         }
-        (best, arg)
+        best
     }
 }
 
@@ -162,10 +161,13 @@ mod tests {
         let q = Point2::new(20.0, -10.0);
         let segs = Segments::new(&p, true);
         let got = segs.distance(&q);
-        let (_, hint) = segs.nearest(q.x, q.y);
+        let one = |i: usize| distance_to_polyline(&q, &[p[i], p[(i + 1) % p.len()]], false);
+        let nearest = (0..p.len())
+            .min_by(|&i, &j| one(i).total_cmp(&one(j)))
+            .expect("72 segments");
         let second = (0..p.len())
-            .filter(|&i| i != hint)
-            .map(|i| distance_to_polyline(&q, &[p[i], p[(i + 1) % p.len()]], false))
+            .filter(|&i| i != nearest)
+            .map(one)
             .fold(f64::INFINITY, f64::min);
         assert_eq!(got.to_bits(), distance_to_polyline(&q, &p, true).to_bits());
         assert_ne!(second.to_bits(), got.to_bits());
