@@ -56,6 +56,31 @@ fn the_accuracy_measure_rejects_an_unfitted_template() {
     assert!(r.initial_mae_mm > 5.0, "start MAE {}", r.initial_mae_mm);
 }
 
+/// Stage A's rounds on the phantom (seed 2, level 1) from the given start alone (no mirrored
+/// probe), damped or not.
+fn stage_a_rounds(damped: bool) -> usize {
+    let prm = ReconParams {
+        placement: PlacementParams {
+            mirrored_start: false,
+            damped,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let (r, _, _) = run_demo(2, 1, &prm, Kernels::Cpu).unwrap();
+    r.log.similarity_rounds
+}
+
+#[test]
+fn damped_stage_a_rounds_settle_where_plain_ones_turn_back_and_forth() {
+    // Undamped, the cap turns between two axes a few degrees apart until the rounds run out
+    // (the companion: the cycle the damping is for is there); damped, the rounds settle.
+    let (damped, plain) = (stage_a_rounds(true), stage_a_rounds(false));
+    println!("stage A rounds: damped {damped}, plain {plain}");
+    assert_eq!(plain, PlacementParams::default().rounds);
+    assert!(damped + 3 <= plain, "damped {damped}, plain {plain}");
+}
+
 #[test]
 fn a_coarse_graph_changes_only_the_rounds_before_the_last() {
     let mae = |updates: usize, coarse: Option<usize>| {
@@ -144,16 +169,18 @@ fn shared_real_acetabulum_levels_1_and_3() {
     }
 }
 
-/// A run of the seed-1 m1_rhip study (../shared), where stage A's rigid cap cannot settle the
-/// orientation (the rim, seen nearly edge-on, shapes the outline). Returns the MAE and the
-/// orientations stage B compared; None when ../shared is absent.
-fn m1_rhip_run(
+/// A run of the seed-7 study of a shared acetabulum (`file` under ../shared/data): `level`,
+/// run `run`, simulated as `simulated_run` does. Returns the MAE and the log; None when
+/// ../shared is absent.
+fn shared_run(
+    file: &str,
     level: u32,
     run: usize,
     prm: &ReconParams,
-) -> Option<(f64, Vec<acetab::pipeline::OrientationTrial>)> {
+) -> Option<(f64, acetab::pipeline::SolveLog)> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/acetabula/m1_rhip_ac_wo_gap.stl");
+        .join("../shared/data")
+        .join(file);
     if !path.exists() {
         eprintln!("skipped: {} is absent", path.display());
         return None;
@@ -161,20 +188,21 @@ fn m1_rhip_run(
     let truth = ground_truth_surface(&read_mesh(&path).unwrap()).unwrap();
     Some(simulated_run(
         &truth,
-        acetab::study::run_seed(1, level, run),
+        acetab::study::run_seed(7, level, run),
         level,
         prm,
     ))
 }
 
 /// One simulated case of `truth` (2 px outline noise, the default views) at `level` with
-/// `seed`, reconstructed with `prm`: its MAE and the orientations stage B compared.
+/// `seed`, reconstructed with `prm`: its MAE and the log (the orientations stage B compared,
+/// the restart kept).
 fn simulated_run(
     truth: &acetab::Mesh,
     seed: u64,
     level: u32,
     prm: &ReconParams,
-) -> (f64, Vec<acetab::pipeline::OrientationTrial>) {
+) -> (f64, acetab::pipeline::SolveLog) {
     let sim = simulate_case(
         truth,
         &XrayGeometry::default(),
@@ -185,7 +213,7 @@ fn simulated_run(
     .unwrap();
     let template = Template::standard();
     let rec = reconstruct(&sim.input(&template), prm, Kernels::Cpu).unwrap();
-    (accuracy(truth, &rec.mesh).mae_mm, rec.log.orientations)
+    (accuracy(truth, &rec.mesh).mae_mm, rec.log)
 }
 
 /// The settings without stage B's comparison of orientations, without restarts, and without
@@ -218,20 +246,22 @@ fn chosen(trials: &[acetab::pipeline::OrientationTrial]) -> &'static str {
 
 #[test]
 fn an_orientation_the_cap_cannot_choose_is_chosen_after_a_deformation_round() {
-    // Level 2, run 2: the start's orientation and the mirrored one score within 15 % in stage
-    // A, and the start's is wrong.
-    let Some((mae, trials)) = m1_rhip_run(2, 2, &ReconParams::default()) else {
+    // a46_rhip (the JHU pelvis atlas) level 3, run 0: the mirrored cap scores within the
+    // MIRROR_SWITCH band of the given one in stage A, which leads and is wrong.
+    let file = "pelvis-atlas/acetabula/a46_rhip.stl";
+    let Some((mae, log)) = shared_run(file, 3, 0, &ReconParams::default()) else {
         return;
     };
-    println!("m1_rhip L2 run 2: MAE {mae:.3} mm, orientations {trials:?}");
-    assert_eq!(chosen(&trials), "mirrored", "{trials:?}");
+    let trials = &log.orientations;
+    println!("a46_rhip L3 run 0: MAE {mae:.3} mm, orientations {trials:?}");
+    assert_eq!(trials.first().map(|t| t.source), Some("stage A"));
+    assert_eq!(chosen(trials), "mirrored", "{trials:?}");
     assert!(mae < 1.2, "MAE {mae}");
-    // Companion: without the comparison (and without restarts, which would also rescue it)
-    // the start's (wrong) orientation stays, and the same bound rejects it.
-    let prm = no_comparison_no_restarts();
-    let (wrong, none) = m1_rhip_run(2, 2, &prm).unwrap();
+    // Companion: without the comparison (and without restarts, which could also rescue it)
+    // the given (wrong) orientation stays, and the same bound rejects it.
+    let (wrong, none) = shared_run(file, 3, 0, &no_comparison_no_restarts()).unwrap();
     println!("without the comparison: MAE {wrong:.3} mm");
-    assert!(none.is_empty());
+    assert!(none.orientations.is_empty());
     assert!(wrong >= 1.2, "MAE {wrong}");
 }
 
@@ -355,34 +385,36 @@ fn a_start_too_far_off_for_any_outline_restarts_from_the_limb_sphere() {
 
 #[test]
 fn a_result_that_leaves_the_outlines_restarts_from_tilted_starts() {
-    // a24_lhip level 1 run 1 with stage A's lead alone going on to stage B: stage A settles on
-    // a wrong turn of the cap and the result leaves stretches of the outlines unfollowed. (With
-    // the default comparison of both orientations in stage B that run needs no restart.)
+    // m3_lhip (LibHip) level 4 run 5 with stage A's lead alone going on to stage B: stage A
+    // settles on a wrong turn of the cap and the result leaves stretches of the outlines
+    // unfollowed. (With the default comparison of both orientations in stage B that run needs
+    // no restart.)
     let lead_alone = || {
         let mut prm = ReconParams::default();
         prm.deformation.orientation_rounds = 0;
         prm
     };
-    let Some(row) = atlas_run("a24_lhip", 1, 1, lead_alone()) else {
+    let file = "acetabula/m3_lhip_ac_wo_gap.stl";
+    let Some((mae, log)) = shared_run(file, 4, 5, &lead_alone()) else {
         return;
     };
     println!(
-        "a24_lhip L1 run 1: MAE {:.3} mm, restart {:?}",
-        row.mae_mm, row.restart
+        "m3_lhip L4 run 5: MAE {mae:.3} mm, restart {:?}",
+        log.restart
     );
-    assert!(row.mae_mm < 1.0, "MAE {}", row.mae_mm);
+    assert!(mae < 1.0, "MAE {mae}");
     assert!(
-        !row.restart.is_empty() && row.restart != "given",
+        log.restart.is_some_and(|r| r != "given"),
         "{:?}",
-        row.restart
+        log.restart
     );
     // Companion: without restarts the given start's result stays, and the same bound rejects it.
     let mut prm = lead_alone();
     prm.placement.restart_above_px = f64::INFINITY;
-    let alone = atlas_run("a24_lhip", 1, 1, prm).unwrap();
-    println!("without restarts: MAE {:.3} mm", alone.mae_mm);
-    assert!(alone.restart.is_empty());
-    assert!(alone.mae_mm >= 1.0, "MAE {}", alone.mae_mm);
+    let (alone, log) = shared_run(file, 4, 5, &prm).unwrap();
+    println!("without restarts: MAE {alone:.3} mm");
+    assert!(log.restart.is_none());
+    assert!(alone >= 1.0, "MAE {alone}");
 }
 
 #[test]
@@ -496,68 +528,25 @@ fn the_shipped_prior_is_what_prior_build_makes_of_the_shared_populations() {
     assert!(entry(&files[0]) != shipped.meshes[1]);
 }
 
-/// a24_lhip (../shared, the JHU pelvis atlas) turned 12 degrees about the body's left-right
-/// axis (x, through the mean of its triangles' corners), as a pelvis tilted forwards or back
-/// would show it, and its srvf run at `level` and `run` of the seed-7 study. None when ../shared
-/// is absent.
-fn tilted_a24_run(
-    level: u32,
-    run: usize,
-    prm: &ReconParams,
-) -> Option<(f64, Vec<acetab::pipeline::OrientationTrial>)> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/pelvis-atlas/acetabula/a24_lhip.stl");
-    if !path.exists() {
-        eprintln!("skipped: {} is absent", path.display());
-        return None;
-    }
-    let mesh = read_mesh(&path).unwrap();
-    let corners = mesh
-        .triangles
-        .iter()
-        .flatten()
-        .map(|&i| mesh.vertices[i as usize].coords);
-    let centre = corners.clone().sum::<nalgebra::Vector3<f64>>() / corners.count() as f64;
-    let turn =
-        nalgebra::Rotation3::from_axis_angle(&nalgebra::Vector3::x_axis(), (-12f64).to_radians());
-    let tilted = acetab::Mesh::new(
-        mesh.vertices
-            .iter()
-            .map(|p| nalgebra::Point3::from(centre + turn * (p.coords - centre)))
-            .collect(),
-        mesh.triangles.clone(),
-    )
-    .unwrap();
-    let truth = ground_truth_surface(&tilted).unwrap();
-    Some(simulated_run(
-        &truth,
-        acetab::study::run_seed(7, level, run),
-        level,
-        prm,
-    ))
-}
-
 #[test]
 fn a_mirrored_cap_that_leads_in_stage_a_is_still_compared_with_the_given_one() {
-    // Level 3, run 0: the given start's rigid cap has not settled after its rounds (24 degrees
-    // off the truth's axis) and the mirrored one (57 degrees off) scores clearly better, so it
-    // leads; a deformation round tells the given one is right.
-    let Some((mae, trials)) = tilted_a24_run(3, 0, &ReconParams::default()) else {
+    // a10_rhip (the JHU pelvis atlas) level 3, run 0: the mirrored cap scores clearly better in
+    // stage A, so it leads, yet a deformation round tells that the given one meets the outlines
+    // better (4.5 against 3.5 px), and that one goes on.
+    let file = "pelvis-atlas/acetabula/a10_rhip.stl";
+    let Some((mae, log)) = shared_run(file, 3, 0, &ReconParams::default()) else {
         return;
     };
-    println!("tilted a24_lhip L3 run 0: MAE {mae:.3} mm, orientations {trials:?}");
-    assert_eq!(
-        trials.first().map(|t| t.source),
-        Some("mirrored"),
-        "{trials:?}"
-    );
-    assert_eq!(chosen(&trials), "stage A", "{trials:?}");
-    assert!(mae < 1.2, "MAE {mae}");
-    // Companion: without the comparison the mirrored cap goes on alone, and the same bound
-    // rejects the result (restarts, which its outlines are too near to fire, are off too).
-    let prm = no_comparison_no_restarts();
-    let (wrong, none) = tilted_a24_run(3, 0, &prm).unwrap();
-    println!("without the comparison: MAE {wrong:.3} mm");
-    assert!(none.is_empty());
-    assert!(wrong >= 1.2, "MAE {wrong}");
+    let trials = &log.orientations;
+    println!("a10_rhip L3 run 0: MAE {mae:.3} mm, orientations {trials:?}");
+    assert_eq!(trials.first().map(|t| t.source), Some("mirrored"));
+    assert_eq!(chosen(trials), "stage A", "{trials:?}");
+    assert!(mae < 1.0, "MAE {mae}");
+    // Companion: without the comparison the mirrored cap goes on alone, uncompared. (Since
+    // stage A's rounds are damped, no run of 765 scanned, the shared acetabula at levels 1-5,
+    // has a mirrored lead that is wrong enough for a bound on the MAE to tell: here 0.56 mm
+    // against 0.54; docs/population.md, "Stage A's rounds damped".)
+    let (alone, none) = shared_run(file, 3, 0, &no_comparison_no_restarts()).unwrap();
+    println!("without the comparison: MAE {alone:.3} mm");
+    assert!(none.orientations.is_empty());
 }

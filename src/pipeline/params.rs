@@ -54,6 +54,11 @@ pub struct PlacementParams {
     pub rounds: usize,
     /// See `rounds`.
     pub tol_mm: f64,
+    /// Damp the rounds where they turn back (default on): each round whose move points
+    /// against the last one's halves the share of the solved move taken from then on, so rounds
+    /// caught between two caps settle between them instead of running out (see
+    /// `pipeline::placement::Damping`).
+    pub damped: bool,
     /// Weight of correspondences on the template's rim (default 0.1). A real acetabulum is
     /// shallower than a hemisphere and notched, so its rim outline is not the hemisphere's; the
     /// dome's silhouette is. With the rim at full weight the cap's axis settles sooner but
@@ -113,6 +118,7 @@ impl Default for PlacementParams {
             limb_scale_mm: 0.5,
             rounds: 10,
             tol_mm: 0.5,
+            damped: true,
             rim_weight: 0.1,
             rotation_only: true,
             mirrored_start: true,

@@ -8,7 +8,7 @@ use crate::geom::Mesh;
 use crate::solve::Problem;
 use crate::solve::{
     apply_similarity, corrected_camera, levenberg_marquardt, LmInfo, LmParams, PoseProblem,
-    SimilarityProblem,
+    SimilarityProblem, SIM_PARAMS,
 };
 use crate::template::Placement;
 use crate::views::Camera;
@@ -68,13 +68,22 @@ pub(super) fn similarity_stage(
     let sim_lm = similarity_lm(prm);
     let (mut rounds, mut iterations) = (0, 0);
     let mut last = Vec::new();
+    let mut damping = Damping::default();
     for _ in 0..max_rounds {
         let mut obs = ctx.correspondences(&mesh, ctx.cams, "similarity")?;
         for o in obs.iter_mut().filter(|o| on_rim[o.vertex as usize]) {
             o.weight *= prm.placement.rim_weight;
         }
-        let (moved, shift, info) =
-            similarity_step(&mesh, ctx.cams, &obs, prm, &sim_lm, about, &mut placement)?;
+        let (moved, shift, info) = similarity_step(
+            &mesh,
+            ctx.cams,
+            &obs,
+            prm,
+            &sim_lm,
+            about,
+            &mut placement,
+            prm.placement.damped.then_some(&mut damping),
+        )?;
         mesh = moved;
         rounds += 1;
         iterations += info.iterations;
@@ -95,10 +104,66 @@ pub(super) fn similarity_stage(
     })
 }
 
+/// Stage A's rounds damped where they turn back. A round is one step of a fixed-point
+/// iteration: correspondences from the cap as it is, then the similarity they ask for. Where
+/// the correspondences found at the new cap ask to undo the last move, the rounds are caught in
+/// a cycle: measured, the phantom's cap turned back and forth between two axes 2.7 degrees
+/// apart for all ten rounds, and an atlas acetabulum's (a24_lhip, level 3) between two 9
+/// degrees apart, so that the cap stage A handed on was whichever of the two the number of
+/// rounds picked, and the rounds never met `tol_mm`. Each such reversal halves the share of the
+/// asked-for move that is taken (a damped fixed-point iteration), so the rounds settle between
+/// the two caps, where the correspondences balance.
+#[derive(Debug)]
+pub(super) struct Damping {
+    /// The share of the solved move taken.
+    share: f64,
+    /// The last move taken, in mm (`Damping::in_mm`).
+    last: Option<[f64; SIM_PARAMS]>,
+}
+
+impl Default for Damping {
+    fn default() -> Self {
+        Damping {
+            share: 1.0,
+            last: None,
+        }
+    }
+}
+
+impl Damping {
+    /// A similarity's parameters as displacements of a cap of `radius`: the rotation vector
+    /// and the log scale times the radius, the translation as it is.
+    fn in_mm(f: &[f64; SIM_PARAMS], radius: f64) -> [f64; SIM_PARAMS] {
+        let mut m = *f;
+        for (k, v) in m.iter_mut().enumerate() {
+            if k < 3 || k == 6 {
+                *v *= radius;
+            }
+        }
+        m
+    }
+
+    /// The share of the solved move `f` to take on a cap of `radius`: halved when `f` points
+    /// against the last move taken. Remembers the move taken.
+    fn share_of(&mut self, f: &[f64; SIM_PARAMS], radius: f64) -> f64 {
+        let now = Self::in_mm(f, radius);
+        if let Some(last) = &self.last {
+            let dot: f64 = last.iter().zip(&now).map(|(a, b)| a * b).sum();
+            if dot < 0.0 {
+                self.share *= 0.5;
+            }
+        }
+        self.last = Some(now.map(|v| v * self.share));
+        self.share
+    }
+}
+
 /// One similarity solve on fixed correspondences: the moved mesh, and how far the cap moved (mm),
 /// measured on its placement (`placement` is moved along): centre shift + radius change + the
 /// axis's turn times the radius. Vertex motion would count turns about the cap's own axis, which
-/// change nothing and which the correspondences leave free.
+/// change nothing and which the correspondences leave free. With `damping`, the share of the
+/// solved move it says is taken (stage A's rounds).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn similarity_step(
     mesh: &Mesh,
     cams: &[Camera],
@@ -107,6 +172,7 @@ pub(super) fn similarity_step(
     lm: &LmParams,
     rotation_about: Option<Point3<f64>>,
     placement: &mut Placement,
+    damping: Option<&mut Damping>,
 ) -> Result<(Mesh, f64, LmInfo), ReconError> {
     let mut problem = SimilarityProblem::new(&mesh.vertices, cams, obs);
     problem.tangential = prm.weights.tangential;
@@ -115,10 +181,17 @@ pub(super) fn similarity_step(
         problem.rotation_only = true;
     }
     let x0 = vec![0.0; problem.block_size()];
-    let (x, info) = levenberg_marquardt(&problem, x0, lm).map_err(|source| ReconError::Solve {
-        stage: "similarity",
-        source,
-    })?;
+    let (mut x, info) =
+        levenberg_marquardt(&problem, x0, lm).map_err(|source| ReconError::Solve {
+            stage: "similarity",
+            source,
+        })?;
+    if let Some(d) = damping {
+        let share = d.share_of(&crate::solve::full_state(&x), placement.radius);
+        if share != 1.0 {
+            x.iter_mut().for_each(|v| *v *= share);
+        }
+    }
     let moved = apply_similarity(&x, &problem.center, &mesh.vertices);
     let f = crate::solve::full_state(&x);
     let rot = nalgebra::Rotation3::new(Vector3::new(f[0], f[1], f[2]));
@@ -206,5 +279,44 @@ impl Poses {
                 [deg, mm]
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A move of `turn` radians about z and `shift` mm along x.
+    fn mv(turn: f64, shift: f64) -> [f64; SIM_PARAMS] {
+        [0.0, 0.0, turn, shift, 0.0, 0.0, 0.0]
+    }
+
+    #[test]
+    fn a_move_that_turns_back_halves_the_share_taken() {
+        let mut d = Damping::default();
+        assert_eq!(d.share_of(&mv(0.05, 1.0), 25.0), 1.0);
+        // Back by about as much: a two-cycle, the share halves, and again at the next reversal.
+        assert_eq!(d.share_of(&mv(-0.05, -1.0), 25.0), 0.5);
+        assert_eq!(d.share_of(&mv(0.04, 0.5), 25.0), 0.25);
+        // On in the same direction as the last move taken: the share stays.
+        assert_eq!(d.share_of(&mv(0.01, 0.2), 25.0), 0.25);
+    }
+
+    #[test]
+    fn moves_that_keep_their_direction_are_taken_whole() {
+        // Companion: shrinking moves that go on the same way, as rounds that converge make,
+        // and a turn back in one component outweighed by the others (the cap still moves on).
+        let mut d = Damping::default();
+        for k in 0..6 {
+            let f = 0.5f64.powi(k);
+            assert_eq!(d.share_of(&mv(0.05 * f, 1.0 * f), 25.0), 1.0);
+        }
+        assert_eq!(d.share_of(&mv(-0.001, 0.1), 25.0), 1.0);
+        // The rotation counts by its arc on the cap: 0.05 rad on 25 mm is 1.25 mm, and outweighs
+        // a 1 mm shift the other way.
+        let mut d = Damping::default();
+        d.share_of(&mv(0.05, 0.0), 25.0);
+        assert_eq!(d.share_of(&mv(0.05, -1.0), 25.0), 1.0);
+        assert_eq!(d.share_of(&mv(-0.05, 1.0), 25.0), 0.5);
     }
 }
