@@ -117,7 +117,8 @@ pub(super) fn similarity_stage(
 pub(super) struct Damping {
     /// The share of the solved move taken.
     share: f64,
-    /// The last move taken, in mm (`Damping::in_mm`).
+    /// The last solved move, in mm (`Damping::in_mm`): the direction of the move taken, which
+    /// the share (a positive factor) does not change.
     last: Option<[f64; SIM_PARAMS]>,
 }
 
@@ -144,7 +145,7 @@ impl Damping {
     }
 
     /// The share of the solved move `f` to take on a cap of `radius`: halved when `f` points
-    /// against the last move taken. Remembers the move taken.
+    /// against the last move. Remembers `f`.
     fn share_of(&mut self, f: &[f64; SIM_PARAMS], radius: f64) -> f64 {
         let now = Self::in_mm(f, radius);
         if let Some(last) = &self.last {
@@ -153,7 +154,7 @@ impl Damping {
                 self.share *= 0.5;
             }
         }
-        self.last = Some(now.map(|v| v * self.share));
+        self.last = Some(now);
         self.share
     }
 }
@@ -188,9 +189,7 @@ pub(super) fn similarity_step(
         })?;
     if let Some(d) = damping {
         let share = d.share_of(&crate::solve::full_state(&x), placement.radius);
-        if share != 1.0 {
-            x.iter_mut().for_each(|v| *v *= share);
-        }
+        x.iter_mut().for_each(|v| *v *= share);
     }
     let moved = apply_similarity(&x, &problem.center, &mesh.vertices);
     let f = crate::solve::full_state(&x);
