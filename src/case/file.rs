@@ -2,6 +2,7 @@
 //! and the template's initial placement. Everything is validated on load; an error names the
 //! file, the field and the value.
 
+use super::agreement::{centre_miss, CentreMiss};
 use crate::geom::{
     convex_hull_area, signed_area, stray_point, widest_extent, winding_number, Curve,
 };
@@ -313,6 +314,48 @@ fn outline_span_mismatch(path: &Path, case: &Case) -> Option<CaseError> {
              another scale, or are this view's k (focal length) or t wrong?"
         ),
     ))
+}
+
+/// The views' outline centres pointing at no one place (`agreement::centre_miss`), as an error
+/// naming the view that sends its ray elsewhere, or all of them when no one view explains it.
+fn outline_centre_mismatch(path: &Path, case: &Case) -> Option<CaseError> {
+    let reason = "one acetabulum lies where every view's outline points (each view's ray through \
+                  its outline's centre passes within 3/4 of the acetabulum's span of where the \
+                  others meet)";
+    Some(match centre_miss(&case.cameras, &case.observed)? {
+        CentreMiss::View {
+            view,
+            miss_mm,
+            others_mm,
+            span_mm,
+        } => field_err(
+            path,
+            format!("views[{view}].contours"),
+            format!(
+                "an outline whose centre's ray passes {miss_mm:.0} mm from where the other \
+                 views' outlines point (they agree within {others_mm:.0} mm; the acetabulum \
+                 spans {span_mm:.0} mm)"
+            ),
+            format!(
+                "{reason}: are view {}'s k (cx, cy), r or t wrong, or is its outline annotated \
+                 on another image?",
+                case.names[view]
+            ),
+        ),
+        CentreMiss::Views { miss_mm, span_mm } => field_err(
+            path,
+            "views[*].contours",
+            format!(
+                "outlines whose centres' rays pass up to {miss_mm:.0} mm from where they meet \
+                 (the acetabulum spans {span_mm:.0} mm)"
+            ),
+            format!(
+                "{reason}: the views' poses (r, t), principal points (cx, cy) or outlines do \
+                 not belong to one acetabulum (which view is off cannot be told where any two \
+                 of the rays meet, as for views all turned about one axis and off across it)"
+            ),
+        ),
+    })
 }
 
 /// A view's image as the case names it: where it is, its size, and its DICOM geometry.
@@ -824,6 +867,9 @@ impl CaseFile {
             ));
         }
         if let Some(e) = outline_span_mismatch(path, &case) {
+            return Err(e);
+        }
+        if let Some(e) = outline_centre_mismatch(path, &case) {
             return Err(e);
         }
         Ok(case)

@@ -1,10 +1,12 @@
 //! Case files: a patient's views and annotated rims read from JSON (`file`), and the whole run of
 //! one case, from the file to the written report (`run`).
 
+mod agreement;
 mod calibration;
 mod file;
 mod run;
 
+pub use agreement::{centre_miss, centre_spread, CentreMiss, MAX_CENTRE_MISS};
 pub use calibration::{Calibrated, CalibrationChoice, CalibrationUsed};
 pub use file::{
     Case, CaseError, CaseFile, ContourFile, ContourKind, IntrinsicsFile, TemplateFile, ViewFile,

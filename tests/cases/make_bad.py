@@ -81,6 +81,8 @@ def shrink(d):
     cx = sum(x for x, y in pts) / len(pts); cy = sum(y for x, y in pts) / len(pts)
     d["views"][1]["contours"][0]["points"] = [[cx + 0.3 * (x - cx), cy + 0.3 * (y - cy)] for x, y in pts]
 case("outline_at_another_scale.json", "mm at the object", shrink)
+case("principal_point_at_origin.json", "views[1].contours = an outline whose centre's ray passes", lambda d: d["views"][1]["k"].update(cx=0, cy=0))
+case("outline_shifted_off.json", "views[2].contours = an outline whose centre's ray passes", lambda d: d["views"][2]["contours"][0].__setitem__("points", [[p[0] + 400, p[1] - 300] for p in d["views"][2]["contours"][0]["points"]]))
 case("one_view.json", "at least 2 views", lambda d: d.__setitem__("views", d["views"][:1]))
 case("too_many_views.json", "at most 64 views", lambda d: d.__setitem__("views", d["views"] * 22))
 case("zero_width.json", "image size", setv(["views", 0, "width"], 0))
