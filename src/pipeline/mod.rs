@@ -175,6 +175,10 @@ pub struct SolveLog {
     pub prior_sphere: Option<[f64; 4]>,
 }
 
+/// A second view whose pose correction is this share of the largest or more moved "as far"
+/// (`SolveLog::pose_note`).
+const SHARED_CORRECTION: f64 = 0.5;
+
 impl SolveLog {
     /// The population prior's region for the cup estimator: the prior of `prm` and the sphere
     /// prior's centre at the end of the solve; None without a prior.
@@ -205,27 +209,49 @@ impl SolveLog {
 
     /// The line for a result of the `refine-poses` fallback (`Fallback::RefinePoses`): how far
     /// the method's own result lay from the outlines, and the view whose pose the refinement
-    /// moved most (by its shift, mm); None for any other result.
+    /// moved most (by its shift, mm); None for any other result. Where another view moved
+    /// nearly as far (`SHARED_CORRECTION` of the most or more), the line names both and says
+    /// that the outlines cannot tell which pose is off: the first view holds the frame and the
+    /// object's position is free, so a pose or principal point off in one view is taken up by
+    /// moving the others, most evenly where the error lies across the axis the views turn
+    /// about (measured: one oblique's outline 60 px off sideways moved the other oblique 5.8 mm
+    /// and itself 4.6 mm).
     fn pose_note(&self, names: &[String]) -> Option<String> {
         if self.fallback != Some(Fallback::RefinePoses.name()) {
             return None;
         }
-        let (view, [deg, mm]) = self
-            .pose_corrections
-            .iter()
-            .copied()
-            .enumerate()
-            .max_by(|a, b| a.1[1].total_cmp(&b.1[1]))?;
+        let mut moved: Vec<(usize, [f64; 2])> =
+            self.pose_corrections.iter().copied().enumerate().collect();
+        moved.sort_by(|a, b| b.1[1].total_cmp(&a.1[1]));
+        let &(view, [deg, mm]) = moved.first()?;
         let was = match &self.guard {
             Some(GuardFailure::Outlines { outline_px, .. }) => {
                 format!(" (its outlines lay {outline_px:.1} px from the annotations)")
             }
             _ => String::new(),
         };
-        Some(format!(
+        let start = format!(
             "no shape met the views as their poses were given{was}, so the poses were refined \
-             (as --refine-poses): {} moved most, by {mm:.1} mm and {deg:.1} degrees; check \
-             that view's pose and its annotation",
+             (as --refine-poses)"
+        );
+        if let Some(&(other, [deg2, mm2])) = moved
+            .get(1)
+            .filter(|(_, [_, mm2])| *mm2 >= SHARED_CORRECTION * mm && mm > 0.0)
+        {
+            // The fallback refines with `PoseParams::default()`, which holds the first view's
+            // pose (`reference_view` 0).
+            return Some(format!(
+                "{start}: {} and {} moved by {mm:.1} and {mm2:.1} mm ({deg:.1} and {deg2:.1} \
+                 degrees) against {}, which holds the frame; the outlines cannot tell which \
+                 view's pose is off: check every view's pose (k, r, t) and annotation",
+                view_label(names, view),
+                view_label(names, other),
+                view_label(names, 0),
+            ));
+        }
+        Some(format!(
+            "{start}: {} moved most, by {mm:.1} mm and {deg:.1} degrees; check that view's pose \
+             and its annotation",
             view_label(names, view)
         ))
     }
@@ -812,6 +838,24 @@ mod tests {
             n.contains("view 1 (oblique +20) moved most, by 6.2 mm"),
             "{n}"
         );
+        // Corrections shared between the obliques (one oblique's outline 60 px off sideways)
+        // name both and no culprit; the clear case above names one.
+        let shared = SolveLog {
+            pose_corrections: vec![[0.0, 0.0], [1.76, 5.82], [1.28, 4.59]],
+            ..refined.clone()
+        };
+        let n = shared.view_note(&names).expect("the moved views are named");
+        assert!(
+            n.contains("view 1 (oblique +20) and view 2 (oblique -20) moved by 5.8 and 4.6 mm"),
+            "{n}"
+        );
+        assert!(
+            n.contains("against view 0 (AP), which holds the frame"),
+            "{n}"
+        );
+        assert!(!n.contains("moved most"), "{n}");
+        let n = refined.view_note(&names).unwrap();
+        assert!(!n.contains("cannot tell"), "{n}");
         // Companion: the same corrections asked for (--refine-poses, no fallback) name nothing.
         let asked = SolveLog {
             fallback: None,
