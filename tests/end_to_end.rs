@@ -244,19 +244,29 @@ fn chosen(trials: &[acetab::pipeline::OrientationTrial]) -> &'static str {
         .map_or("none", |t| t.source)
 }
 
+/// The seed-7 study's level-3 run 0 of `file` with the default settings: stage B compared the
+/// orientations with `lead` first, kept `kept`, and the MAE is under `max_mae`. False (nothing
+/// checked) when ../shared is absent.
+fn compared_at_level_3_run_0(file: &str, lead: &str, kept: &str, max_mae: f64) -> bool {
+    let Some((mae, log)) = shared_run(file, 3, 0, &ReconParams::default()) else {
+        return false;
+    };
+    let trials = &log.orientations;
+    println!("{file} L3 run 0: MAE {mae:.3} mm, orientations {trials:?}");
+    assert_eq!(trials.first().map(|t| t.source), Some(lead));
+    assert_eq!(chosen(trials), kept, "{trials:?}");
+    assert!(mae < max_mae, "MAE {mae}");
+    true
+}
+
 #[test]
 fn an_orientation_the_cap_cannot_choose_is_chosen_after_a_deformation_round() {
     // a46_rhip (the JHU pelvis atlas) level 3, run 0: the mirrored cap scores within the
     // MIRROR_SWITCH band of the given one in stage A, which leads and is wrong.
     let file = "pelvis-atlas/acetabula/a46_rhip.stl";
-    let Some((mae, log)) = shared_run(file, 3, 0, &ReconParams::default()) else {
+    if !compared_at_level_3_run_0(file, "stage A", "mirrored", 1.2) {
         return;
-    };
-    let trials = &log.orientations;
-    println!("a46_rhip L3 run 0: MAE {mae:.3} mm, orientations {trials:?}");
-    assert_eq!(trials.first().map(|t| t.source), Some("stage A"));
-    assert_eq!(chosen(trials), "mirrored", "{trials:?}");
-    assert!(mae < 1.2, "MAE {mae}");
+    }
     // Companion: without the comparison (and without restarts, which could also rescue it)
     // the given (wrong) orientation stays, and the same bound rejects it.
     let (wrong, none) = shared_run(file, 3, 0, &no_comparison_no_restarts()).unwrap();
@@ -534,14 +544,9 @@ fn a_mirrored_cap_that_leads_in_stage_a_is_still_compared_with_the_given_one() {
     // stage A, so it leads, yet a deformation round tells that the given one meets the outlines
     // better (4.5 against 3.5 px), and that one goes on.
     let file = "pelvis-atlas/acetabula/a10_rhip.stl";
-    let Some((mae, log)) = shared_run(file, 3, 0, &ReconParams::default()) else {
+    if !compared_at_level_3_run_0(file, "mirrored", "stage A", 1.0) {
         return;
-    };
-    let trials = &log.orientations;
-    println!("a10_rhip L3 run 0: MAE {mae:.3} mm, orientations {trials:?}");
-    assert_eq!(trials.first().map(|t| t.source), Some("mirrored"));
-    assert_eq!(chosen(trials), "stage A", "{trials:?}");
-    assert!(mae < 1.0, "MAE {mae}");
+    }
     // Companion: without the comparison the mirrored cap goes on alone, uncompared. (Since
     // stage A's rounds are damped, no run of 765 scanned, the shared acetabula at levels 1-5,
     // has a mirrored lead that is wrong enough for a bound on the MAE to tell: here 0.56 mm

@@ -191,24 +191,20 @@ pub fn centre_miss(cams: &[Camera], observed: &[Vec<Curve>]) -> Option<CentreMis
     // the others, and all are named.
     let mut by_spread: Vec<&(usize, f64, f64)> = all.iter().collect();
     by_spread.sort_by(|a, b| a.2.total_cmp(&b.2));
-    let candidates: Vec<&(usize, f64, f64)> = match by_spread[..] {
-        [best, next, ..]
+    Some(match by_spread[..] {
+        [&(k, miss_mm, others_mm), next, ..]
             if rays.len() >= 3
-                && best.1 > limit
-                && best.2 <= 0.25 * limit
+                && miss_mm > limit
+                && others_mm <= 0.25 * limit
                 && next.2 >= 0.5 * limit =>
         {
-            vec![best]
+            CentreMiss::View {
+                view: rays[k].view,
+                miss_mm,
+                others_mm,
+                span_mm,
+            }
         }
-        _ => Vec::new(),
-    };
-    Some(match candidates[..] {
-        [&(k, miss_mm, others_mm)] => CentreMiss::View {
-            view: rays[k].view,
-            miss_mm,
-            others_mm,
-            span_mm,
-        },
         _ => CentreMiss::Views {
             miss_mm: worst,
             span_mm,
