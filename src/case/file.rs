@@ -2,16 +2,13 @@
 //! and the template's initial placement. Everything is validated on load; an error names the
 //! file, the field and the value.
 
-use super::agreement::{centre_miss, CentreMiss};
-use crate::geom::{
-    convex_hull_area, signed_area, stray_point, widest_extent, winding_number, Curve,
-};
+use super::views_agree::{outline_centre_mismatch, outline_span_mismatch, Views};
+use crate::geom::{convex_hull_area, signed_area, stray_point, winding_number, Curve};
 use crate::pipeline::Input;
 use crate::template::{Placement, Template};
 use crate::views::{widest_spread_deg, Camera, Intrinsics, MIN_VIEW_SPREAD_DEG};
 use nalgebra::{Matrix3, Point2, Point3, Rotation3, Unit, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
-use std::cmp::Ordering;
 use std::path::{Path, PathBuf};
 
 /// Intrinsics as written in a case file. A field left out is taken from the view's DICOM image:
@@ -219,144 +216,6 @@ const ABSURD: f64 = 1e7;
 /// draws each) enclose 76 % or more, the example case's 95-97 %; points on a line enclose 0 %, and
 /// an outline whose second half was joined on backwards (a figure of eight) 22 %.
 pub const MIN_HULL_FILL: f64 = 0.5;
-
-/// One acetabulum is seen in every view, so its closed outlines span about as much at the object
-/// in each: a view's widest closed outline may span from half to twice the median of the other
-/// views' (in mm at the template's centre). The outlines simulated from the 78 acetabula of
-/// docs/population.md (levels 1 and 5, five draws each) span at least 0.75 of the widest view's
-/// with the default views (0 and +-20 degrees about z), 0.71 with inlet and outlet views (x
-/// +-30), and 0.56 with views 45-60 degrees apart: a bound for outlines at a wrong scale (a
-/// tiny one, one in millimetres instead of pixels) and a view's k off by a factor, not for
-/// small disagreements (the outline guard is for those).
-pub const MAX_OUTLINE_SPAN_RATIO: f64 = 2.0;
-
-/// The view whose outline spans least like the others' (`MAX_OUTLINE_SPAN_RATIO`), as an error
-/// naming it, if any. Each view is measured by its widest closed outline; a view with open ones
-/// only, by its widest arc, which is a lower bound of the rim's span: it counts among the others,
-/// and is itself refused only for spanning too much.
-fn outline_span_mismatch(path: &Path, case: &Case) -> Option<CaseError> {
-    /// A view's widest outline: where it is, its span in px and in mm at the object.
-    struct Span {
-        view: usize,
-        contour: usize,
-        px: f64,
-        mm: f64,
-        closed: bool,
-    }
-    // Each view's widest outline, closed ones first.
-    let spans: Vec<Span> = case
-        .observed
-        .iter()
-        .zip(&case.geometry)
-        .enumerate()
-        .filter_map(|(view, (curves, g))| {
-            curves
-                .iter()
-                .enumerate()
-                .map(|(contour, c)| {
-                    let px = widest_extent(&c.points);
-                    Span {
-                        view,
-                        contour,
-                        px,
-                        mm: px / g.px_per_mm_at_object,
-                        closed: c.closed,
-                    }
-                })
-                .max_by(|a, b| {
-                    (a.closed, a.mm)
-                        .partial_cmp(&(b.closed, b.mm))
-                        .unwrap_or(Ordering::Equal)
-                })
-        })
-        .collect();
-    if spans.len() < 2 {
-        return None;
-    }
-    // (how far off, as |ln ratio|, the others' median) of view k when it is off.
-    let off = |k: usize| {
-        let mut others: Vec<f64> = spans
-            .iter()
-            .enumerate()
-            .filter(|&(j, _)| j != k)
-            .map(|(_, s)| s.mm)
-            .collect();
-        others.sort_by(f64::total_cmp);
-        let m = others.len();
-        let median = 0.5 * (others[(m - 1) / 2] + others[m / 2]);
-        let r = spans[k].mm / median;
-        let too_small = spans[k].closed && r < 1.0 / MAX_OUTLINE_SPAN_RATIO;
-        (too_small || r > MAX_OUTLINE_SPAN_RATIO || !r.is_finite())
-            .then_some((r.ln().abs(), median))
-    };
-    // The view farthest off (the first of equals; a NaN distance never displaces one).
-    let (k, (_, median)) = (0..spans.len())
-        .filter_map(|k| off(k).map(|o| (k, o)))
-        .reduce(|best, x| if x.1 .0 > best.1 .0 { x } else { best })?;
-    let Span {
-        view,
-        contour,
-        px,
-        mm,
-        ..
-    } = spans[k];
-    Some(field_err(
-        path,
-        format!("views[{view}].contours[{contour}].points"),
-        format!(
-            "an outline of view {} spanning {mm:.1} mm at the object ({px:.0} px), against \
-             {median:.1} mm in the other views",
-            case.names[view]
-        ),
-        format!(
-            "one acetabulum spans about as much in every view (from 1/{MAX_OUTLINE_SPAN_RATIO:.0} \
-             to {MAX_OUTLINE_SPAN_RATIO:.0} times the others'): is this outline annotated at \
-             another scale, or are this view's k (focal length) or t wrong?"
-        ),
-    ))
-}
-
-/// The views' outline centres pointing at no one place (`agreement::centre_miss`), as an error
-/// naming the view that sends its ray elsewhere, or all of them when no one view explains it.
-fn outline_centre_mismatch(path: &Path, case: &Case) -> Option<CaseError> {
-    let reason = "one acetabulum lies where every view's outline points (each view's ray through \
-                  its outline's centre passes within 3/4 of the acetabulum's span of where the \
-                  others meet)";
-    Some(match centre_miss(&case.cameras, &case.observed)? {
-        CentreMiss::View {
-            view,
-            miss_mm,
-            others_mm,
-            span_mm,
-        } => field_err(
-            path,
-            format!("views[{view}].contours"),
-            format!(
-                "an outline whose centre's ray passes {miss_mm:.0} mm from where the other \
-                 views' outlines point (they agree within {others_mm:.0} mm; the acetabulum \
-                 spans {span_mm:.0} mm)"
-            ),
-            format!(
-                "{reason}: are view {}'s k (cx, cy), r or t wrong, or is its outline annotated \
-                 on another image?",
-                case.names[view]
-            ),
-        ),
-        CentreMiss::Views { miss_mm, span_mm } => field_err(
-            path,
-            "views[*].contours",
-            format!(
-                "outlines whose centres' rays pass up to {miss_mm:.0} mm from where they meet \
-                 (the acetabulum spans {span_mm:.0} mm)"
-            ),
-            format!(
-                "{reason}: the views' poses (r, t), principal points (cx, cy) or outlines do \
-                 not belong to one acetabulum (which view is off cannot be told where any two \
-                 of the rays meet, as for views all turned about one axis and off across it)"
-            ),
-        ),
-    })
-}
 
 /// A view's image as the case names it: where it is, its size, and its DICOM geometry.
 struct ViewImage {
@@ -866,11 +725,19 @@ impl CaseFile {
                 ),
             ));
         }
-        if let Some(e) = outline_span_mismatch(path, &case) {
-            return Err(e);
-        }
-        if let Some(e) = outline_centre_mismatch(path, &case) {
-            return Err(e);
+        let px_per_mm: Vec<f64> = case
+            .geometry
+            .iter()
+            .map(|g| g.px_per_mm_at_object)
+            .collect();
+        let views = Views {
+            names: &case.names,
+            cameras: &case.cameras,
+            observed: &case.observed,
+            px_per_mm: &px_per_mm,
+        };
+        if let Some(d) = outline_span_mismatch(&views).or_else(|| outline_centre_mismatch(&views)) {
+            return Err(field_err(path, d.field, d.value, d.reason));
         }
         Ok(case)
     }

@@ -1,17 +1,20 @@
-//! Case files: a patient's views and annotated rims read from JSON (`file`), and the whole run of
-//! one case, from the file to the written report (`run`).
+//! Case files: a patient's views and annotated rims read from JSON (`file`), checked against one
+//! another (`views_agree`, on `agreement`), and the whole run of one case, from the file to the
+//! written report (`run`).
 
 mod agreement;
 mod calibration;
 mod file;
 mod run;
+mod views_agree;
 
 pub use agreement::{centre_miss, centre_spread, CentreMiss, MAX_CENTRE_MISS};
 pub use calibration::{Calibrated, CalibrationChoice, CalibrationUsed};
 pub use file::{
     Case, CaseError, CaseFile, ContourFile, ContourKind, IntrinsicsFile, TemplateFile, ViewFile,
-    ViewGeometry, MAX_OUTLINE_SPAN_RATIO, MIN_HULL_FILL,
+    ViewGeometry, MIN_HULL_FILL,
 };
 pub use run::{
     run_case, run_case_calibrated, run_case_with, solve_case, CaseRunError, CaseRunReport,
 };
+pub use views_agree::MAX_OUTLINE_SPAN_RATIO;

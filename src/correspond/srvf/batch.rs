@@ -1,7 +1,7 @@
 //! Batched alignment: many curve pairs at once on a pool of threads, results in input order
 //! (the study sweeps and, later, the GPU DP kernel use this entry point).
 
-use super::align::{align, Alignment, CurveKind, SrvfError, SrvfParams};
+use super::{align, Alignment, CurveKind, SrvfError, SrvfParams};
 use nalgebra::Point2;
 
 /// One problem: align B onto A.

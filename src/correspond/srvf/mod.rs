@@ -1,4 +1,6 @@
 //! SRVF elastic registration: q = b' / sqrt(|b'|); rotation, seed and warp by dynamic programming.
+//! `align_on` takes a pair of curves of any kind to its alignment: closed and open ones in
+//! `align`, an open arc against part of a closed curve in `partial`.
 
 mod align;
 mod band;
@@ -7,16 +9,44 @@ mod batch;
 mod curve;
 mod dp;
 mod dp_many;
+mod partial;
 
 pub use align::{
-    align, align_closed, align_on, align_open, align_partial, Alignment, CurveKind, SrvfError,
-    SrvfParams, MAX_SAMPLES, MIN_SAMPLES,
+    align_closed, align_open, Alignment, CurveKind, SrvfError, SrvfParams, MAX_SAMPLES, MIN_SAMPLES,
 };
 pub(crate) use band::prepare as prepare_steps;
 pub use band::{trace_band, BandProblem, BandSolver, DpOn, NO_STEP};
 pub use batch::{align_batch, aligned_b, AlignProblem};
 pub use curve::{best_rotation, dist2, inner, rotate, srvf, Anchor};
 pub use dp::{coprime_steps, dp_warp, edge_cost, traceback, warp_from_path, CurvePair, Warp};
+use nalgebra::Point2;
+pub use partial::align_partial;
+
+/// Align with the given kind.
+pub fn align(
+    a: &[Point2<f64>],
+    b: &[Point2<f64>],
+    kind: CurveKind,
+    prm: &SrvfParams,
+) -> Result<Alignment, SrvfError> {
+    align_on(a, b, kind, prm, DpOn::Host)
+}
+
+/// `align` with its DPs run where `on` says (the host's f64 DP, or an engine's: the GPU's in a
+/// study on the device).
+pub fn align_on(
+    a: &[Point2<f64>],
+    b: &[Point2<f64>],
+    kind: CurveKind,
+    prm: &SrvfParams,
+    on: DpOn,
+) -> Result<Alignment, SrvfError> {
+    match kind {
+        CurveKind::Closed => align::align_closed_on(a, b, prm, false, on),
+        CurveKind::Open => align::align_open_on(a, b, prm, on),
+        CurveKind::Partial => partial::align_partial_on(a, b, prm, on),
+    }
+}
 
 #[cfg(test)]
 mod tests {

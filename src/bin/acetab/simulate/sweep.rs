@@ -1,0 +1,205 @@
+//! `acetab simulate` over many meshes: each mesh's study in a folder of its own (resumed where
+//! it is there already, made with the same settings), then the population table.
+
+use super::Study;
+use crate::common::{io_msg, mesh_files};
+use acetab::study::compare::{Comparison, Verdict, TOLERANCE};
+use acetab::study::population::{comparisons, mesh_name, worst_meshes, write_population};
+use acetab::study::read_csv;
+use std::path::{Path, PathBuf};
+
+/// The meshes of a population sweep (name, path), or none for a single study (one --gt that
+/// is a file or "phantom"). A folder gives its .stl, .ply and .obj files, sorted.
+pub(super) fn population_meshes(gt: &[String]) -> Result<Vec<(String, PathBuf)>, String> {
+    let single = gt.len() == 1 && (gt[0] == "phantom" || !Path::new(&gt[0]).is_dir());
+    if single {
+        return Ok(Vec::new());
+    }
+    let mut out: Vec<(String, PathBuf)> = Vec::new();
+    for f in mesh_files(gt, "--gt ")? {
+        let name = mesh_name(&f);
+        if out.iter().any(|(n, _)| *n == name) {
+            return Err(format!(
+                "--gt: two meshes are named {name:?} ({})",
+                f.display()
+            ));
+        }
+        out.push((name, f));
+    }
+    Ok(out)
+}
+
+/// A mesh study a sweep resumes must have been made with the sweep's settings (`Study::settings`):
+/// otherwise the population table would mix studies of different settings under this sweep's
+/// name. Settings its summary.json does not record (an older version's) are not compared.
+fn same_settings(study: &Study, dir: &Path) -> Result<(), String> {
+    let path = dir.join("summary.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        format!(
+            "{}: cannot resume this mesh's study: {e} (its runs.csv is there; remove the folder \
+             to run it again)",
+            path.display()
+        )
+    })?;
+    let saved: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+        format!(
+            "{}: cannot resume this mesh's study: not JSON: {e}",
+            path.display()
+        )
+    })?;
+    for (key, want) in study.settings() {
+        if let Some(had) = saved.pointer(&format!("/study/{key}")) {
+            if *had != want {
+                return Err(format!(
+                    "{}: study.{key} is {had}, this sweep's is {want}: a sweep resumes only with \
+                     the settings it was started with (use another --out, or remove {})",
+                    path.display(),
+                    dir.display()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The sweep: each mesh's study in --out/<name> unless its runs.csv is there already (made with
+/// the same settings), then the population table over all of them.
+pub(super) fn sweep(
+    study: &Study,
+    meshes: &[(String, PathBuf)],
+    out: &Path,
+    json: bool,
+) -> Result<(), String> {
+    let start = std::time::Instant::now();
+    // Every study done before is checked first, so a refused resume runs nothing.
+    for (name, _) in meshes {
+        let dir = out.join(name);
+        if dir.join("runs.csv").is_file() {
+            same_settings(study, &dir)?;
+        }
+    }
+    std::fs::create_dir_all(out).map_err(|e| io_msg(out, e))?;
+    let mut failed = Vec::new();
+    for (k, (name, path)) in meshes.iter().enumerate() {
+        let dir = out.join(name);
+        if dir.join("runs.csv").is_file() {
+            eprintln!("[{}/{}] {name}: done before, skipped", k + 1, meshes.len());
+            continue;
+        }
+        eprintln!("[{}/{}] {name}", k + 1, meshes.len());
+        if let Err(e) = study.run(&path.to_string_lossy(), &dir, true) {
+            eprintln!("acetab: error: {name}: {e}");
+            failed.push(name.clone());
+        }
+    }
+    let mut tables = Vec::new();
+    for (name, _) in meshes {
+        let p = out.join(name).join("runs.csv");
+        if p.is_file() {
+            let rows = read_csv(&p).map_err(|e| e.to_string())?;
+            // A mesh whose every run failed (now or in the sweep this one resumes) is in the
+            // table, its runs counted as failed, and the sweep says so.
+            if !rows.is_empty() && rows.iter().all(|r| !r.error.is_empty()) {
+                eprintln!(
+                    "acetab: error: {name}: all {} runs failed (the first: {}); {} says why",
+                    rows.len(),
+                    rows[0].error,
+                    p.display()
+                );
+                if !failed.contains(name) {
+                    failed.push(name.clone());
+                }
+            }
+            tables.push((name.clone(), rows));
+        }
+    }
+    let meta = serde_json::json!({
+        "gt": meshes.iter().map(|(_, p)| p.display().to_string()).collect::<Vec<_>>(),
+        "levels": study.cfg.levels, "runs": study.runs, "methods": study.cfg.methods,
+        "views": study.cfg.geometry.views.iter().map(|v| v.to_string()).collect::<Vec<_>>(),
+        "seed": study.seed, "protocol": study.cfg.protocol, "sweep_seconds": start.elapsed().as_secs_f64(),
+        "prior": if study.prior.leave_out { format!("{} without each mesh's subject", study.prior.arg) } else { study.prior.from.clone() },
+    });
+    let (rows, warning) = write_population(out, &tables, &meta).map_err(|e| e.to_string())?;
+    if let Some(w) = warning {
+        eprintln!("acetab: warning: {w}");
+    }
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string(&rows).map_err(|e| e.to_string())?
+        );
+        eprintln!(
+            "{} meshes in {:.1} s; population table in {}",
+            tables.len(),
+            start.elapsed().as_secs_f64(),
+            out.display()
+        );
+        return Ok(());
+    }
+    println!(
+        "{:<17} {:>5} {:>6} {:>6} {:>9} {:>12} {:>11} {:>10}",
+        "method", "level", "runs", "failed", "fallbacks", "catastrophic", "cup<=1mm", "exact size"
+    );
+    for r in rows.iter().filter(|r| r.mesh == "all") {
+        println!(
+            "{:<17} {:>5} {:>6} {:>6} {:>9} {:>12} {:>11} {:>10}   MAE {:.3} mm",
+            r.method.name(),
+            r.level,
+            r.runs,
+            r.failed,
+            r.fallbacks,
+            r.catastrophic,
+            r.cup_within_1mm,
+            r.cup_exact_size,
+            r.mae_mean
+        );
+    }
+    for (m, mesh, mae) in worst_meshes(&rows) {
+        println!("worst mesh for {}: {mesh} (mean MAE {mae:.3} mm)", m.name());
+    }
+    print_comparisons(&comparisons(&tables));
+    eprintln!(
+        "{} meshes in {:.1} s; population table in {}",
+        tables.len(),
+        start.elapsed().as_secs_f64(),
+        out.display()
+    );
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(format!(
+            "the study failed on {} mesh(es): {}",
+            failed.len(),
+            failed.join(", ")
+        ))
+    }
+}
+
+/// Per method and level, how many meshes the paired comparison with the better baseline finds
+/// worse than the tolerance beyond the runs' spread (named), within it, and undecided.
+fn print_comparisons(all: &[Comparison]) {
+    let mut keys: Vec<_> = all.iter().map(|c| (c.method, c.level)).collect();
+    keys.sort();
+    keys.dedup();
+    for (method, level) in keys {
+        let here: Vec<&Comparison> = all
+            .iter()
+            .filter(|c| c.method == method && c.level == level)
+            .collect();
+        let count = |v| here.iter().filter(|c| c.verdict == v).count();
+        let worse: Vec<String> = here
+            .iter()
+            .filter(|c| c.verdict == Verdict::Worse)
+            .map(|c| format!("{} {:.2}x", c.mesh, c.ratio))
+            .collect();
+        println!(
+            "{} against the better baseline, level {level} (paired runs, {TOLERANCE}x): worse {}{}, not worse {}, undecided {}",
+            method.name(),
+            worse.len(),
+            if worse.is_empty() { String::new() } else { format!(" ({})", worse.join(", ")) },
+            count(Verdict::NotWorse),
+            count(Verdict::Undecided),
+        );
+    }
+}
