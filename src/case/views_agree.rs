@@ -1,7 +1,7 @@
 //! The case's views checked against one another once they are read, each failure named by its
-//! field for the case file's error: one acetabulum spans about as much in every view (`outline_span_mismatch`) and
-//! lies where every view's outline points (`outline_centre_mismatch`, on
-//! `agreement::centre_miss`).
+//! field for the case file's error: one acetabulum spans about as much in every view
+//! (`outline_span_mismatch`) and lies where every view's outline points
+//! (`outline_centre_mismatch`, on `agreement::centre_miss`).
 
 use super::agreement::{centre_miss, CentreMiss};
 use crate::geom::{widest_extent, Curve};
