@@ -3,7 +3,10 @@
 //! file, the field and the value.
 
 use super::views_agree::{outline_centre_mismatch, outline_span_mismatch, Views};
-use crate::geom::{convex_hull_area, signed_area, stray_point, winding_number, Curve};
+use crate::geom::{
+    convex_hull_area, longest_segment, signed_area, stray_point, widest_extent, winding_number,
+    Curve,
+};
 use crate::pipeline::Input;
 use crate::template::{Placement, Template};
 use crate::views::{widest_spread_deg, Camera, Intrinsics, MIN_VIEW_SPREAD_DEG};
@@ -216,6 +219,38 @@ const ABSURD: f64 = 1e7;
 /// draws each) enclose 76 % or more, the example case's 95-97 %; points on a line enclose 0 %, and
 /// an outline whose second half was joined on backwards (a figure of eight) 22 %.
 pub const MIN_HULL_FILL: f64 = 0.5;
+
+/// A closed outline's longest step, as a share of its widest extent, at which it looks like an
+/// open arc joined by its chord. The closed outlines simulated from the 47 shared acetabula
+/// (the default, inlet/outlet and 45-degree views; levels 1 and 5; both protocols; 846
+/// outlines) reach 0.47 where one straight step spans the notch; the same outlines cut to their
+/// first half of points and left closed pass this and `OPEN_ARC_RATIO` in 610 of 846, cut to
+/// 60 % in 464 (tests/case_agreement.rs): a warning for the clear cases, not a proof.
+pub const OPEN_ARC_SHARE: f64 = 0.6;
+/// ... and as a multiple of its next longest step (points clicked few and evenly, a square of
+/// four, have all their steps alike).
+pub const OPEN_ARC_RATIO: f64 = 3.0;
+
+/// A closed outline's longest step when it looks like an open arc closed by its chord
+/// (`OPEN_ARC_SHARE`, `OPEN_ARC_RATIO`): a warning, not an error, for an outline may bridge
+/// a wide notch.
+struct OpenArc {
+    from: usize,
+    px: f64,
+    share: f64,
+    next_px: f64,
+}
+
+fn open_arc_closed(pts: &[Point2<f64>]) -> Option<OpenArc> {
+    let (from, px, next_px) = longest_segment(pts)?;
+    let share = px / widest_extent(pts);
+    (share >= OPEN_ARC_SHARE && px >= OPEN_ARC_RATIO * next_px).then_some(OpenArc {
+        from,
+        px,
+        share,
+        next_px,
+    })
+}
 
 /// A view's image as the case names it: where it is, its size, and its DICOM geometry.
 struct ViewImage {
@@ -670,6 +705,21 @@ impl CaseFile {
                                  annotation joined in the wrong order)?",
                                 100.0 * MIN_HULL_FILL
                             ),
+                        ));
+                    }
+                    if let Some(w) = open_arc_closed(&pts) {
+                        let (i, j) = (index[w.from], index[(w.from + 1) % distinct]);
+                        warnings.push(format!(
+                            "{}: {}: a closed outline whose points {i} and {j} lie {:.0} px \
+                             apart, {:.0} % of its width, against {:.0} px for its next longest \
+                             step: if it is an open arc (the rim left out where the walls are \
+                             blurred), give it \"closed\": false; closed, that straight segment \
+                             is taken for rim",
+                            path.display(),
+                            cf("closed"),
+                            w.px,
+                            100.0 * w.share,
+                            w.next_px
                         ));
                     }
                     if area < 0.0 {

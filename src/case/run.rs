@@ -22,12 +22,15 @@ pub enum CaseRunError {
     #[error(transparent)]
     Case(#[from] CaseError),
     /// The reconstruction failed.
-    #[error("{path}: {source}")]
+    #[error("{path}: {source}{}", read_with(warnings))]
     Recon {
         /// The case file.
         path: PathBuf,
         /// Why.
-        source: ReconError,
+        source: Box<ReconError>,
+        /// The case file's own warnings (a closed outline that looks like an open arc, ...),
+        /// which may say why.
+        warnings: Vec<String>,
     },
     /// The reconstruction could not be written.
     #[error(transparent)]
@@ -274,7 +277,8 @@ pub fn solve_case(
         }
         CaseRunError::Recon {
             path: path.to_path_buf(),
-            source,
+            source: Box::new(source),
+            warnings: case.warnings.clone(),
         }
     };
     let template = Template::standard();
@@ -290,6 +294,18 @@ pub fn solve_case(
     }
     let cup = cup_report(&rec, &case.observed, prm, kernels, up).map_err(recon_err)?;
     Ok((rec, cup))
+}
+
+/// The case file's warnings after a failed reconstruction's reason (none: nothing).
+fn read_with(warnings: &[String]) -> String {
+    if warnings.is_empty() {
+        String::new()
+    } else {
+        format!(
+            " (the case file was read with warnings: {})",
+            warnings.join("; ")
+        )
+    }
 }
 
 /// Pretty JSON of a report (the two report types serialise infallibly: plain fields).

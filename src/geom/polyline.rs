@@ -190,9 +190,60 @@ pub fn widest_extent(p: &[Point2<f64>]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The longest segment of the closed polygon `p`: (i, its length, the next longest's), the
+/// segment running from point i to point i + 1 (the last to the first for the last i); None for
+/// fewer than three points.
+pub fn longest_segment(p: &[Point2<f64>]) -> Option<(usize, f64, f64)> {
+    let m = p.len();
+    if m < 3 {
+        return None;
+    }
+    let (mut at, mut first, mut second) = (0, f64::NEG_INFINITY, f64::NEG_INFINITY);
+    for i in 0..m {
+        let d = (p[(i + 1) % m] - p[i]).norm();
+        if d > first {
+            (at, first, second) = (i, d, first);
+        } else if d > second {
+            second = d;
+        }
+    }
+    Some((at, first, second))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A square's sides are all longest alike; a 60 % arc closed by its chord has the chord
+    /// longest, many times the arc's steps; the companion: a whole circle has no segment longer
+    /// than the rest.
+    #[test]
+    fn the_longest_segment_of_an_arc_closed_by_its_chord_is_the_chord() {
+        let square =
+            [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)].map(|(x, y)| Point2::new(x, y));
+        let (_, a, b) = longest_segment(&square).unwrap();
+        assert_eq!((a, b), (1.0, 1.0));
+        let arc: Vec<Point2<f64>> = (0..60)
+            .map(|k| {
+                let t = std::f64::consts::TAU * 0.6 * k as f64 / 59.0;
+                Point2::new(100.0 * t.cos(), 100.0 * t.sin())
+            })
+            .collect();
+        let (i, chord, step) = longest_segment(&arc).unwrap();
+        assert_eq!(i, 59, "the closing segment");
+        assert!((chord - 2.0 * 100.0 * (0.4 * std::f64::consts::PI).sin()).abs() < 1e-9);
+        assert!(chord > 20.0 * step, "{chord} {step}");
+        // Companion: the whole circle has no such segment.
+        let circle: Vec<Point2<f64>> = (0..60)
+            .map(|k| {
+                let t = std::f64::consts::TAU * k as f64 / 60.0;
+                Point2::new(100.0 * t.cos(), 100.0 * t.sin())
+            })
+            .collect();
+        let (_, a, b) = longest_segment(&circle).unwrap();
+        assert!(a < 1.001 * b);
+        assert_eq!(longest_segment(&square[..2]), None);
+    }
 
     /// A circle winds once round its centre (either way), the same circle traced twice winds
     /// twice, and a point outside it not at all.
