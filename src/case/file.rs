@@ -241,6 +241,8 @@ struct OpenArc {
     next_px: f64,
 }
 
+/// The closed outline `pts`' longest step where it looks like an open arc's chord (`OpenArc`),
+/// else None.
 fn open_arc_closed(pts: &[Point2<f64>]) -> Option<OpenArc> {
     let (from, px, next_px) = longest_segment(pts)?;
     let share = px / widest_extent(pts);

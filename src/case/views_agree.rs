@@ -159,6 +159,7 @@ pub(super) fn outline_centre_mismatch(case: &Views) -> Option<Disagreement> {
     })
 }
 
+/// A `Disagreement` from its three parts.
 fn disagreement(
     field: impl Into<String>,
     value: impl Into<String>,
