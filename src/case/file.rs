@@ -234,16 +234,21 @@ pub const OPEN_ARC_RATIO: f64 = 3.0;
 /// A closed outline's longest step when it looks like an open arc closed by its chord
 /// (`OPEN_ARC_SHARE`, `OPEN_ARC_RATIO`): a warning, not an error, for an outline may bridge
 /// a wide notch.
-struct OpenArc {
-    from: usize,
-    px: f64,
-    share: f64,
-    next_px: f64,
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OpenArc {
+    /// The step runs from this point (of the distinct points) to the next.
+    pub from: usize,
+    /// Its length, px.
+    pub px: f64,
+    /// Its length over the outline's widest extent.
+    pub share: f64,
+    /// The next longest step, px.
+    pub next_px: f64,
 }
 
 /// The closed outline `pts`' longest step where it looks like an open arc's chord (`OpenArc`),
-/// else None.
-fn open_arc_closed(pts: &[Point2<f64>]) -> Option<OpenArc> {
+/// else None: the check a case file's closed contours get.
+pub fn open_arc(pts: &[Point2<f64>]) -> Option<OpenArc> {
     let (from, px, next_px) = longest_segment(pts)?;
     let share = px / widest_extent(pts);
     (share >= OPEN_ARC_SHARE && px >= OPEN_ARC_RATIO * next_px).then_some(OpenArc {
@@ -709,7 +714,7 @@ impl CaseFile {
                             ),
                         ));
                     }
-                    if let Some(w) = open_arc_closed(&pts) {
+                    if let Some(w) = open_arc(&pts) {
                         let (i, j) = (index[w.from], index[(w.from + 1) % distinct]);
                         warnings.push(format!(
                             "{}: {}: a closed outline whose points {i} and {j} lie {:.0} px \

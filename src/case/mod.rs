@@ -11,8 +11,8 @@ mod views_agree;
 pub use agreement::{centre_miss, centre_spread, CentreMiss, MAX_CENTRE_MISS};
 pub use calibration::{Calibrated, CalibrationChoice, CalibrationUsed};
 pub use file::{
-    Case, CaseError, CaseFile, ContourFile, ContourKind, IntrinsicsFile, TemplateFile, ViewFile,
-    ViewGeometry, MIN_HULL_FILL, OPEN_ARC_RATIO, OPEN_ARC_SHARE,
+    open_arc, Case, CaseError, CaseFile, ContourFile, ContourKind, IntrinsicsFile, OpenArc,
+    TemplateFile, ViewFile, ViewGeometry, MIN_HULL_FILL, OPEN_ARC_RATIO, OPEN_ARC_SHARE,
 };
 pub use run::{
     run_case, run_case_calibrated, run_case_with, solve_case, CaseRunError, CaseRunReport,
