@@ -41,8 +41,12 @@ pub fn accuracy_from(samples: &[nalgebra::Point3<f64>], recon: &Mesh) -> Accurac
 pub fn accuracy_and_shift(samples: &[nalgebra::Point3<f64>], recon: &Mesh) -> (Accuracy, Shifted) {
     match super::SurfaceQuery::new(recon) {
         Some(q) => {
-            let d: Vec<f64> = samples.iter().map(|p| q.distance(p)).collect();
-            (accuracy_of(&d), shift_on(&q, samples))
+            // The two measures side by side (on the caller's pool: a study's spare worker).
+            let (d, shifted) = rayon::join(
+                || samples.iter().map(|p| q.distance(p)).collect::<Vec<f64>>(),
+                || shift_on(&q, samples),
+            );
+            (accuracy_of(&d), shifted)
         }
         None => (
             accuracy_of(&vec![f64::INFINITY; samples.len()]),

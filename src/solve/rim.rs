@@ -8,7 +8,9 @@
 //! Murray's radiographic definitions in the case's body frame (x lateral, y anterior, z
 //! superior; the lateral side is whichever way the cup opens).
 
-use crate::geom::{polyline_length, resample_closed, resample_open, Curve, Segments, Sphere};
+use crate::geom::{
+    par_map, polyline_length, resample_closed, resample_open, Curve, Segments, Sphere,
+};
 use crate::views::Camera;
 use nalgebra::{Point2, Point3, Unit, Vector3};
 
@@ -119,7 +121,6 @@ pub fn rim_orientation(
     if points < MIN_POINTS || views < 2 {
         return Err(RimError::TooFewPoints { points, views });
     }
-    let mut d2 = Vec::with_capacity(points);
     // The circle's (cos, sin) at its samples' angles, the same every evaluation.
     let turn = |samples: usize| -> Vec<(f64, f64)> {
         (0..samples)
@@ -130,8 +131,9 @@ pub fn rim_orientation(
             .collect()
     };
     let (coarse_turn, fine_turn) = (turn(36), turn(CIRCLE_SAMPLES));
-    // `coarse`: the rim points against a 36-point circle (the grid's quick look).
-    let mut cost = |n: &Vector3<f64>, h: f64, coarse: bool| -> f64 {
+    // `coarse`: the rim points against a 36-point circle (the grid's quick look). `d2` is the
+    // caller's buffer.
+    let cost = |n: &Vector3<f64>, h: f64, coarse: bool, d2: &mut Vec<f64>| -> f64 {
         let trig = if coarse { &coarse_turn } else { &fine_turn };
         let u = n
             .cross(&if n.x.abs() < 0.9 {
@@ -164,20 +166,32 @@ pub fn rim_orientation(
         d2[..k].iter().sum::<f64>() / k as f64
     };
     // Grid over the opening axis (it always points inferiorly) and the rim's height, then a
-    // pattern search that halves its step when no move helps.
-    let mut best = (f64::INFINITY, 0.0, 0.0, 0.0);
-    for a in (-40..=70).step_by(6) {
+    // pattern search that halves its step when no move helps. The grid's rows (one anteversion
+    // each) are scored side by side; its best is the first lowest in row order, as one pass
+    // over the grid would keep it.
+    let rows: Vec<i32> = (-40..=70).step_by(6).collect();
+    let row_best = par_map(&rows, |_, &a| {
+        let mut d2 = Vec::with_capacity(points);
+        let mut best = (f64::INFINITY, 0.0, 0.0, 0.0);
         for i in (-84..=84).step_by(6) {
             for hk in [-0.3, -0.15, 0.0, 0.15] {
-                let e = cost(&axis_of(a as f64, i as f64), hk * r, true);
+                let e = cost(&axis_of(a as f64, i as f64), hk * r, true, &mut d2);
                 if e < best.0 {
                     best = (e, a as f64, i as f64, hk * r);
                 }
             }
         }
+        best
+    });
+    let mut best = (f64::INFINITY, 0.0, 0.0, 0.0);
+    for b in row_best {
+        if b.0 < best.0 {
+            best = b;
+        }
     }
+    let mut d2 = Vec::with_capacity(points);
     // The grid's best, scored in full, starts the search.
-    best.0 = cost(&axis_of(best.1, best.2), best.3, false);
+    best.0 = cost(&axis_of(best.1, best.2), best.3, false, &mut d2);
     let mut step = 3.0;
     while step > 0.1 {
         let (e0, a0, i0, h0) = best;
@@ -189,7 +203,7 @@ pub fn rim_orientation(
             (0.0, 0.0, 0.1 * step),
             (0.0, 0.0, -0.1 * step),
         ] {
-            let e = cost(&axis_of(a0 + da, i0 + di), h0 + dh, false);
+            let e = cost(&axis_of(a0 + da, i0 + di), h0 + dh, false, &mut d2);
             if e < best.0 {
                 best = (e, a0 + da, i0 + di, h0 + dh);
             }

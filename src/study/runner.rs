@@ -170,19 +170,27 @@ impl Prepared {
         geometry: &XrayGeometry,
         template: &TemplateParams,
     ) -> Result<Prepared, SimError> {
-        let setup = SimSetup::new(truth, geometry)?;
-        let truth_orientation = NoiseLevel::level(0)
-            .and_then(|l| setup.case(0.0, &l, 0).ok())
-            .and_then(|exact| {
-                rim_orientation(&exact.cameras, &exact.observed, &exact.truth_sphere).ok()
-            })
-            .map(|o| (o.inclination_deg, o.anteversion_deg));
+        // The simulation set-up and the truth's rim fit beside the accuracy's samples and query.
+        let (setup, (samples, interior)) = rayon::join(
+            || -> Result<_, SimError> {
+                let setup = SimSetup::new(truth, geometry)?;
+                let orientation = NoiseLevel::level(0)
+                    .and_then(|l| setup.case(0.0, &l, 0).ok())
+                    .and_then(|exact| {
+                        rim_orientation(&exact.cameras, &exact.observed, &exact.truth_sphere).ok()
+                    })
+                    .map(|o| (o.inclination_deg, o.anteversion_deg));
+                Ok((setup, orientation))
+            },
+            || (accuracy_samples(truth), InteriorQuery::new(truth)),
+        );
+        let (setup, truth_orientation) = setup?;
         Ok(Prepared {
             template: Template::cap(template).map_err(crate::pipeline::ReconError::from)?,
             setup,
             truth: truth.clone(),
-            samples: accuracy_samples(truth),
-            interior: InteriorQuery::new(truth),
+            samples,
+            interior,
             truth_orientation,
         })
     }

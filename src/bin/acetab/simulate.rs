@@ -529,8 +529,21 @@ impl Study<'_> {
         );
         let start = std::time::Instant::now();
         let stats_before = batcher.map(|b| b.stats());
-        let (rows, examples) = run_study(&truth, cfg, &|| bar.inc(1), kernels)
-            .map_err(|e| format!("--gt {gt}: {e}"))?;
+        // The truth's cup, and the sphere through its own outline-forming vertices: how far a
+        // cup read from these outlines alone is off for this truth before any noise (None when
+        // no sphere fits them); found beside the runs.
+        let truth_spheres = || match SimSetup::new(&truth, &cfg.geometry) {
+            Ok(s) => (
+                Some(s.sphere.diameter()),
+                s.outline_sphere(&truth).ok().map(|o| o.diameter()),
+            ),
+            Err(_) => (None, None),
+        };
+        let (study, (truth_cup, outline_cup)) = rayon::join(
+            || run_study(&truth, cfg, &|| bar.inc(1), kernels),
+            truth_spheres,
+        );
+        let (rows, examples) = study.map_err(|e| format!("--gt {gt}: {e}"))?;
         if let Some(b) = batcher {
             let (req, disp) = b.counts();
             eprintln!(
@@ -551,16 +564,6 @@ impl Study<'_> {
                 rows[0].error
             ));
         }
-        // The truth's cup, and the sphere through its own outline-forming vertices: how far a cup
-        // read from these outlines alone is off for this truth before any noise (null when no
-        // sphere fits them).
-        let (truth_cup, outline_cup) = match SimSetup::new(&truth, &cfg.geometry) {
-            Ok(s) => (
-                Some(s.sphere.diameter()),
-                s.outline_sphere(&truth).ok().map(|o| o.diameter()),
-            ),
-            Err(_) => (None, None),
-        };
         let mut meta = self.settings();
         let own_keys = serde_json::json!({
             // A mesh by its canonical path, so shards given it relatively and absolutely agree.
@@ -601,8 +604,13 @@ impl Study<'_> {
         fill_dir_atomically(
             out,
             |d| {
-                let mut warnings = write_tables(&rows, d, &meta).map_err(|e| e.to_string())?;
-                warnings.extend(write_examples(&examples, &truth, d).map_err(|e| e.to_string())?);
+                // The tables and the examples' meshes and pictures are written side by side.
+                let (tables, pictures) = rayon::join(
+                    || write_tables(&rows, d, &meta),
+                    || write_examples(&examples, &truth, d),
+                );
+                let mut warnings = tables.map_err(|e| e.to_string())?;
+                warnings.extend(pictures.map_err(|e| e.to_string())?);
                 for w in warnings {
                     eprintln!("acetab: warning: {}", crate::common::unstage(&w, out));
                 }
