@@ -167,13 +167,6 @@ pub fn alpha_shape_contour(
                 pts.reverse();
                 ids.reverse();
             }
-            // The outline starts at its lowest vertex index: where the trace entered the loop
-            // is the triangulation's accident, and a closed curve's first point is where its
-            // resampling starts.
-            if let Some(k) = (0..ids.len()).min_by_key(|&k| ids[k]) {
-                ids.rotate_left(k);
-                pts.rotate_left(k);
-            }
             return Ok(ModelContour {
                 vertex_ids: ids,
                 points: pts,

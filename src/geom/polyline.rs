@@ -11,27 +11,6 @@ pub struct Curve {
     pub closed: bool,
 }
 
-impl Curve {
-    /// The same curve entered at a point fixed by its shape: a closed curve starts at its
-    /// leftmost vertex (the topmost-in-y of equally left ones), so that where an annotator began
-    /// clicking, or a triangulation began tracing, cannot change a result; an open curve, whose
-    /// ends are its own, as it is.
-    pub fn from_fixed_start(&self) -> Curve {
-        let mut points = self.points.clone();
-        if self.closed {
-            let first = (0..points.len()).min_by(|&i, &j| {
-                let (p, q) = (points[i], points[j]);
-                p.x.total_cmp(&q.x).then(p.y.total_cmp(&q.y))
-            });
-            points.rotate_left(first.unwrap_or(0));
-        }
-        Curve {
-            points,
-            closed: self.closed,
-        }
-    }
-}
-
 /// Length of the polyline (including the closing segment when `closed`).
 pub fn polyline_length(p: &[Point2<f64>], closed: bool) -> f64 {
     let mut l: f64 = p.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
