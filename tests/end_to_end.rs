@@ -261,10 +261,14 @@ fn compared_at_level_3_run_0(file: &str, lead: &str, kept: &str, max_mae: f64) -
 
 #[test]
 fn an_orientation_the_cap_cannot_choose_is_chosen_after_a_deformation_round() {
-    // a46_rhip (the JHU pelvis atlas) level 3, run 0: the mirrored cap scores within the
-    // MIRROR_SWITCH band of the given one in stage A, which leads and is wrong.
-    let file = "pelvis-atlas/acetabula/a46_rhip.stl";
-    if !compared_at_level_3_run_0(file, "stage A", "mirrored", 1.2) {
+    // a02_rhip (the JHU pelvis atlas) level 3, run 0: the mirrored cap scores within the
+    // MIRROR_SWITCH band of the given one in stage A, which leads and is wrong (0.754 mm with
+    // the comparison, 1.004 mm without, when this case was chosen by a scan of the 47
+    // acetabula at levels 1, 3, 5: the largest gain of the 91 runs whose comparison kept the
+    // mirrored cap; a46_rhip's level-3 run 0 was the case until the outlines were entered at a
+    // fixed point, and no longer needs the comparison).
+    let file = "pelvis-atlas/acetabula/a02_rhip.stl";
+    if !compared_at_level_3_run_0(file, "stage A", "mirrored", 0.9) {
         return;
     }
     // Companion: without the comparison (and without restarts, which could also rescue it)
@@ -272,7 +276,7 @@ fn an_orientation_the_cap_cannot_choose_is_chosen_after_a_deformation_round() {
     let (wrong, none) = shared_run(file, 3, 0, &no_comparison_no_restarts()).unwrap();
     println!("without the comparison: MAE {wrong:.3} mm");
     assert!(none.orientations.is_empty());
-    assert!(wrong >= 1.2, "MAE {wrong}");
+    assert!(wrong >= 0.9, "MAE {wrong}");
 }
 
 /// The pose-refinement bar on a small sample: views 1 and 2 off by 2 degrees and 5 mm.
@@ -360,10 +364,12 @@ fn atlas_row(
 
 #[test]
 fn a_start_too_far_off_for_any_outline_restarts_from_the_limb_sphere() {
-    // a02_rhip, the realistic protocol with pose refinement, level 5 run 0: with pose refinement
+    // a10_rhip, the realistic protocol with pose refinement, level 5 run 1: with pose refinement
     // stage 0 does not put the cap on the limb sphere, and level 5's start lies so far off
     // (100 mm SD per axis) that the first correspondences cannot form (a view's model contour
-    // collapses to one point). Started again on the limb sphere, the run gives a result.
+    // collapses to one point). Started again on the limb sphere, the run gives a result. (Six
+    // of the 117 atlas runs at level 5, runs 0-2, restart so; a02_rhip's run 0 was the case
+    // until the outlines were entered at a fixed point.)
     let realistic = || acetab::sim::Protocol::Realistic(acetab::sim::RealisticErrors::default());
     let prm = |limb_restart: bool| ReconParams {
         pose: Some(acetab::solve::PoseParams::default()),
@@ -373,11 +379,11 @@ fn a_start_too_far_off_for_any_outline_restarts_from_the_limb_sphere() {
         },
         ..Default::default()
     };
-    let Some(row) = atlas_row("a02_rhip", 5, 0, prm(true), realistic()) else {
+    let Some(row) = atlas_row("a10_rhip", 5, 1, prm(true), realistic()) else {
         return;
     };
     println!(
-        "a02_rhip realistic L5 run 0: MAE {:.3} mm, cup {:.2} (truth {:.2}), restart {:?}",
+        "a10_rhip realistic L5 run 1: MAE {:.3} mm, cup {:.2} (truth {:.2}), restart {:?}",
         row.mae_mm, row.cup_diameter_mm, row.gt_cup_diameter_mm, row.restart
     );
     assert!(row.error.is_empty(), "{}", row.error);
@@ -385,7 +391,7 @@ fn a_start_too_far_off_for_any_outline_restarts_from_the_limb_sphere() {
     assert!(row.mae_mm < 2.0, "MAE {}", row.mae_mm);
     assert!((row.cup_diameter_mm - row.gt_cup_diameter_mm).abs() < 3.0);
     // The companion: without the restart the same run fails, with the reason.
-    let without = atlas_row("a02_rhip", 5, 0, prm(false), realistic()).unwrap();
+    let without = atlas_row("a10_rhip", 5, 1, prm(false), realistic()).unwrap();
     assert!(
         without.error.contains("model contour"),
         "{:?}",
@@ -395,36 +401,72 @@ fn a_start_too_far_off_for_any_outline_restarts_from_the_limb_sphere() {
 
 #[test]
 fn a_result_that_leaves_the_outlines_restarts_from_tilted_starts() {
-    // m3_lhip (LibHip) level 4 run 5 with stage A's lead alone going on to stage B: stage A
-    // settles on a wrong turn of the cap and the result leaves stretches of the outlines
-    // unfollowed. (With the default comparison of both orientations in stage B that run needs
-    // no restart.)
-    let lead_alone = || {
-        let mut prm = ReconParams::default();
-        prm.deformation.orientation_rounds = 0;
-        prm
+    // a08_rhip level 1 run 1: stage A settles on a wrong turn of the cap, and the result's
+    // outlines lie 2.4 px (RMS) from the annotations, its surface 1.5 mm off. The default
+    // trigger (4 px) and the guards let it through; here the guards are off and the trigger is
+    // 2 px, so what is tested is the restart alone: the tilted starts' results are ranked by how
+    // near their outlines lie, and the nearest is kept. (Since the closed outlines are entered
+    // at a fixed point, no shared run whose outlines lie more than 4 px off ends better for
+    // restarting: docs/population.md.)
+    let prm = |trigger: f64| ReconParams {
+        guards: None,
+        placement: PlacementParams {
+            restart_above_px: trigger,
+            ..Default::default()
+        },
+        ..Default::default()
     };
-    let file = "acetabula/m3_lhip_ac_wo_gap.stl";
-    let Some((mae, log)) = shared_run(file, 4, 5, &lead_alone()) else {
+    let Some(row) = atlas_run("a08_rhip", 1, 1, prm(2.0)) else {
         return;
     };
     println!(
-        "m3_lhip L4 run 5: MAE {mae:.3} mm, restart {:?}",
-        log.restart
+        "a08_rhip L1 run 1: MAE {:.3} mm, outlines {:.2} px, restart {:?}",
+        row.mae_mm, row.outline_px, row.restart
     );
-    assert!(mae < 1.0, "MAE {mae}");
+    assert!(row.mae_mm < 1.0, "MAE {}", row.mae_mm);
     assert!(
-        log.restart.is_some_and(|r| r != "given"),
+        ["+u", "-u", "+v", "-v"].contains(&row.restart.as_str()),
         "{:?}",
-        log.restart
+        row.restart
     );
-    // Companion: without restarts the given start's result stays, and the same bound rejects it.
-    let mut prm = lead_alone();
-    prm.placement.restart_above_px = f64::INFINITY;
-    let (alone, log) = shared_run(file, 4, 5, &prm).unwrap();
-    println!("without restarts: MAE {alone:.3} mm");
-    assert!(log.restart.is_none());
-    assert!(alone >= 1.0, "MAE {alone}");
+    assert!(row.outline_px < 2.0, "{}", row.outline_px);
+    // Companion: without restarts the given start's result stays, and the same bounds reject it.
+    let alone = atlas_run("a08_rhip", 1, 1, prm(f64::INFINITY)).unwrap();
+    println!(
+        "without restarts: MAE {:.3} mm, outlines {:.2} px",
+        alone.mae_mm, alone.outline_px
+    );
+    assert!(alone.restart.is_empty(), "{:?}", alone.restart);
+    assert!(alone.mae_mm >= 1.0, "MAE {}", alone.mae_mm);
+    assert!(alone.outline_px >= 2.0, "{}", alone.outline_px);
+}
+
+#[test]
+fn a_result_a_guard_refuses_restarts_before_it_falls_back() {
+    // a55_lhip level 1 run 0 with the default settings: the given start's cup sphere lies
+    // 9.1 mm from the outlines' limb sphere, its radius 23.6 mm against the limb's 30.9 (the
+    // limb-sphere guard refuses it; its surface is 1.36 mm off), so the run restarts from the
+    // tilted starts, and one of them passes the guards: no fallback is needed.
+    let Some(row) = atlas_run("a55_lhip", 1, 0, ReconParams::default()) else {
+        return;
+    };
+    println!(
+        "a55_lhip L1 run 0: MAE {:.3} mm, restart {:?}, fallback {:?}",
+        row.mae_mm, row.restart, row.fallback
+    );
+    assert!(
+        ["+u", "-u", "+v", "-v"].contains(&row.restart.as_str()),
+        "{:?}",
+        row.restart
+    );
+    assert!(row.fallback.is_empty(), "{:?}", row.fallback);
+    assert!(row.mae_mm < 1.0, "MAE {}", row.mae_mm);
+    // Companion: with no tilted starts the guard's refusal stands and a fallback is taken.
+    let mut prm = ReconParams::default();
+    prm.placement.restart_tilts = 0;
+    let alone = atlas_run("a55_lhip", 1, 0, prm).unwrap();
+    println!("without tilted starts: fallback {:?}", alone.fallback);
+    assert!(!alone.fallback.is_empty());
 }
 
 #[test]

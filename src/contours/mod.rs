@@ -2,7 +2,6 @@
 //! template vertices; observed contours are pixel polylines annotated on the X-ray.
 
 mod alpha_shape;
-mod bulk_order;
 mod curve_file;
 mod silhouette;
 

@@ -13,7 +13,7 @@ use nalgebra::Point2;
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum ContourSource {
-    /// Alpha shape of the projected vertices (spade Delaunay).
+    /// Alpha shape of the projected vertices (Delaunay triangulation by delaunator).
     #[default]
     AlphaShape,
     /// Rasterised silhouette (render pass + edge kernel on the GPU, its twin on the CPU).

@@ -173,7 +173,7 @@ impl Kernels<'_> {
         source: ContourSource,
     ) -> Result<Vec<ModelContour>, KernelError> {
         match (self, source) {
-            // Alpha shapes are a CPU algorithm (spade's Delaunay) on f64 projections for every
+            // Alpha shapes are a CPU algorithm (delaunator's Delaunay) on f64 projections for every
             // backend: on a projected near-regular grid many point quadruples are nearly
             // cocircular, and the last bits of an f32 projection flip Delaunay and alpha
             // decisions, so GPU projections would make the backends disagree. The GPU projects

@@ -11,6 +11,35 @@ pub struct Curve {
     pub closed: bool,
 }
 
+impl Curve {
+    /// The same curve entered at a point fixed by its shape: a closed curve starts at its
+    /// leftmost vertex (the topmost-in-y of equally left ones), so that where an annotator began
+    /// clicking, or a triangulation began tracing, cannot change a result; an open curve, whose
+    /// ends are its own, as it is.
+    pub fn from_fixed_start(&self) -> Curve {
+        let mut points = self.points.clone();
+        if self.closed {
+            let k = fixed_start(&points);
+            points.rotate_left(k);
+        }
+        Curve {
+            points,
+            closed: self.closed,
+        }
+    }
+}
+
+/// Where a closed polyline is entered by its shape alone: the index of its leftmost point (the
+/// topmost-in-y of equally left ones; 0 for none).
+pub fn fixed_start(points: &[Point2<f64>]) -> usize {
+    (0..points.len())
+        .min_by(|&i, &j| {
+            let (p, q) = (points[i], points[j]);
+            p.x.total_cmp(&q.x).then(p.y.total_cmp(&q.y))
+        })
+        .unwrap_or(0)
+}
+
 /// Length of the polyline (including the closing segment when `closed`).
 pub fn polyline_length(p: &[Point2<f64>], closed: bool) -> f64 {
     let mut l: f64 = p.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
@@ -213,6 +242,36 @@ pub fn longest_segment(p: &[Point2<f64>]) -> Option<(usize, f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A closed curve entered anywhere comes out entered at the same point (its leftmost), and
+    /// an open one as it was. Companion: a curve with its leftmost point moved right starts
+    /// elsewhere.
+    #[test]
+    fn a_closed_curve_is_entered_at_its_leftmost_point_wherever_it_started() {
+        let pts: Vec<Point2<f64>> = (0..12)
+            .map(|k| {
+                let t = k as f64 * std::f64::consts::TAU / 12.0 + 0.1;
+                Point2::new(10.0 * t.cos() + (k % 3) as f64, 6.0 * t.sin())
+            })
+            .collect();
+        let curve = |points: Vec<Point2<f64>>, closed| Curve { points, closed };
+        let fixed = curve(pts.clone(), true).from_fixed_start();
+        let left = pts.iter().map(|p| p.x).fold(f64::INFINITY, f64::min);
+        assert_eq!(fixed.points[0].x, left);
+        for k in 0..pts.len() {
+            let mut turned = pts.clone();
+            turned.rotate_left(k);
+            assert_eq!(curve(turned.clone(), true).from_fixed_start(), fixed);
+            assert_eq!(
+                curve(turned.clone(), false).from_fixed_start().points,
+                turned
+            );
+        }
+        let mut moved = pts.clone();
+        let k = fixed_start(&pts);
+        moved[k].x += 5.0;
+        assert_ne!(fixed_start(&moved), k);
+    }
 
     /// A square's sides are all longest alike; a 60 % arc closed by its chord has the chord
     /// longest, many times the arc's steps; the companion: a whole circle has no segment longer

@@ -19,13 +19,21 @@ pub(super) struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    /// The model contour of `mesh` in each of `cams`.
+    /// The model contour of `mesh` in each of `cams`, entered at its leftmost point as the
+    /// observed outlines are (`Curve::from_fixed_start`): the two closed curves the
+    /// correspondences align start at matching places.
     pub(super) fn contours(
         &self,
         mesh: &Mesh,
         cams: &[Camera],
     ) -> Result<Vec<ModelContour>, ReconError> {
-        Ok(self.kernels.contours(mesh, cams, self.prm.contour_source)?)
+        let mut contours = self.kernels.contours(mesh, cams, self.prm.contour_source)?;
+        for c in &mut contours {
+            let k = crate::geom::fixed_start(&c.points);
+            c.points.rotate_left(k);
+            c.vertex_ids.rotate_left(k);
+        }
+        Ok(contours)
     }
 
     /// Correspondences of the model contours `model` (one per view) with every observed

@@ -31,7 +31,10 @@ impl StageB {
         let (rounds, lm) = match prm.method {
             Method::Srvf => (
                 prm.deformation.correspondence_updates.max(1),
-                prm.lm.clone(),
+                LmParams {
+                    rel_tol: prm.deformation.round_rel_tol,
+                    ..prm.lm.clone()
+                },
             ),
             Method::Icp | Method::IcpNormvec => (
                 prm.deformation.icp_iterations.max(1),
@@ -313,4 +316,39 @@ pub(super) fn resolve_from(
     };
     let (out, _) = state.solve(ctx, &round, ctx.cams, mesh, &drawn)?;
     Ok((out, obs))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// SRVF's correspondence rounds stop at `deformation.round_rel_tol`; the baselines' single
+    /// iterations and every other solve keep `lm.rel_tol`. Companion: a round tolerance set
+    /// elsewhere reaches SRVF's rounds and not the baselines'.
+    #[test]
+    fn srvf_rounds_settle_at_their_own_tolerance() {
+        let mut prm = ReconParams::default();
+        let srvf = |prm: &ReconParams| {
+            StageB::new(&ReconParams {
+                method: Method::Srvf,
+                ..prm.clone()
+            })
+            .lm
+            .rel_tol
+        };
+        let icp = |prm: &ReconParams| {
+            StageB::new(&ReconParams {
+                method: Method::Icp,
+                ..prm.clone()
+            })
+            .lm
+            .rel_tol
+        };
+        assert_eq!(srvf(&prm), 1e-3);
+        assert_eq!(icp(&prm), prm.lm.rel_tol);
+        assert_ne!(prm.lm.rel_tol, 1e-3);
+        prm.deformation.round_rel_tol = 3e-3;
+        assert_eq!(srvf(&prm), 3e-3);
+        assert_eq!(icp(&prm), prm.lm.rel_tol);
+    }
 }
