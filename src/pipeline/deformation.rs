@@ -328,22 +328,16 @@ mod tests {
     #[test]
     fn srvf_rounds_settle_at_their_own_tolerance() {
         let mut prm = ReconParams::default();
-        let srvf = |prm: &ReconParams| {
+        let tol = |method: Method, prm: &ReconParams| {
             StageB::new(&ReconParams {
-                method: Method::Srvf,
+                method,
                 ..prm.clone()
             })
             .lm
             .rel_tol
         };
-        let icp = |prm: &ReconParams| {
-            StageB::new(&ReconParams {
-                method: Method::Icp,
-                ..prm.clone()
-            })
-            .lm
-            .rel_tol
-        };
+        let srvf = |prm: &ReconParams| tol(Method::Srvf, prm);
+        let icp = |prm: &ReconParams| tol(Method::Icp, prm);
         assert_eq!(srvf(&prm), 1e-3);
         assert_eq!(icp(&prm), prm.lm.rel_tol);
         assert_ne!(prm.lm.rel_tol, 1e-3);
