@@ -87,4 +87,16 @@ for be in cpu ${backend:+gpu gpu-dp-host}; do
   python3 -c 'import json,sys; print(json.dumps(json.load(open(sys.argv[1]))["study"]["engine"]))' \
     "$out/study-$be/summary.json" 2>/dev/null | tee -a "$out/check.log"
 done
+# The GPU studies against the CPU study, run by run (issue 18: MAE within 0.05 mm, cup within
+# 0.1 mm).
+for be in ${backend:+gpu gpu-dp-host}; do
+  python3 - "$out/study-cpu/runs.csv" "$out/study-$be/runs.csv" <<'PY' 2>&1 | sed "s/^/agreement $be: /" | tee -a "$out/check.log"
+import csv, sys
+a, b = (list(csv.DictReader(open(f))) for f in sys.argv[1:3])
+if len(a) != len(b) or not a:
+    sys.exit(f"{len(a)} CPU runs against {len(b)}")
+d = lambda k: max(abs(float(x[k]) - float(y[k])) for x, y in zip(a, b))
+print(f"{len(a)} runs, largest difference: MAE {d('mae_mm'):.2e} mm, cup {d('cup_diameter_mm'):.2e} mm")
+PY
+done
 log "done"
