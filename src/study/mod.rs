@@ -16,7 +16,9 @@ pub mod view_plan;
 
 pub use method::StudyMethod;
 pub use outputs::{write_examples, write_tables};
-pub use runner::{run_one, run_study, tasks, ExampleRun, StudyConfig};
+pub use runner::{
+    run_one, run_study, run_study_and_truth, tasks, ExampleRun, StudyConfig, TruthSpheres,
+};
 pub use table::{
     check_complete, merge_dirs, merge_meta, read_csv, summarize, write_csv, Row, StudyError,
     Summary,

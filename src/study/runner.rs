@@ -303,21 +303,61 @@ pub fn run_study(
     tick: &(dyn Fn() + Sync),
     kernels: Kernels,
 ) -> Result<(Vec<Row>, Vec<ExampleRun>), SimError> {
+    let (rows, ex, ()) = study_with(truth, cfg, tick, kernels, |_| ())?;
+    Ok((rows, ex))
+}
+
+/// The truth's cup sphere, and the sphere through its own outline-forming vertices: how far a
+/// cup read from these outlines alone is off for this truth before any noise.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TruthSpheres {
+    /// The truth's cup diameter, mm.
+    pub cup_mm: f64,
+    /// The outline-forming vertices' sphere's diameter, mm (None when no sphere fits them).
+    pub outline_mm: Option<f64>,
+}
+
+/// `run_study`, and the truth's spheres from the study's own set-up, found beside the runs.
+pub fn run_study_and_truth(
+    truth: &Mesh,
+    cfg: &StudyConfig,
+    tick: &(dyn Fn() + Sync),
+    kernels: Kernels,
+) -> Result<(Vec<Row>, Vec<ExampleRun>, TruthSpheres), SimError> {
+    study_with(truth, cfg, tick, kernels, |prep| TruthSpheres {
+        cup_mm: prep.setup.sphere.diameter(),
+        outline_mm: prep.setup.outline_sphere(truth).ok().map(|o| o.diameter()),
+    })
+}
+
+/// `run_study`, with `beside` run on the prepared truth beside the runs.
+fn study_with<B: Send>(
+    truth: &Mesh,
+    cfg: &StudyConfig,
+    tick: &(dyn Fn() + Sync),
+    kernels: Kernels,
+    beside: impl FnOnce(&Prepared) -> B + Send,
+) -> Result<(Vec<Row>, Vec<ExampleRun>, B), SimError> {
     cfg.validate()?;
     let list = tasks(cfg);
     let prep = Prepared::new(truth, &cfg.geometry, &cfg.template)?;
     let first_of_method =
         |k: usize| list.iter().position(|t| t.method == list[k].method) == Some(k);
-    let done = pool_map(cfg.threads, &list, |k, task| {
-        // On the batched GPU the runs in flight advance in lock-step.
-        let _lockstep = match kernels {
-            Kernels::Batched(b) => Some(b.run()),
-            _ => None,
-        };
-        let (row, ex) = run_prepared(&prep, task, cfg, kernels);
-        tick();
-        (row, ex.filter(|_| first_of_method(k)))
-    });
+    let (done, b) = rayon::join(
+        || {
+            pool_map(cfg.threads, &list, |k, task| {
+                // On the batched GPU the runs in flight advance in lock-step.
+                let _lockstep = match kernels {
+                    Kernels::Batched(b) => Some(b.run()),
+                    _ => None,
+                };
+                let (row, ex) = run_prepared(&prep, task, cfg, kernels);
+                tick();
+                (row, ex.filter(|_| first_of_method(k)))
+            })
+        },
+        || beside(&prep),
+    );
     let mut rows = Vec::with_capacity(done.len());
     let mut ex = Vec::new();
     for (row, example) in done {
@@ -325,7 +365,7 @@ pub fn run_study(
         ex.extend(example);
     }
     ex.sort_by_key(|e| e.task.method);
-    Ok((rows, ex))
+    Ok((rows, ex, b))
 }
 
 /// The largest turn (degrees) and the largest shift (mm) any view's pose correction has, each
@@ -398,6 +438,36 @@ mod tests {
             ..Default::default()
         };
         assert!(edge.validate().is_ok());
+    }
+
+    /// The truth's spheres are those of the study's own set-up, equal to a set-up made apart
+    /// from it. Companion: the truth scaled by 1.1 gives another cup.
+    #[test]
+    fn the_truth_spheres_come_from_the_studys_own_set_up() {
+        let truth = crate::sim::phantom(&Default::default()).mesh;
+        let cfg = StudyConfig {
+            levels: vec![1],
+            runs: 0,
+            ..Default::default()
+        };
+        let spheres = |t: &Mesh| {
+            run_study_and_truth(t, &cfg, &|| {}, Kernels::Cpu)
+                .unwrap()
+                .2
+        };
+        let got = spheres(&truth);
+        let apart = SimSetup::new(&truth, &cfg.geometry).unwrap();
+        assert_eq!(got.cup_mm, apart.sphere.diameter());
+        assert_eq!(
+            got.outline_mm,
+            apart.outline_sphere(&truth).ok().map(|o| o.diameter())
+        );
+        assert!(got.outline_mm.is_some());
+        let mut bigger = truth.clone();
+        for v in &mut bigger.vertices {
+            *v = nalgebra::Point3::from(v.coords * 1.1);
+        }
+        assert!((spheres(&bigger).cup_mm - got.cup_mm * 1.1).abs() < 1e-6 * got.cup_mm);
     }
 
     #[test]

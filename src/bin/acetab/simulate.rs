@@ -13,8 +13,8 @@ use acetab::engine::{BackendChoice, Kernels};
 use acetab::io::fill_dir_atomically;
 use acetab::pipeline::{DeformationParams, ReconParams, UncertaintyParams};
 use acetab::report::Provenance;
-use acetab::sim::{Protocol, RealisticErrors, SimSetup, XrayGeometry};
-use acetab::study::{run_study, tasks, write_examples, write_tables, StudyConfig};
+use acetab::sim::{Protocol, RealisticErrors, XrayGeometry};
+use acetab::study::{run_study_and_truth, tasks, write_examples, write_tables, StudyConfig};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use sweep::{population_meshes, sweep};
@@ -529,21 +529,11 @@ impl Study<'_> {
         );
         let start = std::time::Instant::now();
         let stats_before = batcher.map(|b| b.stats());
-        // The truth's cup, and the sphere through its own outline-forming vertices: how far a
-        // cup read from these outlines alone is off for this truth before any noise (None when
-        // no sphere fits them); found beside the runs.
-        let truth_spheres = || match SimSetup::new(&truth, &cfg.geometry) {
-            Ok(s) => (
-                Some(s.sphere.diameter()),
-                s.outline_sphere(&truth).ok().map(|o| o.diameter()),
-            ),
-            Err(_) => (None, None),
-        };
-        let (study, (truth_cup, outline_cup)) = rayon::join(
-            || run_study(&truth, cfg, &|| bar.inc(1), kernels),
-            truth_spheres,
-        );
-        let (rows, examples) = study.map_err(|e| format!("--gt {gt}: {e}"))?;
+        // The truth's cup, and the sphere through its own outline-forming vertices (from the
+        // study's own set-up, beside the runs).
+        let (rows, examples, spheres) = run_study_and_truth(&truth, cfg, &|| bar.inc(1), kernels)
+            .map_err(|e| format!("--gt {gt}: {e}"))?;
+        let (truth_cup, outline_cup) = (Some(spheres.cup_mm), spheres.outline_mm);
         if let Some(b) = batcher {
             let (req, disp) = b.counts();
             eprintln!(
