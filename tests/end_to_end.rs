@@ -399,6 +399,11 @@ fn a_start_too_far_off_for_any_outline_restarts_from_the_limb_sphere() {
     );
 }
 
+/// Whether a run's `restart` names one of the tilted starts (`pipeline::restart`).
+fn is_tilted_start(restart: &str) -> bool {
+    ["+u", "-u", "+v", "-v"].contains(&restart)
+}
+
 #[test]
 fn a_result_that_leaves_the_outlines_restarts_from_tilted_starts() {
     // a08_rhip level 1 run 1: stage A settles on a wrong turn of the cap, and the result's
@@ -424,11 +429,7 @@ fn a_result_that_leaves_the_outlines_restarts_from_tilted_starts() {
         row.mae_mm, row.outline_px, row.restart
     );
     assert!(row.mae_mm < 1.0, "MAE {}", row.mae_mm);
-    assert!(
-        ["+u", "-u", "+v", "-v"].contains(&row.restart.as_str()),
-        "{:?}",
-        row.restart
-    );
+    assert!(is_tilted_start(&row.restart), "{:?}", row.restart);
     assert!(row.outline_px < 2.0, "{}", row.outline_px);
     // Companion: without restarts the given start's result stays, and the same bounds reject it.
     let alone = atlas_run("a08_rhip", 1, 1, prm(f64::INFINITY)).unwrap();
@@ -454,11 +455,7 @@ fn a_result_a_guard_refuses_restarts_before_it_falls_back() {
         "a55_lhip L1 run 0: MAE {:.3} mm, restart {:?}, fallback {:?}",
         row.mae_mm, row.restart, row.fallback
     );
-    assert!(
-        ["+u", "-u", "+v", "-v"].contains(&row.restart.as_str()),
-        "{:?}",
-        row.restart
-    );
+    assert!(is_tilted_start(&row.restart), "{:?}", row.restart);
     assert!(row.fallback.is_empty(), "{:?}", row.fallback);
     assert!(row.mae_mm < 1.0, "MAE {}", row.mae_mm);
     // Companion: with no tilted starts the guard's refusal stands and a fallback is taken.

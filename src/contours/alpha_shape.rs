@@ -41,6 +41,14 @@ pub struct ModelContour {
     pub points: Vec<Point2<f64>>,
 }
 
+impl ModelContour {
+    /// The same closed outline entered at its `k`-th point (points and vertex ids together).
+    pub fn start_at(&mut self, k: usize) {
+        self.vertex_ids.rotate_left(k);
+        self.points.rotate_left(k);
+    }
+}
+
 /// Default alpha (circumradius bound, pixels): 1.2 times the 95th percentile of projected edge lengths.
 pub fn default_alpha(mesh: &Mesh, projected: &[Point2<f64>]) -> f64 {
     alpha_from_edges(&mesh.edges(), projected)
@@ -170,14 +178,13 @@ pub fn alpha_shape_contour(
             // The outline starts at its lowest vertex index: where a loop is entered is the
             // triangulation's accident, and a closed curve's first point is where its
             // resampling starts.
-            if let Some(k) = (0..ids.len()).min_by_key(|&k| ids[k]) {
-                ids.rotate_left(k);
-                pts.rotate_left(k);
-            }
-            return Ok(ModelContour {
+            let first = (0..ids.len()).min_by_key(|&k| ids[k]).unwrap_or(0);
+            let mut contour = ModelContour {
                 vertex_ids: ids,
                 points: pts,
-            });
+            };
+            contour.start_at(first);
+            return Ok(contour);
         }
         alpha *= 1.5;
     }
@@ -388,9 +395,7 @@ mod tests {
         let mut shuffled: Vec<Point2<f64>> = pts.iter().rev().step_by(2).copied().collect();
         shuffled.extend(pts.iter().rev().skip(1).step_by(2));
         let from_left = |mut p: Vec<Point2<f64>>| {
-            let k = (0..p.len())
-                .min_by(|&i, &j| p[i].x.total_cmp(&p[j].x))
-                .unwrap();
+            let k = crate::geom::fixed_start(&p);
             p.rotate_left(k);
             p
         };

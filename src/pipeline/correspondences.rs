@@ -29,9 +29,7 @@ impl Ctx<'_> {
     ) -> Result<Vec<ModelContour>, ReconError> {
         let mut contours = self.kernels.contours(mesh, cams, self.prm.contour_source)?;
         for c in &mut contours {
-            let k = crate::geom::fixed_start(&c.points);
-            c.points.rotate_left(k);
-            c.vertex_ids.rotate_left(k);
+            c.start_at(crate::geom::fixed_start(&c.points));
         }
         Ok(contours)
     }

@@ -531,9 +531,9 @@ impl Study<'_> {
         let stats_before = batcher.map(|b| b.stats());
         // The truth's cup, and the sphere through its own outline-forming vertices (from the
         // study's own set-up, beside the runs).
-        let (rows, examples, spheres) = run_study_and_truth(&truth, cfg, &|| bar.inc(1), kernels)
-            .map_err(|e| format!("--gt {gt}: {e}"))?;
-        let (truth_cup, outline_cup) = (Some(spheres.cup_mm), spheres.outline_mm);
+        let (rows, examples, truth_spheres) =
+            run_study_and_truth(&truth, cfg, &|| bar.inc(1), kernels)
+                .map_err(|e| format!("--gt {gt}: {e}"))?;
         if let Some(b) = batcher {
             let (req, disp) = b.counts();
             eprintln!(
@@ -558,8 +558,8 @@ impl Study<'_> {
         let own_keys = serde_json::json!({
             // A mesh by its canonical path, so shards given it relatively and absolutely agree.
             "gt": std::fs::canonicalize(gt).map_or_else(|_| gt.to_string(), |p| p.display().to_string()),
-            "truth_cup_diameter_mm": truth_cup,
-            "truth_outline_sphere_diameter_mm": outline_cup,
+            "truth_cup_diameter_mm": truth_spheres.cup_mm,
+            "truth_outline_sphere_diameter_mm": truth_spheres.outline_mm,
             "seconds": start.elapsed().as_secs_f64(),
             "cup_model_sd_mm": cfg.uncertainty.as_ref().map(|u| u.model_sd_mm),
             "cup_bias_mm": cfg.params.cup.bias_mm,
@@ -615,7 +615,8 @@ impl Study<'_> {
             start.elapsed().as_secs_f64(),
             out.display()
         );
-        if let (Some(t), Some(o)) = (truth_cup, outline_cup) {
+        if let Some(o) = truth_spheres.outline_mm {
+            let t = truth_spheres.cup_mm;
             eprintln!(
             "truth cup {t:.2} mm; the sphere through its outline-forming vertices {o:.2} mm \
              ({:+.2} mm: the cup error of a sphere fitted to the outlined part alone, before noise)",
