@@ -201,13 +201,7 @@ pub fn reconstruct(
 ) -> Result<Reconstruction, ReconError> {
     prm.validate()?;
     check_views(input, prm)?;
-    // Every closed outline entered at the point its shape fixes: where it was started does
-    // not matter (`Curve::from_fixed_start`).
-    let observed: Vec<Vec<Curve>> = input
-        .observed
-        .iter()
-        .map(|view| view.iter().map(Curve::from_fixed_start).collect())
-        .collect();
+    let observed = entered(input.observed);
     let input = &Input {
         observed: &observed,
         ..*input
@@ -242,6 +236,16 @@ pub fn reconstruct(
         outline_px_per_view,
         names: Vec::new(),
     }))
+}
+
+/// Every closed outline of `observed` entered at the point its shape fixes, so that where it
+/// was started changes nothing the method returns (`Curve::from_fixed_start`): what
+/// `reconstruct` and `cup_report` both solve with.
+pub(crate) fn entered(observed: &[Vec<Curve>]) -> Vec<Vec<Curve>> {
+    observed
+        .iter()
+        .map(|view| view.iter().map(Curve::from_fixed_start).collect())
+        .collect()
 }
 
 /// The first guard `rec` fails under `g`, if any.
@@ -798,23 +802,30 @@ mod tests {
 
     /// Where an annotator started each closed outline makes no difference: the same outlines
     /// entered at other points (and the same outline traced the other way is a different
-    /// curve, so not tested here) give the same surface to the bit. Before the outlines were
-    /// entered at a fixed point, such a change moved a shared acetabulum's error by up to
-    /// 1.5 mm. Companion: one outline point moved 3 px gives another surface.
+    /// curve, so not tested here) give the same surface, and the same cup report (its
+    /// resamples and the rim's orientation), to the bit. Before the outlines were entered at a
+    /// fixed point, such a change moved a shared acetabulum's error by up to 1.5 mm.
+    /// Companion: one outline point moved 3 px gives another surface and other resamples.
     #[test]
     fn where_an_outline_was_started_does_not_change_the_result() {
         let (_, sim) = crate::sim::phantom_case(3, 5).unwrap();
         let template = Template::standard();
         let prm = ReconParams::default();
+        let up = UncertaintyParams {
+            samples: 4,
+            ..Default::default()
+        };
         let run = |observed: &[Vec<Curve>]| {
             let input = Input {
                 observed,
                 ..sim.input(&template)
             };
-            reconstruct(&input, &prm, Kernels::Cpu)
-                .unwrap()
-                .mesh
-                .vertices
+            let rec = reconstruct(&input, &prm, Kernels::Cpu).unwrap();
+            let cup = cup_report(&rec, observed, &prm, Kernels::Cpu, &up).unwrap();
+            let turned = cup
+                .orientation
+                .map(|o| (o.inclination_deg, o.anteversion_deg));
+            (rec.mesh.vertices, cup.resampled_mm, turned)
         };
         let own = run(&sim.observed);
         let restarted: Vec<Vec<Curve>> = sim
@@ -835,10 +846,13 @@ mod tests {
             })
             .collect();
         assert_ne!(restarted[0][0].points[0], sim.observed[0][0].points[0]);
+        assert!(own.2.is_some());
         assert_eq!(run(&restarted), own);
         let mut moved = sim.observed.clone();
         moved[1][0].points[10].x += 3.0;
-        assert_ne!(run(&moved), own);
+        let moved = run(&moved);
+        assert_ne!(moved.0, own.0);
+        assert_ne!(moved.1, own.1);
     }
 
     #[test]

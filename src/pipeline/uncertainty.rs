@@ -293,7 +293,9 @@ pub fn cup_report(
     kernels: Kernels,
     up: &UncertaintyParams,
 ) -> Result<CupReport, ReconError> {
-    // The resamples are solved as the result was: with the fallback's settings when one gave it.
+    // The resamples are solved as the result was: from the outlines entered where `reconstruct`
+    // enters them, with the fallback's settings when one gave it.
+    let observed = &super::entered(observed)[..];
     let used = super::params_used(rec, prm);
     let ctx = Ctx {
         cams: &rec.cameras,
@@ -556,9 +558,10 @@ mod tests {
         // The resamples are the cup estimator's: re-drawn through it they are the same numbers,
         // and through the whole surface's sphere (the old bug) they are not.
         let used = crate::pipeline::params_used(&rec, &prm);
+        let observed = crate::pipeline::entered(&case.observed);
         let ctx = Ctx {
             cams: &rec.cameras,
-            observed: &case.observed,
+            observed: &observed,
             prm: &used,
             kernels: Kernels::Cpu,
         };
