@@ -16,7 +16,8 @@ pub struct GuardParams {
     /// Largest share of triangles facing the sphere's centre (folded over; default 0.1: the
     /// template has none, good results 0-0.1 %, the srvf sheets that caused the catastrophes
     /// 49-55 %, while the baselines' usable results reach 3-9 % at a curled rim; smaller folds
-    /// that come with a bad fit are caught by the reprojection guard).
+    /// that come with a bad fit are caught by the reprojection guard). Above
+    /// `PlacementParams::restart_above_folded` (2 %) a result restarts from tilted starts first.
     pub max_folded: f64,
     /// With a limb sphere: the cup sphere's centre within this fraction of the limb radius of
     /// the limb centre, and its radius within this fraction of the limb radius (default 0.25).

@@ -2,8 +2,8 @@
 //! the result that follows them best kept.
 
 use super::{
-    attempt, guard_failure, GuardFailure, Input, LimbOnce, OrientationTrial, ReconError,
-    ReconParams, Reconstruction,
+    attempt, folded_share, guard_failure, GuardFailure, Input, LimbOnce, OrientationTrial,
+    ReconError, ReconParams, Reconstruction,
 };
 use crate::contours::ModelContour;
 use crate::engine::Kernels;
@@ -12,9 +12,10 @@ use crate::template::Placement;
 use nalgebra::{Rotation3, Unit, Vector3};
 
 /// The method from the given start and, when its model outlines lie farther than
-/// `placement.restart_trigger_px` from the observed ones (`outline_distance_px`), from tilted
-/// starts too (`tilted_starts`); the result whose outlines lie nearest is kept, the trials in
-/// its log. A stage A that settled on a wrong turn of the cap leaves a result whose outlines
+/// `placement.restart_trigger_px` from the observed ones (`outline_distance_px`) or more than
+/// `placement.restart_above_folded` of its triangles are folded over (`folded_share`), from
+/// tilted starts too (`tilted_starts`); the result whose outlines lie nearest is kept, the
+/// trials in its log. A stage A that settled on a wrong turn of the cap leaves a result whose outlines
 /// cannot follow the observed ones (stretches of them left several noise SDs away); from a start
 /// tilted away from that turn stage A settles elsewhere. The score needs no truth and does not
 /// depend on which correspondences each result kept. A first result a guard refuses restarts
@@ -70,7 +71,8 @@ pub(super) fn restarting(
         rms_px: best_score.1,
     });
     let trigger = prm.placement.restart_trigger_px(prm.pose.is_some());
-    if best_score.0.is_none() && !(best_score.1 > trigger) {
+    let folded = folded_share(&first.mesh, &first.sphere) > prm.placement.restart_above_folded;
+    if best_score.0.is_none() && !(best_score.1 > trigger) && !folded {
         let mut first = first;
         if kept_first == LIMB_SPHERE {
             first.log.restarts = trials;
