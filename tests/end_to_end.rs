@@ -445,22 +445,32 @@ fn a_result_that_leaves_the_outlines_restarts_from_tilted_starts() {
     assert!(alone.outline_px >= 2.0, "{}", alone.outline_px);
 }
 
+/// The atlas run with the default settings restarts, keeps a tilted start's result, needs no
+/// fallback and ends under 1 mm (asserted); false when the atlas is absent.
+fn restarts_to_a_good_tilted_start(mesh: &str, level: u32, run: usize) -> bool {
+    let Some(row) = atlas_run(mesh, level, run, ReconParams::default()) else {
+        return false;
+    };
+    println!(
+        "{mesh} L{level} run {run}, defaults: MAE {:.3} mm, outlines {:.2} px, restart {:?}, \
+         fallback {:?}",
+        row.mae_mm, row.outline_px, row.restart, row.fallback
+    );
+    assert!(is_tilted_start(&row.restart), "{:?}", row.restart);
+    assert!(row.fallback.is_empty(), "{:?}", row.fallback);
+    assert!(row.mae_mm < 1.0, "MAE {}", row.mae_mm);
+    true
+}
+
 #[test]
 fn a_result_folded_at_its_rim_restarts_from_tilted_starts() {
     // The same run with the default settings: the given start's result has 7.8 % of its
     // triangles folded over (under the guard's 10 %, its outlines 2.4 px off, under the 4 px
     // trigger), so the fold trigger (2 %) restarts it, and a tilted start's result, whose
     // outlines lie nearer, is kept: 0.90 mm instead of 1.53.
-    let Some(row) = atlas_run("a08_rhip", 1, 1, ReconParams::default()) else {
+    if !restarts_to_a_good_tilted_start("a08_rhip", 1, 1) {
         return;
-    };
-    println!(
-        "a08_rhip L1 run 1, defaults: MAE {:.3} mm, outlines {:.2} px, restart {:?}",
-        row.mae_mm, row.outline_px, row.restart
-    );
-    assert!(is_tilted_start(&row.restart), "{:?}", row.restart);
-    assert!(row.fallback.is_empty(), "{:?}", row.fallback);
-    assert!(row.mae_mm < 1.0, "MAE {}", row.mae_mm);
+    }
     // Companion: without the fold trigger the folded result is returned as it stands.
     let mut prm = ReconParams::default();
     prm.placement.restart_above_folded = f64::INFINITY;
@@ -476,16 +486,9 @@ fn a_result_a_guard_refuses_restarts_before_it_falls_back() {
     // 9.1 mm from the outlines' limb sphere, its radius 23.6 mm against the limb's 30.9 (the
     // limb-sphere guard refuses it; its surface is 1.36 mm off), so the run restarts from the
     // tilted starts, and one of them passes the guards: no fallback is needed.
-    let Some(row) = atlas_run("a55_lhip", 1, 0, ReconParams::default()) else {
+    if !restarts_to_a_good_tilted_start("a55_lhip", 1, 0) {
         return;
-    };
-    println!(
-        "a55_lhip L1 run 0: MAE {:.3} mm, restart {:?}, fallback {:?}",
-        row.mae_mm, row.restart, row.fallback
-    );
-    assert!(is_tilted_start(&row.restart), "{:?}", row.restart);
-    assert!(row.fallback.is_empty(), "{:?}", row.fallback);
-    assert!(row.mae_mm < 1.0, "MAE {}", row.mae_mm);
+    }
     // Companion: with no tilted starts the guard's refusal stands and a fallback is taken.
     let mut prm = ReconParams::default();
     prm.placement.restart_tilts = 0;
