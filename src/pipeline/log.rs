@@ -43,6 +43,8 @@ pub struct SolveLog {
     pub restarts: Vec<OrientationTrial>,
     /// Which of `restarts` gave this result ("given" or a tilt); None when there were none.
     pub restart: Option<&'static str>,
+    /// Why the tilted starts were tried; None when they were not.
+    pub restart_cause: Option<RestartCause>,
     /// The fallback that gave this result ("srvf-shape", "icp-normvec", "rigid" or
     /// "refine-poses"; see `Fallback`), when the method as asked for did not pass the guards;
     /// None when it did.
@@ -170,20 +172,45 @@ impl SolveLog {
                 )
             });
         }
+        let why = match self.restart_cause {
+            Some(RestartCause::Folded(share)) => format!(
+                "the given start's result was folded over at its rim ({:.1} % of its triangles \
+                 face the cup's centre; its outlines {given:.1} px from the observed ones)",
+                100.0 * share
+            ),
+            Some(RestartCause::Guard) => format!(
+                "a guard refused the given start's result (its outlines {given:.1} px from the \
+                 observed ones)"
+            ),
+            Some(RestartCause::Outlines) | None => {
+                format!("the given start's result left the outlines {given:.1} px away")
+            }
+        };
+        let tried = self.restarts.len() - 1;
         Some(if kept == "given" {
-            format!(
-                "the result's outlines lay {given:.1} px from the observed ones; {} tilted \
-                 starts did no better, so this is the given start's",
-                self.restarts.len() - 1
-            )
+            format!("{why}; {tried} tilted starts did no better, so this is the given start's")
         } else {
             format!(
-                "the given start's result left the outlines {given:.1} px away; restarted from \
-                 {} tilted starts, this result is from the {kept} tilt's ({from:.1} px)",
-                self.restarts.len() - 1
+                "{why}; restarted from {tried} tilted starts, this result is from the {kept} \
+                 tilt's ({from:.1} px)"
             )
         })
     }
+}
+
+/// Why a run tried the tilted starts (`SolveLog::restart_cause`), the first that holds of the
+/// result it started from.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RestartCause {
+    /// A guard refused it (`GuardParams`).
+    Guard,
+    /// Its outlines lay farther from the observed ones than the trigger
+    /// (`PlacementParams::restart_trigger_px`).
+    Outlines,
+    /// This share of its triangles faced its cup sphere's centre, more than
+    /// `PlacementParams::restart_above_folded`.
+    Folded(f64),
 }
 
 /// One orientation stage B tried.
@@ -195,4 +222,45 @@ pub struct OrientationTrial {
     pub source: &'static str,
     /// Its reprojection RMS, pixels.
     pub rms_px: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn restarted(cause: RestartCause, kept: &'static str) -> SolveLog {
+        let trial = |source, rms_px| OrientationTrial { source, rms_px };
+        SolveLog {
+            restarts: vec![trial("given", 2.36), trial("-u", 1.46), trial("+v", 3.1)],
+            restart: Some(kept),
+            restart_cause: Some(cause),
+            ..Default::default()
+        }
+    }
+
+    /// The note names why the tilted starts were tried: a fold with its share, a guard, or
+    /// the outline distance; companion: a restart for the outlines says nothing of a fold.
+    #[test]
+    fn the_restart_note_says_why_the_run_restarted() {
+        let folded = restarted(RestartCause::Folded(0.078), "-u")
+            .restart_note()
+            .unwrap();
+        assert!(folded.contains("folded over at its rim (7.8 %"), "{folded}");
+        assert!(folded.contains("2.4 px"), "{folded}");
+        assert!(folded.contains("the -u tilt's (1.5 px)"), "{folded}");
+        let guard = restarted(RestartCause::Guard, "given")
+            .restart_note()
+            .unwrap();
+        assert!(guard.starts_with("a guard refused"), "{guard}");
+        assert!(guard.contains("2 tilted starts did no better"), "{guard}");
+        let outlines = restarted(RestartCause::Outlines, "-u")
+            .restart_note()
+            .unwrap();
+        assert!(
+            outlines.contains("left the outlines 2.4 px away"),
+            "{outlines}"
+        );
+        assert!(!outlines.contains("folded"), "{outlines}");
+        assert_eq!(SolveLog::default().restart_note(), None);
+    }
 }

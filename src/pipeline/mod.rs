@@ -29,7 +29,7 @@ pub use guards::{
     first_failure, folded_share, odd_view, view_label, GuardFailure, GuardParams, Judged, Refusal,
     VIEW_NOTE_MIN_PX, VIEW_NOTE_RATIO,
 };
-pub use log::{OrientationTrial, SolveLog};
+pub use log::{OrientationTrial, RestartCause, SolveLog};
 pub use params::{
     CupEstimator, CupParams, DeformationParams, PlacementParams, ReconParams, MAX_SHRINK,
 };

@@ -3,7 +3,7 @@
 
 use super::{
     attempt, folded_share, guard_failure, GuardFailure, Input, LimbOnce, OrientationTrial,
-    ReconError, ReconParams, Reconstruction,
+    ReconError, ReconParams, Reconstruction, RestartCause,
 };
 use crate::contours::ModelContour;
 use crate::engine::Kernels;
@@ -15,9 +15,10 @@ use nalgebra::{Rotation3, Unit, Vector3};
 /// `placement.restart_trigger_px` from the observed ones (`outline_distance_px`) or more than
 /// `placement.restart_above_folded` of its triangles are folded over (`folded_share`), from
 /// tilted starts too (`tilted_starts`); the result whose outlines lie nearest is kept, the
-/// trials in its log. A stage A that settled on a wrong turn of the cap leaves a result whose outlines
-/// cannot follow the observed ones (stretches of them left several noise SDs away); from a start
-/// tilted away from that turn stage A settles elsewhere. The score needs no truth and does not
+/// trials and the cause (`RestartCause`) in its log. A stage A that settled on a wrong turn of
+/// the cap leaves a result whose outlines cannot follow the observed ones (stretches of them
+/// left several noise SDs away), or one folded over at its rim; from a start tilted away from
+/// that turn stage A settles elsewhere. The score needs no truth and does not
 /// depend on which correspondences each result kept. A first result a guard refuses restarts
 /// too, and a result the guards pass outranks one they refuse. A restart that fails is skipped.
 /// Where the given start fails outright, the method starts again on the limb sphere
@@ -71,8 +72,17 @@ pub(super) fn restarting(
         rms_px: best_score.1,
     });
     let trigger = prm.placement.restart_trigger_px(prm.pose.is_some());
-    let folded = folded_share(&first.mesh, &first.sphere) > prm.placement.restart_above_folded;
-    if best_score.0.is_none() && !(best_score.1 > trigger) && !folded {
+    let folded = folded_share(&first.mesh, &first.sphere);
+    let cause = if best_score.0.is_some() {
+        Some(RestartCause::Guard)
+    } else if best_score.1 > trigger {
+        Some(RestartCause::Outlines)
+    } else if folded > prm.placement.restart_above_folded {
+        Some(RestartCause::Folded(folded))
+    } else {
+        None
+    };
+    if cause.is_none() {
         let mut first = first;
         if kept_first == LIMB_SPHERE {
             first.log.restarts = trials;
@@ -104,6 +114,7 @@ pub(super) fn restarting(
     }
     best.log.restarts = trials;
     best.log.restart = Some(kept);
+    best.log.restart_cause = cause;
     Ok((best, best_score.0))
 }
 
