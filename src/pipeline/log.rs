@@ -172,15 +172,15 @@ impl SolveLog {
                 )
             });
         }
-        let why = match self.restart_cause {
+        let why = match &self.restart_cause {
             Some(RestartCause::Folded(share)) => format!(
                 "the given start's result was folded over at its rim ({:.1} % of its triangles \
                  face the cup's centre; its outlines {given:.1} px from the observed ones)",
                 100.0 * share
             ),
-            Some(RestartCause::Guard) => format!(
-                "a guard refused the given start's result (its outlines {given:.1} px from the \
-                 observed ones)"
+            Some(RestartCause::Guard(failure)) => format!(
+                "a guard refused the given start's result ({failure}; its outlines {given:.1} px \
+                 from the observed ones)"
             ),
             Some(RestartCause::Outlines) | None => {
                 format!("the given start's result left the outlines {given:.1} px away")
@@ -200,11 +200,11 @@ impl SolveLog {
 
 /// Why a run tried the tilted starts (`SolveLog::restart_cause`), the first that holds of the
 /// result it started from.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum RestartCause {
-    /// A guard refused it (`GuardParams`).
-    Guard,
+    /// A guard refused it (`GuardParams`), for this reason.
+    Guard(GuardFailure),
     /// Its outlines lay farther from the observed ones than the trigger
     /// (`PlacementParams::restart_trigger_px`).
     Outlines,
@@ -238,8 +238,8 @@ mod tests {
         }
     }
 
-    /// The note names why the tilted starts were tried: a fold with its share, a guard, or
-    /// the outline distance; companion: a restart for the outlines says nothing of a fold.
+    /// The note names why the tilted starts were tried: a fold with its share, a guard with
+    /// its reason, or the outline distance; companion: a restart for the outlines says nothing of a fold.
     #[test]
     fn the_restart_note_says_why_the_run_restarted() {
         let folded = restarted(RestartCause::Folded(0.078), "-u")
@@ -248,10 +248,15 @@ mod tests {
         assert!(folded.contains("folded over at its rim (7.8 %"), "{folded}");
         assert!(folded.contains("2.4 px"), "{folded}");
         assert!(folded.contains("the -u tilt's (1.5 px)"), "{folded}");
-        let guard = restarted(RestartCause::Guard, "given")
+        let failure = GuardFailure::Folded { folded: 0.2 };
+        let guard = restarted(RestartCause::Guard(failure), "given")
             .restart_note()
             .unwrap();
         assert!(guard.starts_with("a guard refused"), "{guard}");
+        assert!(
+            guard.contains("20.0 % of the surface's triangles"),
+            "{guard}"
+        );
         assert!(guard.contains("2 tilted starts did no better"), "{guard}");
         let outlines = restarted(RestartCause::Outlines, "-u")
             .restart_note()

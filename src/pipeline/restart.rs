@@ -73,8 +73,8 @@ pub(super) fn restarting(
     });
     let trigger = prm.placement.restart_trigger_px(prm.pose.is_some());
     let folded = folded_share(&first.mesh, &first.sphere);
-    let cause = if best_score.0.is_some() {
-        Some(RestartCause::Guard)
+    let cause = if let Some(failure) = &best_score.0 {
+        Some(RestartCause::Guard(failure.clone()))
     } else if best_score.1 > trigger {
         Some(RestartCause::Outlines)
     } else if folded > prm.placement.restart_above_folded {
