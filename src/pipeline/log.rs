@@ -239,7 +239,8 @@ mod tests {
     }
 
     /// The note names why the tilted starts were tried: a fold with its share, a guard with
-    /// its reason, or the outline distance; companion: a restart for the outlines says nothing of a fold.
+    /// its reason, or the outline distance; companion: a restart for the outlines says nothing
+    /// of a fold.
     #[test]
     fn the_restart_note_says_why_the_run_restarted() {
         let folded = restarted(RestartCause::Folded(0.078), "-u")

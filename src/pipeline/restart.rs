@@ -18,8 +18,8 @@ use nalgebra::{Rotation3, Unit, Vector3};
 /// trials and the cause (`RestartCause`) in its log. A stage A that settled on a wrong turn of
 /// the cap leaves a result whose outlines cannot follow the observed ones (stretches of them
 /// left several noise SDs away), or one folded over at its rim; from a start tilted away from
-/// that turn stage A settles elsewhere. The score needs no truth and does not
-/// depend on which correspondences each result kept. A first result a guard refuses restarts
+/// that turn stage A settles elsewhere. The score needs no truth and does not depend on which
+/// correspondences each result kept. A first result a guard refuses restarts
 /// too, and a result the guards pass outranks one they refuse. A restart that fails is skipped.
 /// Where the given start fails outright, the method starts again on the limb sphere
 /// (`limb_started`), and that start stands in for the given one (its tilts are tried when its
@@ -72,15 +72,14 @@ pub(super) fn restarting(
         rms_px: best_score.1,
     });
     let trigger = prm.placement.restart_trigger_px(prm.pose.is_some());
-    let folded = folded_share(&first.mesh, &first.sphere);
+    // The first cause that holds; the fold is measured only when nothing else restarts it.
     let cause = if let Some(failure) = &best_score.0 {
         Some(RestartCause::Guard(failure.clone()))
     } else if best_score.1 > trigger {
         Some(RestartCause::Outlines)
-    } else if folded > prm.placement.restart_above_folded {
-        Some(RestartCause::Folded(folded))
     } else {
-        None
+        let folded = folded_share(&first.mesh, &first.sphere);
+        (folded > prm.placement.restart_above_folded).then_some(RestartCause::Folded(folded))
     };
     if cause.is_none() {
         let mut first = first;
