@@ -433,6 +433,7 @@ fn a_result_that_leaves_the_outlines_restarts_from_tilted_starts() {
     );
     assert!(row.mae_mm < 1.0, "MAE {}", row.mae_mm);
     assert!(is_tilted_start(&row.restart), "{:?}", row.restart);
+    assert_eq!(row.restart_cause, "outlines");
     assert!(row.outline_px < 2.0, "{}", row.outline_px);
     // Companion: without restarts the given start's result stays, and the same bounds reject it.
     let alone = atlas_run("a08_rhip", 1, 1, prm(f64::INFINITY)).unwrap();
@@ -441,13 +442,15 @@ fn a_result_that_leaves_the_outlines_restarts_from_tilted_starts() {
         alone.mae_mm, alone.outline_px
     );
     assert!(alone.restart.is_empty(), "{:?}", alone.restart);
+    assert!(alone.restart_cause.is_empty(), "{:?}", alone.restart_cause);
     assert!(alone.mae_mm >= 1.0, "MAE {}", alone.mae_mm);
     assert!(alone.outline_px >= 2.0, "{}", alone.outline_px);
 }
 
-/// The atlas run with the default settings restarts, keeps a tilted start's result, needs no
-/// fallback and ends under 1 mm (asserted); false when the atlas is absent.
-fn restarts_to_a_good_tilted_start(mesh: &str, level: u32, run: usize) -> bool {
+/// The atlas run with the default settings restarts for `cause` (runs.csv's `restart_cause`),
+/// keeps a tilted start's result, needs no fallback and ends under 1 mm (asserted); false when
+/// the atlas is absent.
+fn restarts_to_a_good_tilted_start(mesh: &str, level: u32, run: usize, cause: &str) -> bool {
     let Some(row) = atlas_run(mesh, level, run, ReconParams::default()) else {
         return false;
     };
@@ -457,7 +460,9 @@ fn restarts_to_a_good_tilted_start(mesh: &str, level: u32, run: usize) -> bool {
         row.mae_mm, row.outline_px, row.restart, row.fallback
     );
     assert!(is_tilted_start(&row.restart), "{:?}", row.restart);
+    assert_eq!(row.restart_cause, cause);
     assert!(row.fallback.is_empty(), "{:?}", row.fallback);
+    assert!(row.fallback_guard.is_empty(), "{:?}", row.fallback_guard);
     assert!(row.mae_mm < 1.0, "MAE {}", row.mae_mm);
     true
 }
@@ -468,7 +473,7 @@ fn a_result_folded_at_its_rim_restarts_from_tilted_starts() {
     // triangles folded over (under the guard's 10 %, its outlines 2.4 px off, under the 4 px
     // trigger), so the fold trigger (2 %) restarts it, and a tilted start's result, whose
     // outlines lie nearer, is kept: 0.90 mm instead of 1.53.
-    if !restarts_to_a_good_tilted_start("a08_rhip", 1, 1) {
+    if !restarts_to_a_good_tilted_start("a08_rhip", 1, 1, "folded") {
         return;
     }
     // Companion: without the fold trigger the folded result is returned as it stands.
@@ -477,6 +482,7 @@ fn a_result_folded_at_its_rim_restarts_from_tilted_starts() {
     let alone = atlas_run("a08_rhip", 1, 1, prm).unwrap();
     println!("without the fold trigger: MAE {:.3} mm", alone.mae_mm);
     assert!(alone.restart.is_empty(), "{:?}", alone.restart);
+    assert!(alone.restart_cause.is_empty(), "{:?}", alone.restart_cause);
     assert!(alone.mae_mm >= 1.0, "MAE {}", alone.mae_mm);
 }
 
@@ -486,15 +492,19 @@ fn a_result_a_guard_refuses_restarts_before_it_falls_back() {
     // 9.1 mm from the outlines' limb sphere, its radius 23.6 mm against the limb's 30.9 (the
     // limb-sphere guard refuses it; its surface is 1.36 mm off), so the run restarts from the
     // tilted starts, and one of them passes the guards: no fallback is needed.
-    if !restarts_to_a_good_tilted_start("a55_lhip", 1, 0) {
+    if !restarts_to_a_good_tilted_start("a55_lhip", 1, 0, "guard-limb-sphere") {
         return;
     }
     // Companion: with no tilted starts the guard's refusal stands and a fallback is taken.
     let mut prm = ReconParams::default();
     prm.placement.restart_tilts = 0;
     let alone = atlas_run("a55_lhip", 1, 0, prm).unwrap();
-    println!("without tilted starts: fallback {:?}", alone.fallback);
+    println!(
+        "without tilted starts: fallback {:?} after the {:?} guard",
+        alone.fallback, alone.fallback_guard
+    );
     assert!(!alone.fallback.is_empty());
+    assert_eq!(alone.fallback_guard, "limb-sphere");
 }
 
 #[test]

@@ -138,6 +138,24 @@ pub enum GuardFailure {
     },
 }
 
+impl GuardFailure {
+    /// The guard's name, as report.json's `guard` tag and runs.csv's cause columns write it:
+    /// "cup", "folded", "rough", "limb-sphere", "non-finite-vertex", "non-finite-pose",
+    /// "reprojection" or "outlines".
+    pub fn name(&self) -> &'static str {
+        match self {
+            GuardFailure::Cup { .. } => "cup",
+            GuardFailure::Folded { .. } => "folded",
+            GuardFailure::Rough { .. } => "rough",
+            GuardFailure::LimbSphere { .. } => "limb-sphere",
+            GuardFailure::NonFiniteVertex { .. } => "non-finite-vertex",
+            GuardFailure::NonFinitePose { .. } => "non-finite-pose",
+            GuardFailure::Reprojection { .. } => "reprojection",
+            GuardFailure::Outlines { .. } => "outlines",
+        }
+    }
+}
+
 /// Share of the triangles of `mesh` whose outward normal faces `sphere`'s centre.
 pub fn folded_share(mesh: &Mesh, sphere: &Sphere) -> f64 {
     let c = sphere.center_point();
@@ -350,6 +368,46 @@ mod tests {
         for d in [&[21.1, f64::NAN, 7.6][..], &[]] {
             assert_eq!(refusal(d, &["AP"]), failure.to_string(), "{d:?}");
         }
+    }
+
+    /// Each guard's name is the tag report.json writes for it, and no two guards share one
+    /// (companion: a name taken from another guard's tag does not match).
+    #[test]
+    fn a_guards_name_is_its_report_tag() {
+        let all = [
+            GuardFailure::Cup {
+                diameter_mm: 90.0,
+                lo: 30.0,
+                hi: 80.0,
+            },
+            GuardFailure::Folded { folded: 0.2 },
+            GuardFailure::Rough {
+                rms_mm: 4.0,
+                max_mm: 3.5,
+            },
+            GuardFailure::LimbSphere {
+                offset_mm: 9.0,
+                radius_mm: 25.0,
+                limb_radius_mm: 24.0,
+            },
+            GuardFailure::NonFiniteVertex { vertex: 3 },
+            GuardFailure::NonFinitePose { view: 1 },
+            GuardFailure::Reprojection {
+                rms_px: 9.0,
+                max_px: 8.0,
+            },
+            GuardFailure::Outlines {
+                outline_px: 6.0,
+                max_px: 5.0,
+            },
+        ];
+        let tag = |g: &GuardFailure| serde_json::to_value(g).unwrap()["guard"].clone();
+        for g in &all {
+            assert_eq!(tag(g), g.name(), "{g:?}");
+        }
+        let names: std::collections::BTreeSet<&str> = all.iter().map(|g| g.name()).collect();
+        assert_eq!(names.len(), all.len());
+        assert_ne!(tag(&all[0]), all[1].name());
     }
 
     #[test]

@@ -213,6 +213,18 @@ pub enum RestartCause {
     Folded(f64),
 }
 
+impl RestartCause {
+    /// Its name, as runs.csv's `restart_cause` column writes it: "outlines", "folded", or
+    /// "guard-" and the guard's name (`GuardFailure::name`).
+    pub fn name(&self) -> String {
+        match self {
+            RestartCause::Guard(failure) => format!("guard-{}", failure.name()),
+            RestartCause::Outlines => "outlines".into(),
+            RestartCause::Folded(_) => "folded".into(),
+        }
+    }
+}
+
 /// One orientation stage B tried.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct OrientationTrial {
@@ -268,5 +280,19 @@ mod tests {
         );
         assert!(!outlines.contains("folded"), "{outlines}");
         assert_eq!(SolveLog::default().restart_note(), None);
+    }
+
+    /// runs.csv's names of the causes; companion: two guards' causes differ by the guard.
+    #[test]
+    fn a_restart_cause_is_named_by_its_kind_and_guard() {
+        assert_eq!(RestartCause::Outlines.name(), "outlines");
+        assert_eq!(RestartCause::Folded(0.03).name(), "folded");
+        let folded = RestartCause::Guard(GuardFailure::Folded { folded: 0.2 });
+        assert_eq!(folded.name(), "guard-folded");
+        let rough = RestartCause::Guard(GuardFailure::Rough {
+            rms_mm: 4.0,
+            max_mm: 3.5,
+        });
+        assert_ne!(rough.name(), folded.name());
     }
 }

@@ -6,7 +6,8 @@ use super::task::{run_seed, Task};
 use crate::engine::Kernels;
 use crate::geom::pool_map;
 use crate::geom::Mesh;
-use crate::pipeline::{cup_report, reconstruct, ReconParams, Reconstruction, UncertaintyParams};
+use crate::pipeline::{cup_report, reconstruct, GuardFailure, ReconParams, Reconstruction};
+use crate::pipeline::{RestartCause, UncertaintyParams};
 use crate::report::{accuracy_and_shift, accuracy_samples};
 use crate::report::{DistanceStats, InteriorQuery};
 use crate::sim::XrayGeometry;
@@ -249,6 +250,17 @@ fn run_prepared(
     row.correspondence_updates = rec.log.correspondence_updates;
     row.fallback = rec.log.fallback.unwrap_or_default().to_string();
     row.restart = rec.log.restart.unwrap_or_default().to_string();
+    row.restart_cause = rec
+        .log
+        .restart_cause
+        .as_ref()
+        .map_or_else(String::new, RestartCause::name);
+    row.fallback_guard = rec
+        .log
+        .guard
+        .as_ref()
+        .map_or("", GuardFailure::name)
+        .to_string();
     row.outline_px = rec.log.outline_px;
     if let Some(largest) = largest_pose_correction(&rec.log.pose_corrections) {
         (row.pose_turn_deg, row.pose_shift_mm) = (largest[0], largest[1]);

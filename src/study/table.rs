@@ -108,6 +108,18 @@ pub struct Row {
     /// above.
     #[serde(serialize_with = "six", default = "nan")]
     pub shifted_mae_mm: f64,
+    /// Why the run tried the tilted starts (`pipeline::RestartCause::name`): "outlines" (the
+    /// given start's result left them farther than the trigger), "folded" (folded over at its
+    /// rim) or "guard-" and the guard that refused it ("guard-cup", ...); empty when it did not
+    /// try them.
+    #[serde(default)]
+    pub restart_cause: String,
+    /// The guard the method's own result failed when a fallback gave the result
+    /// (`pipeline::GuardFailure::name`: "cup", "folded", "rough", "limb-sphere",
+    /// "non-finite-vertex", "non-finite-pose", "reprojection", "outlines"); empty when no
+    /// fallback was taken.
+    #[serde(default)]
+    pub fallback_guard: String,
 }
 
 /// The columns runs.csv gained with the cup's orientation: a file without them still reads (NaN).
@@ -122,6 +134,9 @@ const POSE_COLUMNS: usize = 2;
 /// The columns runs.csv gained after the pose corrections (`frame_shift_mm`,
 /// `shifted_mae_mm`): a file without them reads (NaN).
 const SHIFT_COLUMNS: usize = 2;
+/// The columns runs.csv gained after the shifts (`restart_cause`, `fallback_guard`): a file
+/// without them reads (empty).
+const CAUSE_COLUMNS: usize = 2;
 
 fn nan() -> f64 {
     f64::NAN
@@ -162,6 +177,8 @@ impl Row {
             pose_shift_mm: f64::NAN,
             frame_shift_mm: f64::NAN,
             shifted_mae_mm: f64::NAN,
+            restart_cause: String::new(),
+            fallback_guard: String::new(),
         }
     }
 
@@ -357,11 +374,12 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
         other => perr(1, format!("{other:?}")),
     })?;
     let full = header();
-    // Files written before the shift columns, before the pose columns too, before the outline
-    // column as well, before the restart column, or before the orientation columns, have the
-    // header without them.
+    // Files written before the cause columns, before the shift columns too, before the pose
+    // columns, before the outline column as well, before the restart column, or before the
+    // orientation columns, have the header without them.
     let prefix = |n: usize| -> csv::StringRecord { full.iter().take(n).collect() };
     let older: Vec<usize> = [
+        CAUSE_COLUMNS,
         SHIFT_COLUMNS,
         POSE_COLUMNS,
         OUTLINE_COLUMNS,
@@ -815,6 +833,7 @@ mod tests {
         ];
         (r1[0].outline_px, r1[0].pose_turn_deg, r1[0].pose_shift_mm) = (1.25, 0.8, 3.5);
         (r1[0].frame_shift_mm, r1[0].shifted_mae_mm) = (2.5, 0.375);
+        (r1[0].restart_cause, r1[0].fallback_guard) = ("guard-folded".into(), "outlines".into());
         r1[1].error = "solver: boom, twice".into();
         r1[1].mae_mm = f64::NAN;
         write_csv(&r1, &a.join("runs.csv")).unwrap();
@@ -864,7 +883,16 @@ mod tests {
                 })
                 .collect()
         };
-        // A file from before the shift columns reads, its shifts NaN.
+        // A file from before the cause columns reads, its causes empty.
+        std::fs::write(b.join("runs.csv"), drop_last(&good, CAUSE_COLUMNS)).unwrap();
+        let back = read_csv(&b.join("runs.csv")).unwrap();
+        assert!(
+            back[0].restart_cause.is_empty()
+                && back[0].fallback_guard.is_empty()
+                && back[0].shifted_mae_mm == 0.375
+        );
+        // One from before the shift columns too, its shifts NaN.
+        let good = drop_last(&good, CAUSE_COLUMNS);
         std::fs::write(b.join("runs.csv"), drop_last(&good, SHIFT_COLUMNS)).unwrap();
         let back = read_csv(&b.join("runs.csv")).unwrap();
         assert!(
