@@ -729,9 +729,6 @@ impl CaseFile {
                             w.next_px
                         ));
                     }
-                    if area < 0.0 {
-                        pts.reverse(); // all closed curves run the same way as model contours
-                    }
                 }
                 curves.push(Curve {
                     points: pts,

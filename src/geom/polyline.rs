@@ -12,12 +12,17 @@ pub struct Curve {
 }
 
 impl Curve {
-    /// The same curve entered at a point fixed by its shape: a closed curve starts at its
-    /// leftmost vertex (the topmost-in-y of equally left ones), so that where an annotator began
-    /// clicking, or a triangulation began tracing, cannot change a result; an open curve, whose
-    /// ends are its own, as it is.
-    pub fn from_fixed_start(&self) -> Curve {
+    /// The same curve entered at a point and run in a direction fixed by its shape, so that
+    /// where an annotator began clicking, which way round, or where a triangulation began
+    /// tracing cannot change a result. It runs the way that gives it a positive `signed_area`
+    /// (an open curve closed by its chord), the way model contours run; a closed curve then
+    /// starts at its leftmost vertex (the topmost-in-y of equally left ones), an open one at the
+    /// end that direction makes its first.
+    pub fn entered(&self) -> Curve {
         let mut points = self.points.clone();
+        if signed_area(&points) < 0.0 {
+            points.reverse();
+        }
         if self.closed {
             let k = fixed_start(&points);
             points.rotate_left(k);
@@ -243,30 +248,39 @@ pub fn longest_segment(p: &[Point2<f64>]) -> Option<(usize, f64, f64)> {
 mod tests {
     use super::*;
 
-    /// A closed curve entered anywhere comes out entered at the same point (its leftmost), and
-    /// an open one as it was. Companion: a curve with its leftmost point moved right starts
-    /// elsewhere.
+    /// A closed curve entered anywhere, either way round, comes out the same: run the positive
+    /// way from its leftmost point; an open one keeps its points and ends, run the positive
+    /// way. Companions: a curve with its leftmost point moved right starts elsewhere; an open
+    /// arc is not turned round to another start.
     #[test]
-    fn a_closed_curve_is_entered_at_its_leftmost_point_wherever_it_started() {
+    fn a_curve_is_entered_the_same_wherever_and_whichever_way_it_started() {
         let pts: Vec<Point2<f64>> = (0..12)
             .map(|k| {
                 let t = k as f64 * std::f64::consts::TAU / 12.0 + 0.1;
                 Point2::new(10.0 * t.cos() + (k % 3) as f64, 6.0 * t.sin())
             })
             .collect();
+        assert!(signed_area(&pts) > 0.0);
         let curve = |points: Vec<Point2<f64>>, closed| Curve { points, closed };
-        let fixed = curve(pts.clone(), true).from_fixed_start();
+        let fixed = curve(pts.clone(), true).entered();
         let left = pts.iter().map(|p| p.x).fold(f64::INFINITY, f64::min);
         assert_eq!(fixed.points[0].x, left);
+        assert!(signed_area(&fixed.points) > 0.0);
         for k in 0..pts.len() {
             let mut turned = pts.clone();
             turned.rotate_left(k);
-            assert_eq!(curve(turned.clone(), true).from_fixed_start(), fixed);
-            assert_eq!(
-                curve(turned.clone(), false).from_fixed_start().points,
-                turned
-            );
+            assert_eq!(curve(turned.clone(), true).entered(), fixed);
+            let mut back = turned.clone();
+            back.reverse();
+            assert_eq!(curve(back, true).entered(), fixed);
+            assert_eq!(curve(turned.clone(), false).entered().points, turned);
         }
+        // An open arc either way round comes out the positive way, from the same end.
+        let arc = pts[2..9].to_vec();
+        let mut back = arc.clone();
+        back.reverse();
+        assert_eq!(curve(back, false).entered().points, arc);
+        assert_eq!(curve(arc.clone(), false).entered().points, arc);
         let mut moved = pts.clone();
         let k = fixed_start(&pts);
         moved[k].x += 5.0;

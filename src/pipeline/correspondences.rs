@@ -20,7 +20,7 @@ pub(super) struct Ctx<'a> {
 
 impl Ctx<'_> {
     /// The model contour of `mesh` in each of `cams`, entered at its leftmost point as the
-    /// observed outlines are (`Curve::from_fixed_start`): the two closed curves the
+    /// observed outlines are (`Curve::entered`): the two closed curves the
     /// correspondences align start at matching places.
     pub(super) fn contours(
         &self,

@@ -164,7 +164,8 @@ pub struct Reconstruction {
 pub struct Input<'a> {
     /// The views.
     pub cameras: &'a [Camera],
-    /// Per view, the observed outlines (one or more).
+    /// Per view, the observed outlines (one or more), started anywhere and traced either way
+    /// round (`reconstruct` enters each as its shape fixes: `Curve::entered`).
     pub observed: &'a [Vec<Curve>],
     /// Where the template starts.
     pub init: &'a Placement,
@@ -238,13 +239,13 @@ pub fn reconstruct(
     }))
 }
 
-/// Every closed outline of `observed` entered at the point its shape fixes, so that where it
-/// was started changes nothing the method returns (`Curve::from_fixed_start`): what
-/// `reconstruct` and `cup_report` both solve with.
+/// Every outline of `observed` entered at the point and in the direction its shape fixes, so
+/// that where it was started, and which way round, changes nothing the method returns
+/// (`Curve::entered`): what `reconstruct` and `cup_report` both solve with.
 pub(crate) fn entered(observed: &[Vec<Curve>]) -> Vec<Vec<Curve>> {
     observed
         .iter()
-        .map(|view| view.iter().map(Curve::from_fixed_start).collect())
+        .map(|view| view.iter().map(Curve::entered).collect())
         .collect()
 }
 
@@ -800,14 +801,17 @@ mod tests {
         .contains(&Fallback::RefinePoses));
     }
 
-    /// Where an annotator started each closed outline makes no difference: the same outlines
-    /// entered at other points (and the same outline traced the other way is a different
-    /// curve, so not tested here) give the same surface, and the same cup report (its
-    /// resamples and the rim's orientation), to the bit. Before the outlines were entered at a
-    /// fixed point, such a change moved a shared acetabulum's error by up to 1.5 mm.
-    /// Companion: one outline point moved 3 px gives another surface and other resamples.
+    /// Where an annotator started each outline, and which way round it was traced, makes no
+    /// difference: the same outlines entered at other points, one closed outline and one open
+    /// arc traced the other way, give the same surface and the same cup report (its resamples
+    /// and the rim's orientation), to the bit. Before the outlines were entered at a fixed
+    /// point, such a change moved a shared acetabulum's error by up to 1.5 mm; before they were
+    /// also turned to one direction, a closed outline traced clockwise was matched backwards by
+    /// a library caller (the case file turned them) and an open arc traced the other way moved
+    /// the example case's cup by 0.14 mm. Companion: one outline point moved 3 px gives another
+    /// surface and other resamples.
     #[test]
-    fn where_an_outline_was_started_does_not_change_the_result() {
+    fn where_and_which_way_an_outline_was_traced_does_not_change_the_result() {
         let (_, sim) = crate::sim::phantom_case(3, 5).unwrap();
         let template = Template::standard();
         let prm = ReconParams::default();
@@ -827,9 +831,13 @@ mod tests {
                 .map(|o| (o.inclination_deg, o.anteversion_deg));
             (rec.mesh.vertices, cup.resampled_mm, turned)
         };
-        let own = run(&sim.observed);
-        let restarted: Vec<Vec<Curve>> = sim
-            .observed
+        // The last view's outline as an open arc: three quarters of it.
+        let mut given = sim.observed.clone();
+        let last = &mut given[2][0];
+        last.points.truncate(3 * last.points.len() / 4);
+        last.closed = false;
+        let own = run(&given);
+        let restarted: Vec<Vec<Curve>> = given
             .iter()
             .enumerate()
             .map(|(v, curves)| {
@@ -837,18 +845,23 @@ mod tests {
                     .iter()
                     .map(|c| {
                         let mut c = c.clone();
-                        assert!(c.closed);
-                        let k = (c.points.len() / 3 + 7 * v) % c.points.len();
-                        c.points.rotate_left(k);
+                        if c.closed {
+                            let k = (c.points.len() / 3 + 7 * v) % c.points.len();
+                            c.points.rotate_left(k);
+                        }
+                        if v > 0 {
+                            c.points.reverse();
+                        }
                         c
                     })
                     .collect()
             })
             .collect();
-        assert_ne!(restarted[0][0].points[0], sim.observed[0][0].points[0]);
+        assert_ne!(restarted[0][0].points[0], given[0][0].points[0]);
+        assert_ne!(restarted[2][0].points[0], given[2][0].points[0]);
         assert!(own.2.is_some());
         assert_eq!(run(&restarted), own);
-        let mut moved = sim.observed.clone();
+        let mut moved = given.clone();
         moved[1][0].points[10].x += 3.0;
         let moved = run(&moved);
         assert_ne!(moved.0, own.0);
