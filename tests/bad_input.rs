@@ -133,3 +133,27 @@ fn the_valid_case_beside_the_corpus_succeeds_and_the_judge_rejects_it() {
     // Companion: the corpus's judge must reject a successful run.
     assert!(!judge(&o, &path, "invalid JSON", &out, dir).is_empty());
 }
+
+/// The companion of `two_closed_contours.json` and `closed_contour_and_arc.json`: a view's rim
+/// given as two open arcs (the valid case's first outline cut in two, a gap either side) is
+/// one acetabulum's rim and reconstructs.
+#[test]
+fn a_rim_given_as_two_open_arcs_is_accepted() {
+    let tmp = scratch("arcs");
+    let dir = tmp.path();
+    let mut case: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root().join("good.json")).unwrap()).unwrap();
+    let contours = &mut case["views"][0]["contours"];
+    let points = contours[0]["points"].as_array().unwrap().clone();
+    let half = points.len() / 2;
+    *contours = serde_json::json!([
+        {"points": points[..half - 1], "closed": false},
+        {"points": points[half + 1..], "closed": false},
+    ]);
+    let path = dir.join("arcs.json");
+    std::fs::write(&path, case.to_string()).unwrap();
+    let out = dir.join("out");
+    let o = run("reconstruct", &path, &out);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join("report.json").is_file());
+}

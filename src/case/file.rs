@@ -735,6 +735,20 @@ impl CaseFile {
                     closed,
                 });
             }
+            // One acetabulum's rim a view: one closed outline, or open arcs of it. A second
+            // closed outline (the femoral head, the other hip) or a closed one beside arcs would
+            // be matched to the same model outline and pull the surface apart.
+            let closed_count = curves.iter().filter(|c| c.closed).count();
+            if closed_count > 1 || (closed_count == 1 && curves.len() > 1) {
+                return Err(field_err(
+                    path,
+                    f("contours"),
+                    format!("{} contours, {closed_count} of them closed", curves.len()),
+                    "a view holds one acetabulum's rim: one closed contour, or one or more \
+                     open arcs of it; is one of them another outline (the femoral head, the \
+                     other hip, the teardrop)?",
+                ));
+            }
             let name = v.name.clone().unwrap_or_else(|| format!("view{vi}"));
             let centre = case.init.center;
             let px_per_mm = cam.pixels_per_mm_at(&centre);

@@ -76,6 +76,11 @@ case("stray_point.json", "points[5] = [1629.103746225825, 1515.888660477986]: a 
 case("traced_twice.json", "views[0].contours[0].points = 40 points going 2 times round their centre", lambda d: d["views"][0]["contours"][0].__setitem__("points", d["views"][0]["contours"][0]["points"] * 2))
 case("crossing_contour.json", "views[0].contours[0].points = 20 points enclosing", lambda d: d["views"][0]["contours"][0].__setitem__("points", d["views"][0]["contours"][0]["points"][:10] + d["views"][0]["contours"][0]["points"][10:][::-1]))
 case("collinear_contour.json", "are its points on one line, or does it cross itself", setv(["views", 0, "contours", 0, "points"], [[900 + 10 * i, 800 + 5 * i] for i in range(20)]))
+def second_closed(d):
+    pts = d["views"][0]["contours"][0]["points"]
+    d["views"][0]["contours"].append({"points": [[x + 150, y + 120] for x, y in pts], "closed": True})
+case("two_closed_contours.json", "views[0].contours = 2 contours, 2 of them closed", second_closed)
+case("closed_contour_and_arc.json", "views[1].contours = 2 contours, 1 of them closed", lambda d: d["views"][1]["contours"].append({"points": d["views"][1]["contours"][0]["points"][:8], "closed": False}))
 def shrink(d):
     pts = d["views"][1]["contours"][0]["points"]
     cx = sum(x for x, y in pts) / len(pts); cy = sum(y for x, y in pts) / len(pts)
