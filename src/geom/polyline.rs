@@ -34,6 +34,23 @@ impl Curve {
     }
 }
 
+#[cfg(test)]
+impl Curve {
+    /// The same outline as another annotator might have given it: a closed one started `k`
+    /// points on (modulo its length), and traced the other way round when `reverse`.
+    pub(crate) fn retraced(&self, k: usize, reverse: bool) -> Curve {
+        let mut c = self.clone();
+        if c.closed && !c.points.is_empty() {
+            let n = c.points.len();
+            c.points.rotate_left(k % n);
+        }
+        if reverse {
+            c.points.reverse();
+        }
+        c
+    }
+}
+
 /// Where a closed polyline is entered by its shape alone: the index of its leftmost point (the
 /// topmost-in-y of equally left ones; 0 for none).
 pub fn fixed_start(points: &[Point2<f64>]) -> usize {
@@ -266,21 +283,17 @@ mod tests {
         let left = pts.iter().map(|p| p.x).fold(f64::INFINITY, f64::min);
         assert_eq!(fixed.points[0].x, left);
         assert!(signed_area(&fixed.points) > 0.0);
+        let closed = curve(pts.clone(), true);
         for k in 0..pts.len() {
-            let mut turned = pts.clone();
-            turned.rotate_left(k);
-            assert_eq!(curve(turned.clone(), true).entered(), fixed);
-            let mut back = turned.clone();
-            back.reverse();
-            assert_eq!(curve(back, true).entered(), fixed);
+            assert_eq!(closed.retraced(k, false).entered(), fixed);
+            assert_eq!(closed.retraced(k, true).entered(), fixed);
+            let turned = closed.retraced(k, false).points;
             assert_eq!(curve(turned.clone(), false).entered().points, turned);
         }
         // An open arc either way round comes out the positive way, from the same end.
-        let arc = pts[2..9].to_vec();
-        let mut back = arc.clone();
-        back.reverse();
-        assert_eq!(curve(back, false).entered().points, arc);
-        assert_eq!(curve(arc.clone(), false).entered().points, arc);
+        let arc = curve(pts[2..9].to_vec(), false);
+        assert_eq!(arc.retraced(0, true).entered(), arc);
+        assert_eq!(arc.entered(), arc);
         let mut moved = pts.clone();
         let k = fixed_start(&pts);
         moved[k].x += 5.0;

@@ -843,17 +843,7 @@ mod tests {
             .map(|(v, curves)| {
                 curves
                     .iter()
-                    .map(|c| {
-                        let mut c = c.clone();
-                        if c.closed {
-                            let k = (c.points.len() / 3 + 7 * v) % c.points.len();
-                            c.points.rotate_left(k);
-                        }
-                        if v > 0 {
-                            c.points.reverse();
-                        }
-                        c
-                    })
+                    .map(|c| c.retraced(c.points.len() / 3 + 7 * v, v > 0))
                     .collect()
             })
             .collect();

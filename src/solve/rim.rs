@@ -351,15 +351,7 @@ mod tests {
             .map(|(v, curves)| {
                 curves
                     .iter()
-                    .map(|c| {
-                        let mut c = c.clone();
-                        let k = c.points.len() / 3 + 5 * v;
-                        c.points.rotate_left(k);
-                        if v == 1 {
-                            c.points.reverse();
-                        }
-                        c
-                    })
+                    .map(|c| c.retraced(c.points.len() / 3 + 5 * v, v == 1))
                     .collect()
             })
             .collect();
