@@ -11,8 +11,8 @@ use crate::geom::fit_sphere_robust;
 use crate::geom::Mesh;
 use crate::prior::{opens_to_plus_x, to_prior_frame, ShapePrior, MAX_MODES};
 use crate::solve::{
-    levenberg_marquardt_cached, DeformationGraph, EdProblem, GraphParams, LmInfo, LmParams,
-    SymbolicCache,
+    levenberg_marquardt_cached, DeformationGraph, EdProblem, EdWeights, GraphParams, LmInfo,
+    LmParams, SymbolicCache,
 };
 use crate::solve::{LinearSolveError, Problem, ShapeTerms, SolveError, SpherePrior};
 use crate::template::Placement;
@@ -76,7 +76,11 @@ impl EdState {
         obs: &'a [Observation],
     ) -> EdProblem<'a> {
         let prm = ctx.prm;
-        let mut problem = EdProblem::new(graph, cams, obs, prm.weights.clone());
+        let weights = EdWeights {
+            tangential: prm.tangential(),
+            ..prm.weights.clone()
+        };
+        let mut problem = EdProblem::new(graph, cams, obs, weights);
         let prior = &prm.deformation;
         if prior.sphere_prior > 0.0 && self.prior_sphere.is_none() {
             self.prior_sphere = fit_sphere_robust(&mesh.vertices)

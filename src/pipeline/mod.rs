@@ -858,6 +858,31 @@ mod tests {
         assert_ne!(moved.1, own.1);
     }
 
+    /// The along-outline weight is each method's own: SRVF's weight changes an srvf result and
+    /// leaves an icp-normvec one to the bit, the baselines' weight the other way round.
+    #[test]
+    fn the_along_outline_weight_is_each_methods_own() {
+        use crate::correspond::Method;
+        let (_, sim) = crate::sim::phantom_case(3, 5).unwrap();
+        let template = Template::standard();
+        let run = |method, srvf: f64, icp: f64| {
+            let mut prm = ReconParams {
+                method,
+                ..Default::default()
+            };
+            (prm.weights.tangential_srvf, prm.weights.tangential) = (srvf, icp);
+            let rec = reconstruct(&sim.input(&template), &prm, Kernels::Cpu).unwrap();
+            assert_eq!(rec.log.fallback, None);
+            rec.mesh.vertices
+        };
+        let srvf = run(Method::Srvf, 0.1, 0.1);
+        assert_ne!(run(Method::Srvf, 0.3, 0.1), srvf);
+        assert_eq!(run(Method::Srvf, 0.1, 0.3), srvf);
+        let icp = run(Method::IcpNormvec, 0.1, 0.1);
+        assert_ne!(run(Method::IcpNormvec, 0.1, 0.3), icp);
+        assert_eq!(run(Method::IcpNormvec, 0.3, 0.1), icp);
+    }
+
     #[test]
     fn annotations_given_to_the_wrong_views_leave_a_crumpled_surface_that_is_refused() {
         let (_, mut sim) = crate::sim::phantom_case(1, 3).unwrap();

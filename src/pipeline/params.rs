@@ -22,7 +22,8 @@ pub struct ReconParams {
     /// down-weight exactly the stretches where the outline departs most from the model's shape
     /// (see `CorrespondParams::srvf_outlier_k`).
     pub robust_srvf: bool,
-    /// The energy's weights (the similarity stage uses `tangential`).
+    /// The energy's weights (the similarity stage and the pose refinement use the along-outline
+    /// weight too: `ReconParams::tangential`).
     pub weights: EdWeights,
     /// The Levenberg-Marquardt settings of every solve.
     pub lm: LmParams,
@@ -315,6 +316,16 @@ impl Default for ReconParams {
 pub const MAX_WEIGHT: f64 = 1e6;
 
 impl ReconParams {
+    /// The along-outline weight of this method's pairs in every solve that fits them (stage A,
+    /// stage B, the pose refinement): `weights.tangential_srvf` for SRVF's, `weights.tangential`
+    /// for the ICP baselines'.
+    pub fn tangential(&self) -> f64 {
+        match self.method {
+            Method::Srvf => self.weights.tangential_srvf,
+            Method::Icp | Method::IcpNormvec => self.weights.tangential,
+        }
+    }
+
     /// Check the settings a reconstruction cannot run with: a non-finite or negative weight,
     /// tolerance or scale, a normal-angle test that is not an angle. `reconstruct` calls it
     /// first; the error names the field and its value. (The standard template's settings are
@@ -332,6 +343,7 @@ impl ReconParams {
             ("weights.reg", self.weights.reg),
             ("weights.obs", self.weights.obs),
             ("weights.tangential", self.weights.tangential),
+            ("weights.tangential_srvf", self.weights.tangential_srvf),
             ("deformation.sphere_prior", self.deformation.sphere_prior),
             ("placement.rim_weight", self.placement.rim_weight),
             ("placement.tol_mm", self.placement.tol_mm),

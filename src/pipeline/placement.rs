@@ -176,7 +176,7 @@ pub(super) fn similarity_step(
     damping: Option<&mut Damping>,
 ) -> Result<(Mesh, f64, LmInfo), ReconError> {
     let mut problem = SimilarityProblem::new(&mesh.vertices, cams, obs);
-    problem.tangential = prm.weights.tangential;
+    problem.tangential = prm.tangential();
     if let Some(c) = rotation_about {
         problem.center = c;
         problem.rotation_only = true;
@@ -249,7 +249,7 @@ impl Poses {
             ctx.cams,
             obs,
             pp,
-            ctx.prm.weights.tangential,
+            ctx.prm.tangential(),
         );
         let (x, info) =
             levenberg_marquardt(&pose, self.x.clone(), &ctx.prm.lm).map_err(|source| {

@@ -32,8 +32,13 @@ pub struct EdWeights {
     pub reg: f64,
     /// w_obs, on E_obs (projections onto their targets).
     pub obs: f64,
-    /// Weight of the reprojection error along the observed contour relative to across it.
+    /// Weight of the reprojection error along the observed contour relative to across it, for
+    /// the ICP baselines' pairs (nearest model vertices: along the outline they say little).
     pub tangential: f64,
+    /// The same for SRVF's pairs, point-to-point correspondences laid along the whole outline
+    /// (`ReconParams::tangential` picks by method; docs/population.md, "How much the pairs hold
+    /// along the outline": 0.3 measured better for the cup than today's 0.1).
+    pub tangential_srvf: f64,
 }
 
 impl Default for EdWeights {
@@ -43,6 +48,7 @@ impl Default for EdWeights {
             reg: 10.0,
             obs: 100.0,
             tangential: 0.1,
+            tangential_srvf: 0.1,
         }
     }
 }

@@ -109,6 +109,14 @@ pub struct SimulateArgs {
     /// See --w-rot.
     #[arg(long, default_value_t = 100.0)]
     pub w_obs: f64,
+    /// Weight of a pair's reprojection error along the observed outline, relative to across
+    /// it: SRVF's pairs (default 0.1; docs/population.md, "How much the pairs hold along the
+    /// outline") ...
+    #[arg(long, default_value_t = acetab::solve::EdWeights::default().tangential_srvf)]
+    pub w_along_srvf: f64,
+    /// ... and the ICP baselines' (default 0.1).
+    #[arg(long, default_value_t = acetab::solve::EdWeights::default().tangential)]
+    pub w_along: f64,
     /// Coarse-to-fine deformation: a graph of this many nodes in every correspondence round
     /// but the last (default: the full graph throughout; see docs/study.md).
     #[arg(long, value_parser = count_in(2, acetab::solve::GraphParams::default().nodes))]
@@ -201,6 +209,8 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         w_rot,
         w_reg,
         w_obs,
+        w_along_srvf,
+        w_along,
         coarse_nodes,
         correspondence_updates,
         srvf_samples,
@@ -275,7 +285,13 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
             "--realistic sets the realistic protocol's errors: add --protocol realistic".into(),
         );
     }
-    for (flag, w) in [("--w-rot", w_rot), ("--w-reg", w_reg), ("--w-obs", w_obs)] {
+    for (flag, w) in [
+        ("--w-rot", w_rot),
+        ("--w-reg", w_reg),
+        ("--w-obs", w_obs),
+        ("--w-along-srvf", w_along_srvf),
+        ("--w-along", w_along),
+    ] {
         if !(w.is_finite() && w >= 0.0) {
             return Err(format!("{flag} {w}: must be a finite non-negative weight"));
         }
@@ -299,7 +315,8 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
                 rot: w_rot,
                 reg: w_reg,
                 obs: w_obs,
-                ..Default::default()
+                tangential: w_along,
+                tangential_srvf: w_along_srvf,
             },
             deformation: DeformationParams {
                 coarse_graph_nodes: coarse_nodes,
@@ -432,6 +449,8 @@ impl Study<'_> {
             "contours": format!("{:?}", cfg.params.contour_source),
             "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
             "w_obs": cfg.params.weights.obs, "refine_poses": cfg.params.pose.is_some(),
+            "w_along": cfg.params.weights.tangential,
+            "w_along_srvf": cfg.params.weights.tangential_srvf,
             "pose_prior": cfg.params.pose.as_ref().map(acetab::solve::PoseParams::prior_sds),
             "cup_estimator": cfg.params.cup.estimator.name(),
             "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
