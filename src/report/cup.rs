@@ -95,6 +95,20 @@ impl CupCatalogue {
             catalogue_mm: best,
         }
     }
+
+    /// How many catalogue steps lie between the nearest sizes of two diameters (0: the same
+    /// size; 1: neighbouring sizes); None for an empty catalogue or a diameter that is not a
+    /// number.
+    pub fn sizes_apart(&self, a: f64, b: f64) -> Option<usize> {
+        let index = |d: f64| {
+            let size = self.nearest(d).catalogue_mm;
+            self.sizes_mm.iter().position(|&s| s == size)
+        };
+        match (a.is_finite() && b.is_finite(), index(a), index(b)) {
+            (true, Some(i), Some(j)) => Some(i.abs_diff(j)),
+            _ => None,
+        }
+    }
 }
 
 #[cfg(test)]
@@ -108,6 +122,23 @@ mod tests {
         assert!(!c.holds(51.0) && !c.holds(58.9) && !c.holds(71.1) && !c.holds(f64::NAN));
         let one = CupCatalogue::parse("52").unwrap();
         assert!(one.holds(51.5) && !one.holds(49.0));
+    }
+
+    #[test]
+    fn sizes_apart_counts_catalogue_steps() {
+        let c = CupCatalogue::default();
+        // 52.9 is nearest 52, 53.0 nearest 54 (ties go up): one size apart; 50.9 (50) is two
+        // from 53.0.
+        assert_eq!(c.sizes_apart(52.9, 53.0), Some(1));
+        assert_eq!(c.sizes_apart(53.0, 53.9), Some(0));
+        assert_eq!(c.sizes_apart(50.9, 53.0), Some(2));
+        assert_eq!(c.sizes_apart(53.0, 50.9), Some(2));
+        // Companion: a diameter that is not a number is no size at all.
+        assert_eq!(c.sizes_apart(f64::NAN, 53.0), None);
+        assert_eq!(
+            CupCatalogue { sizes_mm: vec![] }.sizes_apart(50.0, 50.0),
+            None
+        );
     }
 
     #[test]

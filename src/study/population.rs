@@ -1,7 +1,7 @@
 //! The population table: one study per acetabulum (a sweep), summarised per mesh and overall,
-//! per method and level: mean MAE, runs that failed or fell back, catastrophic runs (MAE over
-//! 3 mm, the cup more than 5 mm off, or no result), the cup within 1 mm and at the exact
-//! catalogue size; the worst mesh per method; and srvf against its better baseline per mesh and
+//! per method and level: mean MAE, runs that failed, fell back or restarted, catastrophic runs
+//! (MAE over 3 mm, the cup more than 5 mm off, or no result), the cup within 1 mm, at the exact
+//! catalogue size and within one size; the worst mesh per method; and srvf against its better baseline per mesh and
 //! level, paired run by run (`compare`). Written as population.csv, population.json and (with
 //! the `plots` feature) population.png.
 
@@ -33,6 +33,9 @@ pub struct PopulationRow {
     pub failed: usize,
     /// Runs whose result came from a fallback.
     pub fallbacks: usize,
+    /// Runs that restarted (from tilted starts or the limb sphere; runs.csv's `restart` and
+    /// `restart_cause` say which and why).
+    pub restarted: usize,
     /// Mean MAE of the runs with a result, mm.
     pub mae_mean: f64,
     /// Catastrophic runs (MAE over 3 mm, cup over 5 mm off, or failed).
@@ -41,6 +44,8 @@ pub struct PopulationRow {
     pub cup_within_1mm: usize,
     /// Runs whose cup's nearest catalogue size is the truth's.
     pub cup_exact_size: usize,
+    /// Runs whose cup's nearest catalogue size is the truth's or a neighbour of it.
+    pub cup_within_one_size: usize,
 }
 
 /// Is this run catastrophic?
@@ -54,6 +59,15 @@ fn summarise(mesh: &str, method: StudyMethod, level: u32, rows: &[&Row]) -> Popu
     let cat = CupCatalogue::default();
     let ok: Vec<&&Row> = rows.iter().filter(|r| r.error.is_empty()).collect();
     let maes: Vec<f64> = ok.iter().map(|r| r.mae_mm).collect();
+    // Runs whose cup's nearest size is at most `steps` catalogue sizes from the truth's.
+    let apart = |steps: usize| {
+        ok.iter()
+            .filter(|r| {
+                cat.sizes_apart(r.cup_diameter_mm, r.gt_cup_diameter_mm)
+                    .is_some_and(|k| k <= steps)
+            })
+            .count()
+    };
     PopulationRow {
         mesh: mesh.to_string(),
         method,
@@ -61,16 +75,12 @@ fn summarise(mesh: &str, method: StudyMethod, level: u32, rows: &[&Row]) -> Popu
         runs: rows.len(),
         failed: rows.len() - ok.len(),
         fallbacks: rows.iter().filter(|r| !r.fallback.is_empty()).count(),
+        restarted: rows.iter().filter(|r| !r.restart.is_empty()).count(),
         mae_mean: crate::geom::mean(&maes),
         catastrophic: rows.iter().filter(|r| catastrophic(r)).count(),
         cup_within_1mm: ok.iter().filter(|r| r.cup_error_mm().abs() <= 1.0).count(),
-        cup_exact_size: ok
-            .iter()
-            .filter(|r| {
-                cat.nearest(r.cup_diameter_mm).catalogue_mm
-                    == cat.nearest(r.gt_cup_diameter_mm).catalogue_mm
-            })
-            .count(),
+        cup_exact_size: apart(0),
+        cup_within_one_size: apart(1),
     }
 }
 
@@ -333,5 +343,28 @@ mod tests {
         // Companion: a run within both bounds is not catastrophic.
         assert!(!catastrophic(&row(StudyMethod::Srvf, 1, 2.9, 54.9)));
         assert!(catastrophic(&row(StudyMethod::Srvf, 1, 2.9, 55.1)));
+    }
+
+    #[test]
+    fn the_table_counts_restarts_and_cups_within_one_size() {
+        // Truth 50 mm: cups nearest 52 (one size up), 48 (one down), 54 (two up) and 50.
+        let mut rows: Vec<Row> = [51.2, 48.9, 53.1, 50.2]
+            .iter()
+            .map(|&cup| row(StudyMethod::Srvf, 1, 0.5, cup))
+            .collect();
+        rows[0].restart = "+u".into();
+        rows[2].restart = "limb sphere".into();
+        let table = population_rows(&[("a".into(), rows.clone())]);
+        let r = &table[0];
+        assert_eq!(
+            (r.restarted, r.cup_exact_size, r.cup_within_one_size),
+            (2, 1, 3)
+        );
+        // Companion: the cup two sizes up moved to one size up is counted, and a run that did
+        // not restart is not.
+        rows[2].cup_diameter_mm = 52.9;
+        rows[2].restart.clear();
+        let r = &population_rows(&[("a".into(), rows)])[0];
+        assert_eq!((r.restarted, r.cup_within_one_size), (1, 4));
     }
 }

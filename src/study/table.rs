@@ -5,6 +5,7 @@ use super::method::StudyMethod;
 use super::task::Task;
 use crate::io::write_atomic;
 use serde::Serialize;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// One run's result, one line of runs.csv (csv + serde; numbers at fixed precision, 6 decimals
@@ -463,6 +464,11 @@ pub struct Summary {
     /// Restarted runs whose result came from another start than the given one (a tilted start
     /// or the limb sphere).
     pub restart_tilted: usize,
+    /// Restarted runs by why (`Row::restart_cause`: "outlines", "folded", "guard-" and the
+    /// guard); runs read from a runs.csv written before the cause was recorded are not counted.
+    pub restart_causes: BTreeMap<String, usize>,
+    /// Runs that fell back, by the guard the method's own result failed (`Row::fallback_guard`).
+    pub fallback_guards: BTreeMap<String, usize>,
     /// Mean MAE, mm.
     pub mae_mean: f64,
     /// SD of the MAE (dividing by n), mm.
@@ -499,6 +505,15 @@ fn within(rows: &[&Row], diameter: impl Fn(&Row) -> f64) -> usize {
     rows.iter()
         .filter(|r| (diameter(r) - r.gt_cup_diameter_mm).abs() <= 1.0)
         .count()
+}
+
+/// How often each non-empty name occurs.
+fn counts<'a>(names: impl Iterator<Item = &'a str>) -> BTreeMap<String, usize> {
+    let mut out = BTreeMap::new();
+    for n in names.filter(|n| !n.is_empty()) {
+        *out.entry(n.to_string()).or_insert(0) += 1;
+    }
+    out
 }
 
 /// Summaries in canonical order. Failed runs count in `runs` and `failed`, not in the means.
@@ -539,6 +554,8 @@ pub fn summarize(rows: &[Row]) -> Vec<Summary> {
                     .iter()
                     .filter(|r| !r.restart.is_empty() && r.restart != "given")
                     .count(),
+                restart_causes: counts(g.iter().map(|r| r.restart_cause.as_str())),
+                fallback_guards: counts(g.iter().map(|r| r.fallback_guard.as_str())),
                 mae_mean,
                 mae_sd,
                 cup_error_mean,
@@ -740,6 +757,28 @@ mod tests {
             error: String::new(),
             ..Row::failed(&t, "")
         }
+    }
+
+    #[test]
+    fn summary_counts_restarts_by_cause_and_fallbacks_by_guard() {
+        let mut rows: Vec<Row> = (0..4).map(|k| row(StudyMethod::Srvf, 1, k, 0.8)).collect();
+        for (r, cause) in rows.iter_mut().zip(["folded", "guard-rough", "folded"]) {
+            r.restart = "+u".into();
+            r.restart_cause = cause.into();
+        }
+        rows[3].fallback = "icp-normvec".into();
+        rows[3].fallback_guard = "rough".into();
+        let s = &summarize(&rows)[0];
+        let map = |v: &[(&str, usize)]| -> BTreeMap<String, usize> {
+            v.iter().map(|&(k, n)| (k.to_string(), n)).collect()
+        };
+        assert_eq!(s.restart_causes, map(&[("folded", 2), ("guard-rough", 1)]));
+        assert_eq!(s.fallback_guards, map(&[("rough", 1)]));
+        // Companion: a run with another cause is counted under it, not under the first's.
+        rows[2].restart_cause = "outlines".into();
+        let s = &summarize(&rows)[0];
+        assert_ne!(s.restart_causes, map(&[("folded", 2), ("guard-rough", 1)]));
+        assert_eq!(s.restart_causes["outlines"], 1);
     }
 
     #[test]

@@ -138,20 +138,31 @@ pub(super) fn sweep(
         return Ok(());
     }
     println!(
-        "{:<17} {:>5} {:>6} {:>6} {:>9} {:>12} {:>11} {:>10}",
-        "method", "level", "runs", "failed", "fallbacks", "catastrophic", "cup<=1mm", "exact size"
+        "{:<17} {:>5} {:>6} {:>6} {:>9} {:>9} {:>12} {:>11} {:>10} {:>9}",
+        "method",
+        "level",
+        "runs",
+        "failed",
+        "fallbacks",
+        "restarts",
+        "catastrophic",
+        "cup<=1mm",
+        "exact size",
+        "+-1 size"
     );
     for r in rows.iter().filter(|r| r.mesh == "all") {
         println!(
-            "{:<17} {:>5} {:>6} {:>6} {:>9} {:>12} {:>11} {:>10}   MAE {:.3} mm",
+            "{:<17} {:>5} {:>6} {:>6} {:>9} {:>9} {:>12} {:>11} {:>10} {:>9}   MAE {:.3} mm",
             r.method.name(),
             r.level,
             r.runs,
             r.failed,
             r.fallbacks,
+            r.restarted,
             r.catastrophic,
             r.cup_within_1mm,
             r.cup_exact_size,
+            r.cup_within_one_size,
             r.mae_mean
         );
     }
