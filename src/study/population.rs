@@ -1,9 +1,9 @@
 //! The population table: one study per acetabulum (a sweep), summarised per mesh and overall,
 //! per method and level: mean MAE, runs that failed, fell back or restarted, catastrophic runs
 //! (MAE over 3 mm, the cup more than 5 mm off, or no result), the cup within 1 mm, at the exact
-//! catalogue size and within one size; the worst mesh per method; and srvf against its better baseline per mesh and
-//! level, paired run by run (`compare`). Written as population.csv, population.json and (with
-//! the `plots` feature) population.png.
+//! catalogue size and within one size; the worst mesh per method; and srvf against its better
+//! baseline per mesh and level, paired run by run (`compare`). Written as population.csv,
+//! population.json and (with the `plots` feature) population.png.
 
 use super::compare::{compare, Comparison, TOLERANCE};
 use super::method::StudyMethod;
