@@ -870,7 +870,7 @@ mod tests {
                 method,
                 ..Default::default()
             };
-            (prm.weights.tangential_srvf, prm.weights.tangential) = (srvf, icp);
+            (prm.tangential_srvf, prm.weights.tangential) = (srvf, icp);
             let rec = reconstruct(&sim.input(&template), &prm, Kernels::Cpu).unwrap();
             assert_eq!(rec.log.fallback, None);
             rec.mesh.vertices

@@ -22,9 +22,15 @@ pub struct ReconParams {
     /// down-weight exactly the stretches where the outline departs most from the model's shape
     /// (see `CorrespondParams::srvf_outlier_k`).
     pub robust_srvf: bool,
-    /// The energy's weights (the similarity stage and the pose refinement use the along-outline
-    /// weight too: `ReconParams::tangential`).
+    /// The energy's weights; `weights.tangential` is the along-outline weight of the ICP
+    /// baselines' pairs (nearest model vertices: along the outline they say little; default
+    /// 0.1). The similarity stage and the pose refinement use the along-outline weight too
+    /// (`ReconParams::tangential`).
     pub weights: EdWeights,
+    /// The along-outline weight of SRVF's pairs, point-to-point correspondences laid along the
+    /// whole outline (default 0.3: docs/population.md, "How much the pairs hold along the
+    /// outline": the bone-side cups' RMS 1.10-1.14 -> 0.95-0.98 mm against 0.1).
+    pub tangential_srvf: f64,
     /// The Levenberg-Marquardt settings of every solve.
     pub lm: LmParams,
     /// Stages 0 and A: the template placed on the limb sphere and turned as a rigid cap.
@@ -302,6 +308,7 @@ impl Default for ReconParams {
             robust: true,
             robust_srvf: false,
             weights: EdWeights::default(),
+            tangential_srvf: 0.3,
             lm: LmParams::default(),
             placement: PlacementParams::default(),
             pose: None,
@@ -317,11 +324,11 @@ pub const MAX_WEIGHT: f64 = 1e6;
 
 impl ReconParams {
     /// The along-outline weight of this method's pairs in every solve that fits them (stage A,
-    /// stage B, the pose refinement): `weights.tangential_srvf` for SRVF's, `weights.tangential`
+    /// stage B, the pose refinement): `tangential_srvf` for SRVF's, `weights.tangential`
     /// for the ICP baselines'.
     pub fn tangential(&self) -> f64 {
         match self.method {
-            Method::Srvf => self.weights.tangential_srvf,
+            Method::Srvf => self.tangential_srvf,
             Method::Icp | Method::IcpNormvec => self.weights.tangential,
         }
     }
@@ -343,7 +350,7 @@ impl ReconParams {
             ("weights.reg", self.weights.reg),
             ("weights.obs", self.weights.obs),
             ("weights.tangential", self.weights.tangential),
-            ("weights.tangential_srvf", self.weights.tangential_srvf),
+            ("tangential_srvf", self.tangential_srvf),
             ("deformation.sphere_prior", self.deformation.sphere_prior),
             ("placement.rim_weight", self.placement.rim_weight),
             ("placement.tol_mm", self.placement.tol_mm),

@@ -32,14 +32,9 @@ pub struct EdWeights {
     pub reg: f64,
     /// w_obs, on E_obs (projections onto their targets).
     pub obs: f64,
-    /// Weight of the reprojection error along the observed contour relative to across it, for
-    /// the ICP baselines' pairs (nearest model vertices: along the outline they say little).
+    /// Weight of the reprojection error along the observed contour relative to across it
+    /// (default 0.1). A reconstruction sets it per method: `ReconParams::tangential`.
     pub tangential: f64,
-    /// The same for SRVF's pairs, point-to-point correspondences laid along the whole outline
-    /// (`ReconParams::tangential` picks by method). 0.3: it holds SRVF's pairs more along the
-    /// outline than the baselines' (docs/population.md, "How much the pairs hold along the
-    /// outline": the bone-side cups' RMS 1.10-1.14 -> 0.95-0.98 mm against 0.1).
-    pub tangential_srvf: f64,
 }
 
 impl Default for EdWeights {
@@ -49,7 +44,6 @@ impl Default for EdWeights {
             reg: 10.0,
             obs: 100.0,
             tangential: 0.1,
-            tangential_srvf: 0.3,
         }
     }
 }

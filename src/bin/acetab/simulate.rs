@@ -110,9 +110,9 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 100.0)]
     pub w_obs: f64,
     /// Weight of a pair's reprojection error along the observed outline, relative to across
-    /// it: SRVF's pairs (default 0.1; docs/population.md, "How much the pairs hold along the
+    /// it: SRVF's pairs (default 0.3; docs/population.md, "How much the pairs hold along the
     /// outline") ...
-    #[arg(long, default_value_t = acetab::solve::EdWeights::default().tangential_srvf)]
+    #[arg(long, default_value_t = acetab::pipeline::ReconParams::default().tangential_srvf)]
     pub w_along_srvf: f64,
     /// ... and the ICP baselines' (default 0.1).
     #[arg(long, default_value_t = acetab::solve::EdWeights::default().tangential)]
@@ -316,8 +316,8 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
                 reg: w_reg,
                 obs: w_obs,
                 tangential: w_along,
-                tangential_srvf: w_along_srvf,
             },
+            tangential_srvf: w_along_srvf,
             deformation: DeformationParams {
                 coarse_graph_nodes: coarse_nodes,
                 correspondence_updates,
@@ -450,7 +450,7 @@ impl Study<'_> {
             "w_rot": cfg.params.weights.rot, "w_reg": cfg.params.weights.reg,
             "w_obs": cfg.params.weights.obs, "refine_poses": cfg.params.pose.is_some(),
             "w_along": cfg.params.weights.tangential,
-            "w_along_srvf": cfg.params.weights.tangential_srvf,
+            "w_along_srvf": cfg.params.tangential_srvf,
             "pose_prior": cfg.params.pose.as_ref().map(acetab::solve::PoseParams::prior_sds),
             "cup_estimator": cfg.params.cup.estimator.name(),
             "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
