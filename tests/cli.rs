@@ -642,6 +642,12 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
     let mut cmd = bin();
     cmd.args(["simulate", "--gt", "phantom", "--batch", "8"]);
     fails_cleanly_with(cmd, &out, &["--batch 8", "--backend gpu"], 1);
+    // The share that makes a pair the rim's: of the sphere's radius, 0 (off) to 1.
+    for value in ["1.5", "nan"] {
+        let mut cmd = bin();
+        cmd.args(["simulate", "--gt", "phantom", "--rim-pairs", value]);
+        fails_cleanly_with(cmd, &out, &["--rim-pairs", "[0, 1]"], 1);
+    }
 }
 
 #[test]

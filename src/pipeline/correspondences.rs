@@ -96,6 +96,11 @@ impl Ctx<'_> {
         if robust {
             robust_weights(mesh, cams, &mut obs);
         }
+        // SRVF's pairs alone: the baselines' nearest-vertex pairs would lose their hold on the
+        // outline (docs/population.md, "Pairs the rim makes").
+        if let (Method::Srvf, Some(rp)) = (self.prm.method, &self.prm.rim_pairs) {
+            super::rim_pairs::weigh(mesh, cams, &mut obs, rp);
+        }
         if obs.len() < MIN_CORRESPONDENCES {
             return Err(ReconError::TooFewCorrespondences {
                 stage,

@@ -14,6 +14,7 @@ mod log;
 mod params;
 mod placement;
 mod restart;
+mod rim_pairs;
 mod uncertainty;
 
 pub use calibration::{
@@ -34,6 +35,7 @@ pub use params::{
     CupEstimator, CupParams, DeformationParams, PlacementParams, ReconParams, MAX_SHRINK,
 };
 pub use restart::outline_distance_px;
+pub use rim_pairs::RimPairs;
 pub use uncertainty::{cup_report, CupReport, SizeProbability, UncertaintyParams};
 
 use crate::contours::ModelContour;
@@ -737,8 +739,12 @@ mod tests {
         let rec =
             reconstruct(&sim.input(&template), &ReconParams::default(), Kernels::Cpu).unwrap();
         assert_eq!(rec.log.fallback, Some("refine-poses"));
+        // The method's own result lies far from the outlines; since SRVF's pairs the rim makes
+        // weigh less (`RimPairs`), it also lies far from the limb sphere, the guard checked
+        // first (7.1 mm off; outlines 6.6 px, 5.4 px before).
         assert!(
-            matches!(rec.log.guard, Some(GuardFailure::Outlines { outline_px, .. }) if outline_px > 5.0),
+            matches!(rec.log.guard, Some(GuardFailure::Outlines { outline_px, .. }) if outline_px > 5.0)
+                || matches!(rec.log.guard, Some(GuardFailure::LimbSphere { .. })),
             "{:?}",
             rec.log.guard
         );
@@ -752,22 +758,17 @@ mod tests {
             "{} against {truth}",
             rec.sphere.diameter()
         );
-        // The companion: without the outline guard the method's own result stands, and it is
-        // what the guard refuses: outlines far off and a cup farther from the truth.
+        // The companion: without the guards the method's own result stands, and it is what the
+        // guards refuse: outlines far off and a cup farther from the truth.
         let unguarded = ReconParams {
-            guards: Some(GuardParams {
-                max_outline_px: f64::INFINITY,
-                ..Default::default()
-            }),
+            guards: None,
             ..Default::default()
         };
         let own = reconstruct(&sim.input(&template), &unguarded, Kernels::Cpu).unwrap();
         assert_eq!(own.log.fallback, None);
+        assert!(own.log.outline_px > 5.0, "{}", own.log.outline_px);
         assert!(
-            matches!(
-                guard_failure(&GuardParams::default(), &own),
-                Some(GuardFailure::Outlines { .. })
-            ),
+            guard_failure(&GuardParams::default(), &own).is_some(),
             "{}",
             own.log.outline_px
         );
@@ -881,6 +882,42 @@ mod tests {
         let icp = run(Method::IcpNormvec, 0.1, 0.1);
         assert_ne!(run(Method::IcpNormvec, 0.1, 0.3), icp);
         assert_eq!(run(Method::IcpNormvec, 0.3, 0.1), icp);
+    }
+
+    #[test]
+    fn the_rim_pairs_rule_is_srvfs_alone() {
+        use crate::correspond::Method;
+        // A cap reaching 60 degrees from its dome, turned as an acetabulum opens: narrower than
+        // the hemisphere template, so SRVF pairs some model vertices with the rim's outline.
+        let cap = crate::template::spherical_cap(25.0, 1500, 60f64.to_radians());
+        let axis = nalgebra::Vector3::new(0.7, -0.3, -0.65).normalize();
+        let turn = nalgebra::Rotation3::rotation_between(&nalgebra::Vector3::z(), &axis).unwrap();
+        let truth = cap.transformed(1.0, &turn, &nalgebra::Vector3::zeros());
+        let level = crate::sim::NoiseLevel::level(3).unwrap();
+        let geometry = crate::sim::XrayGeometry::default();
+        let sim = crate::sim::simulate_case(&truth, &geometry, 2.0, &level, 1).unwrap();
+        let template = Template::standard();
+        let run = |method, rim_pairs: Option<RimPairs>| {
+            let prm = ReconParams {
+                method,
+                rim_pairs,
+                ..Default::default()
+            };
+            let rec = reconstruct(&sim.input(&template), &prm, Kernels::Cpu).unwrap();
+            rec.mesh.vertices
+        };
+        // SRVF's result moves with it; an ICP-NormVec result is the same to the bit.
+        let srvf = run(Method::Srvf, Some(RimPairs::default()));
+        assert!(run(Method::Srvf, None) != srvf);
+        let icp = run(Method::IcpNormvec, Some(RimPairs::default()));
+        assert!(run(Method::IcpNormvec, None) == icp);
+        // Companion: a rule that lowers no pair (every vertex counted as near the border)
+        // leaves SRVF's result as without it.
+        let idle = RimPairs {
+            border_rings: usize::MAX - 1,
+            ..RimPairs::default()
+        };
+        assert!(run(Method::Srvf, Some(idle)) == run(Method::Srvf, None));
     }
 
     #[test]

@@ -88,6 +88,8 @@ impl StudyMethod {
             // The paper rejects outliers among SRVF's pairs as among the baselines'.
             p.correspond.srvf_outlier_k = Some(p.correspond.outlier_k);
             p.robust_srvf = p.robust;
+            // The paper's pairs are the alignment's, as published.
+            p.rim_pairs = None;
         }
         p
     }

@@ -117,6 +117,12 @@ pub struct SimulateArgs {
     /// ... and the ICP baselines' (default 0.1).
     #[arg(long, default_value_t = acetab::solve::EdWeights::default().tangential)]
     pub w_along: f64,
+    /// SRVF's pairs the rim makes: a pair whose observed point's ray passes the surface's
+    /// sphere centre closer than this share of its radius, on a model vertex away from the
+    /// model's border, weighs 0.3 of its weight (default 0.93; 0 turns it off: docs/population.md, "Pairs
+    /// the rim makes").
+    #[arg(long, default_value_t = acetab::pipeline::RimPairs::default().within)]
+    pub rim_pairs: f64,
     /// Coarse-to-fine deformation: a graph of this many nodes in every correspondence round
     /// but the last (default: the full graph throughout; see docs/study.md).
     #[arg(long, value_parser = count_in(2, acetab::solve::GraphParams::default().nodes))]
@@ -211,6 +217,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         w_obs,
         w_along_srvf,
         w_along,
+        rim_pairs,
         coarse_nodes,
         correspondence_updates,
         srvf_samples,
@@ -296,6 +303,11 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
             return Err(format!("{flag} {w}: must be a finite non-negative weight"));
         }
     }
+    if !(rim_pairs.is_finite() && (0.0..=1.0).contains(&rim_pairs)) {
+        return Err(format!(
+            "--rim-pairs {rim_pairs}: must be a share of the sphere's radius in [0, 1] (0: off)"
+        ));
+    }
     let mut cfg = StudyConfig {
         protocol: match protocol {
             ProtocolArg::Ideal => Protocol::Ideal,
@@ -318,6 +330,10 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
                 tangential: w_along,
             },
             tangential_srvf: w_along_srvf,
+            rim_pairs: (rim_pairs > 0.0).then(|| acetab::pipeline::RimPairs {
+                within: rim_pairs,
+                ..Default::default()
+            }),
             deformation: DeformationParams {
                 coarse_graph_nodes: coarse_nodes,
                 correspondence_updates,
@@ -451,6 +467,7 @@ impl Study<'_> {
             "w_obs": cfg.params.weights.obs, "refine_poses": cfg.params.pose.is_some(),
             "w_along": cfg.params.weights.tangential,
             "w_along_srvf": cfg.params.tangential_srvf,
+            "rim_pairs": cfg.params.rim_pairs.as_ref().map_or(0.0, |r| r.within),
             "pose_prior": cfg.params.pose.as_ref().map(acetab::solve::PoseParams::prior_sds),
             "cup_estimator": cfg.params.cup.estimator.name(),
             "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
