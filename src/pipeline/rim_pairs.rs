@@ -19,8 +19,8 @@ const SPHERE_VERTICES: usize = 400;
 #[derive(Clone, Debug, PartialEq)]
 pub struct RimPairs {
     /// A pair is the rim's when its observed point's ray passes the surface's sphere centre
-    /// closer than this share of the sphere's radius (default 0.93, the share the rim fit takes
-    /// for the rim: `solve::rim`).
+    /// closer than this share of the sphere's radius (default `solve::RIM_WITHIN`, 0.93: the
+    /// share the rim fit takes for the rim).
     pub within: f64,
     /// Such a pair's weight is multiplied by this (default 0.3; at most 0.5, so that the
     /// observed-part cup leaves its vertex out).
@@ -34,7 +34,7 @@ pub struct RimPairs {
 impl Default for RimPairs {
     fn default() -> Self {
         RimPairs {
-            within: 0.93,
+            within: crate::solve::RIM_WITHIN,
             weight: 0.3,
             border_rings: 1,
         }

@@ -21,5 +21,5 @@ pub use lm::{
 pub use normal::{LinearSolveError, Linearization, NormalEquations, SymbolicCache};
 pub use pose::{corrected_camera, PoseParams, PoseProblem};
 pub use reprojection::{behind, reprojection, Reprojection};
-pub use rim::{radiographic_angles, rim_orientation, RimError, RimFit};
+pub use rim::{radiographic_angles, rim_orientation, RimError, RimFit, RIM_WITHIN};
 pub use similarity::{apply_similarity, full_state, SimilarityProblem, SIM_PARAMS};

@@ -15,8 +15,9 @@ use crate::views::Camera;
 use nalgebra::{Point2, Point3, Unit, Vector3};
 
 /// Outline points closer to the projected sphere centre than this share of its projected radius
-/// are taken for the rim (the rest run along the limb).
-const RIM_WITHIN: f64 = 0.93;
+/// are taken for the rim (the rest run along the limb); also the share by which SRVF's pairs the
+/// rim makes are told (`pipeline::RimPairs`).
+pub const RIM_WITHIN: f64 = 0.93;
 /// Share of the rim points (the closest to the circle) the fit is scored on.
 const KEEP: f64 = 0.7;
 /// Samples of the projected circle.
