@@ -743,7 +743,9 @@ fn the_surplus_of_a_template_wider_than_the_acetabulum_does_not_shrink_the_cup()
     // template's surplus beyond the rim forms part of the model outline. SRVF pairs that
     // stretch with the rim's outline, whose rays pass well inside the sphere; at full weight
     // those pairs crush the surplus inwards, and the cup fitted to the observed part shrinks
-    // (docs/population.md, "Pairs the rim makes": measured 0.38 mm mean |error| against 0.73).
+    // (docs/population.md, "Pairs the rim makes": measured 0.38 mm mean |error| against 0.73
+    // with the cup fitted to each held vertex once; 0.30 against 0.52 fitted to one point per
+    // pair).
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/data/acetabula/m2_lhip_ac_wo_gap.stl");
     if !path.exists() {
@@ -753,10 +755,10 @@ fn the_surplus_of_a_template_wider_than_the_acetabulum_does_not_shrink_the_cup()
     let truth = acetab::sim::load_truth(path.to_str().unwrap()).unwrap();
     let with = mean_cup_error(&truth, &ReconParams::default());
     println!("rim pairs weighing less: mean |cup error| {with:.3} mm");
-    assert!(with < 0.55, "{with}");
+    assert!(with < 0.42, "{with}");
     // Companion: with every pair at the alignment's weight the cup comes out smaller, and the
     // same bound rejects it.
     let without = mean_cup_error(&truth, &before_rim_pairs());
     println!("every pair at full weight: mean |cup error| {without:.3} mm");
-    assert!(without >= 0.55, "{without}");
+    assert!(without >= 0.42, "{without}");
 }

@@ -94,7 +94,8 @@ pub enum GuardFailure {
     /// The cup sphere left the limb sphere behind.
     #[error(
         "the cup sphere (radius {radius_mm:.1} mm) lies {offset_mm:.1} mm from the outlines' \
-         limb sphere (radius {limb_radius_mm:.1} mm)"
+         limb sphere (radius {limb_radius_mm:.1} mm): the surface does not stand on the \
+         outlines, as when an annotation is given to the wrong view"
     )]
     LimbSphere {
         /// Distance between the centres, mm.
@@ -215,6 +216,18 @@ pub fn first_failure(g: &GuardParams, judged: &Judged) -> Option<GuardFailure> {
     if folded > g.max_folded {
         return Some(GuardFailure::Folded { folded });
     }
+    let rough = || GuardFailure::Rough {
+        rms_mm: cup.rms,
+        max_mm: g.max_sphere_rms_mm,
+    };
+    // A crumpled surface whose outlines are met is named as crumpled before the limb sphere and
+    // the reprojection are judged: its cup sphere is no socket's, and its fallbacks must not
+    // refine the poses (`Fallback::order`; the phantom with two views' annotations swapped,
+    // whose cup fitted to one point per pair left the limb sphere too).
+    let crumpled = !(cup.rms <= g.max_sphere_rms_mm);
+    if crumpled && outline_px <= g.max_outline_px {
+        return Some(rough());
+    }
     if let Some([x, y, z, r]) = limb {
         let offset = (cup.center_point() - nalgebra::Point3::new(x, y, z)).norm();
         if offset > g.max_limb_offset * r || (cup.radius - r).abs() > g.max_limb_offset * r {
@@ -238,14 +251,9 @@ pub fn first_failure(g: &GuardParams, judged: &Judged) -> Option<GuardFailure> {
         });
     }
     // Last: a result both crumpled and far from its outlines fails the outlines (whose
-    // fallback refines the poses; see `Fallback::order`).
-    if !(cup.rms <= g.max_sphere_rms_mm) {
-        return Some(GuardFailure::Rough {
-            rms_mm: cup.rms,
-            max_mm: g.max_sphere_rms_mm,
-        });
-    }
-    None
+    // fallback refines the poses; see `Fallback::order`); one whose outline distance is not a
+    // number is judged crumpled here.
+    crumpled.then(rough)
 }
 
 /// `SolveLog::view_note`: a view is named when its outline distance is above this (pixels) ...
@@ -487,6 +495,25 @@ mod tests {
         );
         assert!(matches!(
             judge(&m, &s, limb, 5.0, f64::NAN),
+            Some(GuardFailure::Outlines { .. })
+        ));
+        // A crumpled surface whose cup sphere also left the limb sphere, or whose reprojection
+        // is also off: with its outlines met it is named crumpled, since its cup sphere is no
+        // socket's (and its fallbacks must not refine the poses).
+        let crumpled_off = Sphere { rms: 4.0, ..off };
+        assert!(matches!(
+            judge(&m, &crumpled_off, limb, 2.0, 1.5),
+            Some(GuardFailure::Rough { .. })
+        ));
+        let crumpled = Sphere { rms: 4.0, ..s };
+        assert!(matches!(
+            judge(&m, &crumpled, limb, 25.0, 1.5),
+            Some(GuardFailure::Rough { .. })
+        ));
+        // Companion: with its outlines not met as well, the outlines are named (their
+        // fallback refines the poses first).
+        assert!(matches!(
+            judge(&m, &crumpled, limb, 2.0, 5.5),
             Some(GuardFailure::Outlines { .. })
         ));
     }
