@@ -216,17 +216,17 @@ pub fn first_failure(g: &GuardParams, judged: &Judged) -> Option<GuardFailure> {
     if folded > g.max_folded {
         return Some(GuardFailure::Folded { folded });
     }
-    let rough = || GuardFailure::Rough {
-        rms_mm: cup.rms,
-        max_mm: g.max_sphere_rms_mm,
-    };
     // A crumpled surface whose outlines are met is named as crumpled before the limb sphere and
     // the reprojection are judged: its cup sphere is no socket's, and its fallbacks must not
     // refine the poses (`Fallback::order`; the phantom with two views' annotations swapped,
-    // whose cup fitted to one point per pair left the limb sphere too).
-    let crumpled = !(cup.rms <= g.max_sphere_rms_mm);
-    if crumpled && outline_px <= g.max_outline_px {
-        return Some(rough());
+    // whose cup fitted to one point per pair left the limb sphere too). One both crumpled and
+    // far from its outlines (or with no outline distance) fails the outlines below, whose
+    // fallback refines the poses first.
+    if !(cup.rms <= g.max_sphere_rms_mm) && outline_px <= g.max_outline_px {
+        return Some(GuardFailure::Rough {
+            rms_mm: cup.rms,
+            max_mm: g.max_sphere_rms_mm,
+        });
     }
     if let Some([x, y, z, r]) = limb {
         let offset = (cup.center_point() - nalgebra::Point3::new(x, y, z)).norm();
@@ -250,10 +250,7 @@ pub fn first_failure(g: &GuardParams, judged: &Judged) -> Option<GuardFailure> {
             max_px: g.max_outline_px,
         });
     }
-    // Last: a result both crumpled and far from its outlines fails the outlines (whose
-    // fallback refines the poses; see `Fallback::order`); one whose outline distance is not a
-    // number is judged crumpled here.
-    crumpled.then(rough)
+    None
 }
 
 /// `SolveLog::view_note`: a view is named when its outline distance is above this (pixels) ...
