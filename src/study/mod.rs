@@ -5,6 +5,7 @@
 
 pub mod bench;
 pub mod compare;
+pub mod cup_spread;
 mod method;
 mod outputs;
 pub mod population;

@@ -2,8 +2,9 @@
 //! per method and level: mean MAE, runs that failed, fell back or restarted, catastrophic runs
 //! (MAE over 3 mm, the cup more than 5 mm off, or no result), the cup within 1 mm, at the exact
 //! catalogue size and within one size; the worst mesh per method; and srvf against its better
-//! baseline per mesh and level, paired run by run (`compare`). Written as population.csv,
-//! population.json and (with the `plots` feature) population.png.
+//! baseline per mesh and level, paired run by run (`compare`); and per method where the cup's
+//! error lies (`cup_spread`). Written as population.csv, population.json and (with the `plots`
+//! feature) population.png.
 
 use super::compare::{compare, Comparison, TOLERANCE};
 use super::method::StudyMethod;
@@ -203,6 +204,7 @@ pub fn write_population(
     let json = serde_json::json!({
         "study": meta, "meshes": meshes.len(), "rows": rows, "worst": worst,
         "comparison_tolerance": TOLERANCE, "comparisons": comparisons(meshes),
+        "cup_spread": super::cup_spread::cup_spread(meshes),
     });
     let text = serde_json::to_string_pretty(&json).map_err(|e| werr(&p, e.to_string()))?;
     write_atomic(&p, text.as_bytes()).map_err(|e| werr(&p, e.to_string()))?;

@@ -4,6 +4,7 @@
 use super::Study;
 use crate::common::{io_msg, mesh_files};
 use acetab::study::compare::{Comparison, Verdict, TOLERANCE};
+use acetab::study::cup_spread::cup_spread;
 use acetab::study::population::{comparisons, mesh_name, worst_meshes, write_population};
 use acetab::study::read_csv;
 use std::path::{Path, PathBuf};
@@ -170,6 +171,19 @@ pub(super) fn sweep(
         println!("worst mesh for {}: {mesh} (mean MAE {mae:.3} mm)", m.name());
     }
     print_comparisons(&comparisons(&tables));
+    for c in cup_spread(&tables) {
+        println!(
+            "{} cup error over {} runs on {} meshes: bias {:+.2} mm, SD {:.2} (per acetabulum {:.2}, run to run {:.2}), RMS {:.2}",
+            c.method.name(),
+            c.runs,
+            c.meshes,
+            c.bias_mm,
+            c.sd_mm,
+            c.per_acetabulum_sd_mm,
+            c.run_to_run_sd_mm,
+            c.rms_mm
+        );
+    }
     eprintln!(
         "{} meshes in {:.1} s; population table in {}",
         tables.len(),
