@@ -171,16 +171,24 @@ pub(super) fn sweep(
         println!("worst mesh for {}: {mesh} (mean MAE {mae:.3} mm)", m.name());
     }
     print_comparisons(&comparisons(&tables));
-    for c in cup_spread(&tables) {
+    // An SD that too few runs or meshes leave undefined is "n/a", not NaN.
+    let mm = |v: f64| {
+        if v.is_finite() {
+            format!("{v:.2}")
+        } else {
+            "n/a".to_string()
+        }
+    };
+    for c in cup_spread(&tables).iter().filter(|c| c.runs > 0) {
         println!(
-            "{} cup error over {} runs on {} meshes: bias {:+.2} mm, SD {:.2} (per acetabulum {:.2}, run to run {:.2}), RMS {:.2}",
+            "{} cup error over {} runs on {} meshes: bias {:+.2} mm, SD {} (per acetabulum {}, run to run {}), RMS {:.2}",
             c.method.name(),
             c.runs,
             c.meshes,
             c.bias_mm,
-            c.sd_mm,
-            c.per_acetabulum_sd_mm,
-            c.run_to_run_sd_mm,
+            mm(c.sd_mm),
+            mm(c.per_acetabulum_sd_mm),
+            mm(c.run_to_run_sd_mm),
             c.rms_mm
         );
     }
