@@ -75,11 +75,7 @@ fn spread(method: StudyMethod, per_mesh: &[Vec<f64>]) -> CupSpread {
         meshes: k,
         bias_mm: crate::geom::mean(&all),
         sd_mm: sample_sd(&all),
-        rms_mm: if n == 0 {
-            f64::NAN
-        } else {
-            (all.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt()
-        },
+        rms_mm: crate::geom::mean(&all.iter().map(|e| e * e).collect::<Vec<f64>>()).sqrt(),
         per_acetabulum_sd_mm: sample_sd(&means),
         run_to_run_sd_mm: if n > k {
             (within / (n - k) as f64).sqrt()
