@@ -72,6 +72,10 @@ fn accuracy_of(d: &[f64]) -> Accuracy {
 pub struct Shifted {
     /// Length of the translation, mm.
     pub shift_mm: f64,
+    /// The translation itself (x, y, z in the frame of the samples), mm: the reconstruction
+    /// moved by it lies nearest the truth, so it points from where the result lies towards
+    /// where it should.
+    pub shift: [f64; 3],
     /// Mean distance from the samples to the reconstruction moved by it, mm.
     pub mae_mm: f64,
 }
@@ -80,6 +84,7 @@ impl Shifted {
     /// What a reconstruction the closest-point queries cannot take gives.
     const NONE: Shifted = Shifted {
         shift_mm: f64::NAN,
+        shift: [f64::NAN; 3],
         mae_mm: f64::NAN,
     };
 }
@@ -124,6 +129,7 @@ fn shift_on(q: &super::SurfaceQuery, samples: &[nalgebra::Point3<f64>]) -> Shift
     let d: Vec<f64> = samples.iter().map(|p| q.distance(&(p - t))).collect();
     Shifted {
         shift_mm: t.norm(),
+        shift: [t.x, t.y, t.z],
         mae_mm: DistanceStats::from(&d).mean,
     }
 }
@@ -213,6 +219,10 @@ mod tests {
         let s = shifted_accuracy(&samples, &shifted);
         assert!(s.mae_mm < 0.05, "{s:?}");
         assert!((s.shift_mm - by.norm()).abs() < 0.05, "{s:?}");
+        // The translation brings the result back: minus the move, axis by axis (a sign or an
+        // axis mixed up is off by 4-8 mm).
+        let back = nalgebra::Vector3::from(s.shift) + by;
+        assert!(back.norm() < 0.05, "{s:?}");
         // Companion: 10 % larger, then moved the same way.
         let larger = spherical_cap(27.5, 3000, 80f64.to_radians());
         let alone = shifted_accuracy(&samples, &larger);

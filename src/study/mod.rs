@@ -6,6 +6,7 @@
 pub mod bench;
 pub mod compare;
 pub mod cup_spread;
+pub mod frame_shift;
 mod method;
 mod outputs;
 pub mod population;

@@ -2,8 +2,8 @@
 //! per method and level: mean MAE, runs that failed, fell back or restarted, catastrophic runs
 //! (MAE over 3 mm, the cup more than 5 mm off, or no result), the cup within 1 mm, at the exact
 //! catalogue size and within one size; the worst mesh per method; and srvf against its better
-//! baseline per mesh and level, paired run by run (`compare`); and per method where the cup's
-//! error lies (`cup_spread`). Written as population.csv, population.json and (with the `plots`
+//! baseline per mesh and level, paired run by run (`compare`); per method where the cup's
+//! error lies (`cup_spread`) and where the results lie as a whole (`frame_shift`). Written as population.csv, population.json and (with the `plots`
 //! feature) population.png.
 
 use super::compare::{compare, Comparison, TOLERANCE};
@@ -205,6 +205,7 @@ pub fn write_population(
         "study": meta, "meshes": meshes.len(), "rows": rows, "worst": worst,
         "comparison_tolerance": TOLERANCE, "comparisons": comparisons(meshes),
         "cup_spread": super::cup_spread::cup_spread(meshes),
+        "frame_shift": super::frame_shift::frame_shifts(meshes),
     });
     let text = serde_json::to_string_pretty(&json).map_err(|e| werr(&p, e.to_string()))?;
     write_atomic(&p, text.as_bytes()).map_err(|e| werr(&p, e.to_string()))?;

@@ -121,6 +121,17 @@ pub struct Row {
     /// fallback was taken.
     #[serde(default)]
     pub fallback_guard: String,
+    /// The translation whose length is `frame_shift_mm`, along x (body axes: left-right), mm:
+    /// it moves the result towards the truth, so it is minus where the result lies off; NaN
+    /// when the run failed or in a runs.csv written without it.
+    #[serde(serialize_with = "six", default = "nan")]
+    pub frame_shift_x_mm: f64,
+    /// The same along y (antero-posterior), mm.
+    #[serde(serialize_with = "six", default = "nan")]
+    pub frame_shift_y_mm: f64,
+    /// The same along z (longitudinal), mm.
+    #[serde(serialize_with = "six", default = "nan")]
+    pub frame_shift_z_mm: f64,
 }
 
 /// The columns runs.csv gained with the cup's orientation: a file without them still reads (NaN).
@@ -138,6 +149,9 @@ const SHIFT_COLUMNS: usize = 2;
 /// The columns runs.csv gained after the shifts (`restart_cause`, `fallback_guard`): a file
 /// without them reads (empty).
 const CAUSE_COLUMNS: usize = 2;
+/// The columns runs.csv gained after the causes (`frame_shift_x_mm`, `_y_mm`, `_z_mm`): a file
+/// without them reads (NaN).
+const SHIFT_AXES_COLUMNS: usize = 3;
 
 fn nan() -> f64 {
     f64::NAN
@@ -180,6 +194,9 @@ impl Row {
             shifted_mae_mm: f64::NAN,
             restart_cause: String::new(),
             fallback_guard: String::new(),
+            frame_shift_x_mm: f64::NAN,
+            frame_shift_y_mm: f64::NAN,
+            frame_shift_z_mm: f64::NAN,
         }
     }
 
@@ -375,11 +392,12 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
         other => perr(1, format!("{other:?}")),
     })?;
     let full = header();
-    // Files written before the cause columns, before the shift columns too, before the pose
-    // columns, before the outline column as well, before the restart column, or before the
-    // orientation columns, have the header without them.
+    // Files written before the shift's axes, before the cause columns too, before the shift
+    // columns, before the pose columns, before the outline column as well, before the restart
+    // column, or before the orientation columns, have the header without them.
     let prefix = |n: usize| -> csv::StringRecord { full.iter().take(n).collect() };
     let older: Vec<usize> = [
+        SHIFT_AXES_COLUMNS,
         CAUSE_COLUMNS,
         SHIFT_COLUMNS,
         POSE_COLUMNS,
@@ -873,6 +891,8 @@ mod tests {
         (r1[0].outline_px, r1[0].pose_turn_deg, r1[0].pose_shift_mm) = (1.25, 0.8, 3.5);
         (r1[0].frame_shift_mm, r1[0].shifted_mae_mm) = (2.5, 0.375);
         (r1[0].restart_cause, r1[0].fallback_guard) = ("guard-folded".into(), "outlines".into());
+        (r1[0].frame_shift_x_mm, r1[0].frame_shift_y_mm, r1[0].frame_shift_z_mm) =
+            (0.5, -2.25, 1.0);
         r1[1].error = "solver: boom, twice".into();
         r1[1].mae_mm = f64::NAN;
         write_csv(&r1, &a.join("runs.csv")).unwrap();
@@ -922,7 +942,17 @@ mod tests {
                 })
                 .collect()
         };
-        // A file from before the cause columns reads, its causes empty.
+        // A file from before the shift's axes reads, its axes NaN and the rest as written.
+        std::fs::write(b.join("runs.csv"), drop_last(&good, SHIFT_AXES_COLUMNS)).unwrap();
+        let back = read_csv(&b.join("runs.csv")).unwrap();
+        assert!(
+            back[0].frame_shift_x_mm.is_nan()
+                && back[0].frame_shift_z_mm.is_nan()
+                && back[0].fallback_guard == "outlines"
+                && back[0].frame_shift_mm == 2.5
+        );
+        // A file from before the cause columns too reads, its causes empty.
+        let good = drop_last(&good, SHIFT_AXES_COLUMNS);
         std::fs::write(b.join("runs.csv"), drop_last(&good, CAUSE_COLUMNS)).unwrap();
         let back = read_csv(&b.join("runs.csv")).unwrap();
         assert!(

@@ -5,6 +5,7 @@ use super::Study;
 use crate::common::{io_msg, mesh_files};
 use acetab::study::compare::{Comparison, Verdict, TOLERANCE};
 use acetab::study::cup_spread::cup_spread;
+use acetab::study::frame_shift::frame_shifts;
 use acetab::study::population::{comparisons, mesh_name, worst_meshes, write_population};
 use acetab::study::read_csv;
 use std::path::{Path, PathBuf};
@@ -190,6 +191,16 @@ pub(super) fn sweep(
             mm(c.per_acetabulum_sd_mm),
             mm(c.run_to_run_sd_mm),
             c.rms_mm
+        );
+    }
+    for f in frame_shifts(&tables).iter().filter(|f| f.runs > 0) {
+        let [x, y, z] = f.mean_mm;
+        let [rx, ry, rz] = f.rms_mm;
+        println!(
+            "{} results' translation to the truth over {} runs on {} meshes (x, y, z): mean {x:+.2}, {y:+.2}, {z:+.2} mm, RMS {rx:.2}, {ry:.2}, {rz:.2}",
+            f.method.name(),
+            f.runs,
+            f.meshes,
         );
     }
     eprintln!(
