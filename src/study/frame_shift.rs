@@ -66,20 +66,27 @@ mod tests {
     use super::*;
     use crate::study::Task;
 
-    fn run(method: StudyMethod, t: [f64; 3]) -> Row {
+    /// A failed srvf run (level 1).
+    fn failed(run: usize) -> Row {
         let task = Task {
-            method,
+            method: StudyMethod::Srvf,
             level: 1,
-            run: 0,
-            seed: 1,
+            run,
+            seed: run as u64 + 1,
         };
+        Row::failed(&task, "boom")
+    }
+
+    /// A run of `method` with a result whose translation to the truth is `t`.
+    fn run(method: StudyMethod, t: [f64; 3]) -> Row {
         Row {
+            method,
             mae_mm: 0.5,
             frame_shift_x_mm: t[0],
             frame_shift_y_mm: t[1],
             frame_shift_z_mm: t[2],
             error: String::new(),
-            ..Row::failed(&task, "")
+            ..failed(0)
         }
     }
 
@@ -95,18 +102,7 @@ mod tests {
             run(StudyMethod::Icp, [9.0, 9.0, 9.0]),
             older,
         ];
-        let b = vec![
-            run(StudyMethod::Srvf, [-1.0, -2.0, 3.0]),
-            Row::failed(
-                &Task {
-                    method: StudyMethod::Srvf,
-                    level: 1,
-                    run: 1,
-                    seed: 2,
-                },
-                "boom",
-            ),
-        ];
+        let b = vec![run(StudyMethod::Srvf, [-1.0, -2.0, 3.0]), failed(1)];
         let s = frame_shifts(&[("a".into(), a), ("b".into(), b)]);
         let srvf = s.iter().find(|f| f.method == StudyMethod::Srvf).unwrap();
         assert_eq!((srvf.runs, srvf.meshes), (3, 2));
@@ -135,19 +131,12 @@ mod tests {
         assert!(s[0].mean_mm[1].abs() < 1e-12, "{:?}", s[0]);
         assert!((s[0].rms_mm[1] - 1.0).abs() < 1e-12, "{:?}", s[0]);
         // Only failed runs: no runs, NaN figures.
-        let none = frame_shifts(&[(
-            "a".into(),
-            vec![Row::failed(
-                &Task {
-                    method: StudyMethod::Srvf,
-                    level: 1,
-                    run: 0,
-                    seed: 1,
-                },
-                "boom",
-            )],
-        )]);
+        let none = frame_shifts(&[("a".into(), vec![failed(0)])]);
         assert_eq!((none[0].runs, none[0].meshes), (0, 0));
-        assert!(none[0].mean_mm.iter().chain(&none[0].rms_mm).all(|v| v.is_nan()));
+        assert!(none[0]
+            .mean_mm
+            .iter()
+            .chain(&none[0].rms_mm)
+            .all(|v| v.is_nan()));
     }
 }

@@ -891,8 +891,11 @@ mod tests {
         (r1[0].outline_px, r1[0].pose_turn_deg, r1[0].pose_shift_mm) = (1.25, 0.8, 3.5);
         (r1[0].frame_shift_mm, r1[0].shifted_mae_mm) = (2.5, 0.375);
         (r1[0].restart_cause, r1[0].fallback_guard) = ("guard-folded".into(), "outlines".into());
-        (r1[0].frame_shift_x_mm, r1[0].frame_shift_y_mm, r1[0].frame_shift_z_mm) =
-            (0.5, -2.25, 1.0);
+        (
+            r1[0].frame_shift_x_mm,
+            r1[0].frame_shift_y_mm,
+            r1[0].frame_shift_z_mm,
+        ) = (0.5, -2.25, 1.0);
         r1[1].error = "solver: boom, twice".into();
         r1[1].mae_mm = f64::NAN;
         write_csv(&r1, &a.join("runs.csv")).unwrap();
