@@ -5,7 +5,7 @@
 //! A sweep writes it into population.json (`cup_spread`) and prints it.
 
 use super::method::StudyMethod;
-use super::table::Row;
+use super::table::{methods_in, per_mesh, Row};
 use serde::Serialize;
 
 /// One method's cup error over a population, mm (NaN, written null, where too few runs or
@@ -34,27 +34,13 @@ pub struct CupSpread {
 /// Per method (in order), the cup error's spread over `meshes` (name, runs); failed runs and
 /// runs without a finite cup error are left out.
 pub fn cup_spread(meshes: &[(String, Vec<Row>)]) -> Vec<CupSpread> {
-    let mut methods: Vec<StudyMethod> = meshes
-        .iter()
-        .flat_map(|(_, rows)| rows.iter().map(|r| r.method))
-        .collect();
-    methods.sort();
-    methods.dedup();
-    methods
+    methods_in(meshes)
         .into_iter()
         .map(|method| {
-            let per_mesh: Vec<Vec<f64>> = meshes
-                .iter()
-                .map(|(_, rows)| {
-                    rows.iter()
-                        .filter(|r| r.method == method && r.error.is_empty())
-                        .map(Row::cup_error_mm)
-                        .filter(|e| e.is_finite())
-                        .collect::<Vec<f64>>()
-                })
-                .filter(|e| !e.is_empty())
-                .collect();
-            spread(method, &per_mesh)
+            let errors = per_mesh(meshes, method, |r| {
+                Some(r.cup_error_mm()).filter(|e| e.is_finite())
+            });
+            spread(method, &errors)
         })
         .collect()
 }

@@ -5,7 +5,8 @@
 //! results sit about 1 mm off along y, the direction none of them looks across
 //! (docs/population.md, "Where the result sits, and the observation weight").
 
-use super::{Row, StudyMethod};
+use super::table::{methods_in, per_mesh, Row};
+use super::StudyMethod;
 use serde::Serialize;
 
 /// One method's translations to the truth over a population's runs.
@@ -26,34 +27,21 @@ pub struct FrameShift {
 
 /// Per method (in order), the translations over `meshes` (name, runs).
 pub fn frame_shifts(meshes: &[(String, Vec<Row>)]) -> Vec<FrameShift> {
-    let mut methods: Vec<StudyMethod> = meshes
-        .iter()
-        .flat_map(|(_, rows)| rows.iter().map(|r| r.method))
-        .collect();
-    methods.sort();
-    methods.dedup();
-    methods
+    methods_in(meshes)
         .into_iter()
         .map(|method| {
-            let per_mesh: Vec<Vec<[f64; 3]>> = meshes
-                .iter()
-                .map(|(_, rows)| {
-                    rows.iter()
-                        .filter(|r| r.method == method && r.error.is_empty())
-                        .map(|r| [r.frame_shift_x_mm, r.frame_shift_y_mm, r.frame_shift_z_mm])
-                        .filter(|t| t.iter().all(|v| v.is_finite()))
-                        .collect::<Vec<_>>()
-                })
-                .filter(|t| !t.is_empty())
-                .collect();
-            let all: Vec<[f64; 3]> = per_mesh.iter().flatten().copied().collect();
+            let shifts = per_mesh(meshes, method, |r| {
+                let t = [r.frame_shift_x_mm, r.frame_shift_y_mm, r.frame_shift_z_mm];
+                t.iter().all(|v| v.is_finite()).then_some(t)
+            });
+            let all: Vec<[f64; 3]> = shifts.iter().flatten().copied().collect();
             let axis = |k: usize, f: fn(f64) -> f64| -> f64 {
                 crate::geom::mean(&all.iter().map(|t| f(t[k])).collect::<Vec<f64>>())
             };
             FrameShift {
                 method,
                 runs: all.len(),
-                meshes: per_mesh.len(),
+                meshes: shifts.len(),
                 mean_mm: [0, 1, 2].map(|k| axis(k, |v| v)),
                 rms_mm: [0, 1, 2].map(|k| axis(k, |v| v * v).sqrt()),
             }

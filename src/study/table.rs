@@ -157,6 +157,36 @@ fn nan() -> f64 {
     f64::NAN
 }
 
+/// The methods that ran on any of `meshes` (name, runs), in order.
+pub(super) fn methods_in(meshes: &[(String, Vec<Row>)]) -> Vec<StudyMethod> {
+    let mut methods: Vec<StudyMethod> = meshes
+        .iter()
+        .flat_map(|(_, rows)| rows.iter().map(|r| r.method))
+        .collect();
+    methods.sort();
+    methods.dedup();
+    methods
+}
+
+/// Per mesh of `meshes`, what `value` reads from each run of `method` with a result (None:
+/// the run is left out); meshes with nothing left are dropped.
+pub(super) fn per_mesh<T>(
+    meshes: &[(String, Vec<Row>)],
+    method: StudyMethod,
+    value: impl Fn(&Row) -> Option<T>,
+) -> Vec<Vec<T>> {
+    meshes
+        .iter()
+        .map(|(_, rows)| {
+            rows.iter()
+                .filter(|r| r.method == method && r.error.is_empty())
+                .filter_map(&value)
+                .collect::<Vec<T>>()
+        })
+        .filter(|v| !v.is_empty())
+        .collect()
+}
+
 impl Row {
     /// A failed run of `t` with the reason.
     pub fn failed(t: &Task, error: &str) -> Row {
