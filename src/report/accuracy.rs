@@ -70,20 +70,22 @@ fn accuracy_of(d: &[f64]) -> Accuracy {
 /// nearest the truth and the mean distance after it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Shifted {
-    /// Length of the translation, mm.
-    pub shift_mm: f64,
-    /// The translation itself (x, y, z in the frame of the samples), mm: the reconstruction
-    /// moved by it lies nearest the truth, so it points from where the result lies towards
-    /// where it should.
+    /// The translation (x, y, z in the frame of the samples), mm: the reconstruction moved by
+    /// it lies nearest the truth, so it points from where the result lies towards where it
+    /// should. Its length is `shift_mm()`.
     pub shift: [f64; 3],
     /// Mean distance from the samples to the reconstruction moved by it, mm.
     pub mae_mm: f64,
 }
 
 impl Shifted {
+    /// Length of the translation, mm (NaN where there is none).
+    pub fn shift_mm(&self) -> f64 {
+        nalgebra::Vector3::from(self.shift).norm()
+    }
+
     /// What a reconstruction the closest-point queries cannot take gives.
     const NONE: Shifted = Shifted {
-        shift_mm: f64::NAN,
         shift: [f64::NAN; 3],
         mae_mm: f64::NAN,
     };
@@ -128,7 +130,6 @@ fn shift_on(q: &super::SurfaceQuery, samples: &[nalgebra::Point3<f64>]) -> Shift
     }
     let d: Vec<f64> = samples.iter().map(|p| q.distance(&(p - t))).collect();
     Shifted {
-        shift_mm: t.norm(),
         shift: [t.x, t.y, t.z],
         mae_mm: DistanceStats::from(&d).mean,
     }
@@ -218,7 +219,7 @@ mod tests {
         assert!(accuracy_from(&samples, &shifted).mae_mm > 2.0);
         let s = shifted_accuracy(&samples, &shifted);
         assert!(s.mae_mm < 0.05, "{s:?}");
-        assert!((s.shift_mm - by.norm()).abs() < 0.05, "{s:?}");
+        assert!((s.shift_mm() - by.norm()).abs() < 0.05, "{s:?}");
         // The translation brings the result back: minus the move, axis by axis (a sign or an
         // axis mixed up is off by 4-8 mm).
         let back = nalgebra::Vector3::from(s.shift) + by;

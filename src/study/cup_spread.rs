@@ -46,11 +46,11 @@ pub fn cup_spread(meshes: &[(String, Vec<Row>)]) -> Vec<CupSpread> {
 }
 
 /// The spread of errors grouped by mesh (every group non-empty).
-fn spread(method: StudyMethod, per_mesh: &[Vec<f64>]) -> CupSpread {
-    let all: Vec<f64> = per_mesh.iter().flatten().copied().collect();
-    let (n, k) = (all.len(), per_mesh.len());
-    let means: Vec<f64> = per_mesh.iter().map(|e| crate::geom::mean(e)).collect();
-    let within: f64 = per_mesh
+fn spread(method: StudyMethod, groups: &[Vec<f64>]) -> CupSpread {
+    let all: Vec<f64> = groups.iter().flatten().copied().collect();
+    let (n, k) = (all.len(), groups.len());
+    let means: Vec<f64> = groups.iter().map(|e| crate::geom::mean(e)).collect();
+    let within: f64 = groups
         .iter()
         .zip(&means)
         .flat_map(|(e, m)| e.iter().map(move |x| (x - m).powi(2)))

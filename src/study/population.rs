@@ -3,8 +3,8 @@
 //! (MAE over 3 mm, the cup more than 5 mm off, or no result), the cup within 1 mm, at the exact
 //! catalogue size and within one size; the worst mesh per method; and srvf against its better
 //! baseline per mesh and level, paired run by run (`compare`); per method where the cup's
-//! error lies (`cup_spread`) and where the results lie as a whole (`frame_shift`). Written as population.csv, population.json and (with the `plots`
-//! feature) population.png.
+//! error lies (`cup_spread`) and where the results lie as a whole (`frame_shift`). Written as
+//! population.csv, population.json and (with the `plots` feature) population.png.
 
 use super::compare::{compare, Comparison, TOLERANCE};
 use super::method::StudyMethod;

@@ -233,7 +233,7 @@ fn run_prepared(
     };
     row.seconds = start.elapsed().as_secs_f64();
     let (acc, shifted) = accuracy_and_shift(&prep.samples, &rec.mesh);
-    (row.frame_shift_mm, row.shifted_mae_mm) = (shifted.shift_mm, shifted.mae_mm);
+    (row.frame_shift_mm, row.shifted_mae_mm) = (shifted.shift_mm(), shifted.mae_mm);
     [
         row.frame_shift_x_mm,
         row.frame_shift_y_mm,
