@@ -39,6 +39,12 @@ pub struct CupCalibration {
     /// The diameter the shrink pulls toward, mm: the training runs' mean fitted diameter.
     #[serde(default)]
     pub shrink_to_mm: f64,
+    /// The result's depth offset, mm: the training runs' mean translation to their truth along
+    /// the result's depth axis (`pipeline::depth_axis`), by which every result is moved
+    /// (`CupParams::depth_mm`); 0 in files without the field, and where the training runs do not
+    /// record it.
+    #[serde(default)]
+    pub depth_mm: f64,
     /// Model-error SD of the cup diameter, mm, added in quadrature to the resampled SD (learned
     /// on the errors less the bias).
     pub model_sd_mm: f64,
@@ -152,6 +158,9 @@ pub struct TrainingRun {
     pub truth_mm: f64,
     /// The resampled SD of the diameter (without any model error), mm.
     pub resample_sd_mm: f64,
+    /// The result's translation to the truth along its depth axis, before any depth offset, mm
+    /// (runs.csv's `depth_offset_mm`); NaN where the run does not record it.
+    pub depth_offset_mm: f64,
     /// Which source of truths the run's acetabulum came from (a population: runs of each source
     /// weigh the same in the bias and the shrink).
     pub source: usize,
@@ -342,6 +351,7 @@ impl CupCalibration {
             bias_mm: 0.0,
             shrink: 0.0,
             shrink_to_mm: 0.0,
+            depth_mm: 0.0,
             model_sd_mm: 0.0,
             learned_from: "none".into(),
             runs: 0,
@@ -438,13 +448,7 @@ impl CupCalibration {
     /// The first number a calibration cannot be used with (field, value, what it must be): a
     /// bias beyond +-10 mm, a model SD outside 0-20 mm, a coverage that is not a share.
     fn unusable(&self) -> Option<(&'static str, f64, &'static str)> {
-        let correction = CupParams {
-            bias_mm: self.bias_mm,
-            shrink: self.shrink,
-            shrink_to_mm: self.shrink_to_mm,
-            ..Default::default()
-        };
-        if let Some(bad) = correction.invalid_correction() {
+        if let Some(bad) = self.correcting(CupParams::default()).invalid_correction() {
             return Some(bad);
         }
         if !(self.model_sd_mm.is_finite() && (0.0..=20.0).contains(&self.model_sd_mm)) {
@@ -460,12 +464,13 @@ impl CupCalibration {
         None
     }
 
-    /// `cup` with this calibration's bias and shrink.
+    /// `cup` with this calibration's bias, shrink and depth offset.
     pub fn correcting(&self, cup: CupParams) -> CupParams {
         CupParams {
             bias_mm: self.bias_mm,
             shrink: self.shrink,
             shrink_to_mm: self.shrink_to_mm,
+            depth_mm: self.depth_mm,
             ..cup
         }
     }
@@ -479,13 +484,15 @@ impl CupCalibration {
     /// acetabula does not set the correction for the others. The model-error SD is then the
     /// smallest s >= 0 with at least `NOMINAL_COVERAGE` of the runs' corrected errors within
     /// sqrt(sd^2 + s^2), sd the resampled SD as the correction scales it. Runs with a non-finite
-    /// member are skipped.
+    /// member are skipped. The depth offset is learned too, whatever `what` asks of the cup, from
+    /// every run that records it (`depth_offset`).
     pub fn learn(
         runs: &[TrainingRun],
         estimator: CupEstimator,
         what: Learn,
         learned_from: String,
     ) -> Result<Self, CalibrationError> {
+        let depth_mm = depth_offset(runs);
         let runs: Vec<TrainingRun> = runs
             .iter()
             .copied()
@@ -559,6 +566,7 @@ impl CupCalibration {
             bias_mm,
             shrink,
             shrink_to_mm,
+            depth_mm,
             model_sd_mm: s,
             learned_from,
             runs: pairs.len(),
@@ -590,6 +598,28 @@ impl CupCalibration {
     }
 }
 
+/// The training runs' mean depth offset (`TrainingRun::depth_offset_mm`), every source of
+/// truths weighing the same as in the bias; 0 where fewer than `MIN_TRAINING_RUNS` record it
+/// (studies from before the column), since an offset learned from a few runs would move every
+/// result by their chance.
+pub fn depth_offset(runs: &[TrainingRun]) -> f64 {
+    let with: Vec<&TrainingRun> = runs
+        .iter()
+        .filter(|r| r.depth_offset_mm.is_finite())
+        .collect();
+    if with.len() < MIN_TRAINING_RUNS {
+        return 0.0;
+    }
+    let mut per_source = std::collections::BTreeMap::<usize, usize>::new();
+    for r in &with {
+        *per_source.entry(r.source).or_default() += 1;
+    }
+    let sources = per_source.len() as f64;
+    with.iter()
+        .map(|r| r.depth_offset_mm / (sources * per_source[&r.source] as f64))
+        .sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -603,6 +633,7 @@ mod tests {
                 truth_mm: 50.0,
                 resample_sd_mm: sd,
                 source: 0,
+                depth_offset_mm: f64::NAN,
             })
             .collect()
     }
@@ -770,6 +801,7 @@ mod tests {
                     truth_mm: truth,
                     resample_sd_mm: 0.5,
                     source,
+                    depth_offset_mm: f64::NAN,
                 }
             })
             .collect()
@@ -828,6 +860,49 @@ mod tests {
             (c.bias_mm - (200.0 * 3.0 + 20.0) / 220.0).abs() < 1e-9,
             "{c:?}"
         );
+    }
+
+    #[test]
+    fn the_depth_offset_is_the_runs_mean_with_every_source_weighing_the_same() {
+        // 200 runs of one source 1.0 mm too deep, 20 of another 0.5 mm: the offset is 0.75 mm,
+        // not the pooled 0.95, whatever is learned of the cup; runs without one are left out.
+        let deep = |n: usize, source: usize, mm: f64| -> Vec<TrainingRun> {
+            spread(n, source, |t| t)
+                .into_iter()
+                .map(|r| TrainingRun {
+                    depth_offset_mm: mm,
+                    ..r
+                })
+                .collect()
+        };
+        let mut runs = deep(200, 0, 1.0);
+        runs.extend(deep(20, 1, 0.5));
+        runs.extend(spread(30, 1, |t| t));
+        for what in [Learn::SdOnly, Learn::Bias, Learn::BiasAndShrink] {
+            let c = learned(&runs, what);
+            assert!((c.depth_mm - 0.75).abs() < 1e-9, "{c:?}");
+            assert_eq!(c.correcting(CupParams::default()).depth_mm, c.depth_mm);
+        }
+        // Companion: runs that do not record it (studies from before the column) learn none,
+        // and neither do fewer than the fewest a calibration is learned from.
+        assert_eq!(learned(&spread(60, 0, |t| t), Learn::Bias).depth_mm, 0.0);
+        let mut few = spread(60, 0, |t| t);
+        few.extend(deep(MIN_TRAINING_RUNS - 1, 0, 2.0));
+        assert_eq!(learned(&few, Learn::Bias).depth_mm, 0.0);
+        // A file without the field reads as no offset; one beyond +-5 mm is refused, named.
+        let ok = CupCalibration::shipped_realistic().to_json();
+        let mut v: serde_json::Value = serde_json::from_str(&ok).unwrap();
+        v.as_object_mut().unwrap().remove("depth_mm");
+        let c = CupCalibration::parse(&v.to_string(), Path::new("c.json")).unwrap();
+        assert_eq!(c.depth_mm, 0.0);
+        for (value, good) in [(0.8, true), (-4.9, true), (7.0, false), (-5.5, false)] {
+            v["depth_mm"] = serde_json::json!(value);
+            let got = CupCalibration::parse(&v.to_string(), Path::new("c.json"));
+            assert_eq!(got.is_ok(), good, "{value}: {got:?}");
+            if let Err(e) = got {
+                assert!(e.to_string().contains("depth_mm = "), "{e}");
+            }
+        }
     }
 
     #[test]

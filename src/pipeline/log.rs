@@ -55,6 +55,11 @@ pub struct SolveLog {
     /// population prior (`DeformationParams::shape_prior`), the sphere the learned shape is
     /// laid around; None without the sphere prior.
     pub prior_sphere: Option<[f64; 4]>,
+    /// The result's depth axis (`depth_axis`, x, y, z; length 1 where the opening clearly faces
+    /// one side of the views, shorter as it turns across them); None where it has none.
+    pub depth_axis: Option<[f64; 3]>,
+    /// How far the result was moved along that axis (`CupParams::depth_mm`), mm; 0 when not.
+    pub depth_moved_mm: f64,
 }
 
 /// A second view whose pose correction is this share of the largest or more moved "as far"

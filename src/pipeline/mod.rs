@@ -8,6 +8,7 @@ mod calibration;
 mod correspondences;
 mod cup;
 mod deformation;
+mod depth;
 mod fallback;
 mod guards;
 mod log;
@@ -25,6 +26,7 @@ pub use cup::{
     cup_spheres, observed_part_sphere, prior_region_sphere, CupSpheres, PriorRegion,
     REGION_MIN_COVERAGE,
 };
+pub use depth::{depth_axis, FACING_RAMP};
 pub use fallback::{params_used, Fallback, FALLBACKS};
 pub use guards::{
     first_failure, folded_share, odd_view, view_label, GuardFailure, GuardParams, Judged, Refusal,
@@ -32,7 +34,8 @@ pub use guards::{
 };
 pub use log::{OrientationTrial, RestartCause, SolveLog};
 pub use params::{
-    CupEstimator, CupParams, DeformationParams, PlacementParams, ReconParams, MAX_SHRINK,
+    CupEstimator, CupParams, DeformationParams, PlacementParams, ReconParams, MAX_DEPTH_MM,
+    MAX_SHRINK,
 };
 pub use restart::outline_distance_px;
 pub use rim_pairs::RimPairs;
@@ -604,6 +607,15 @@ fn finish(
     log.converged = converged;
     log.reprojection_rms_px = rms_px(&mesh, &poses.cams_now, &obs);
     log.correspondences = obs.len();
+    let axis = depth_axis(&mesh, &poses.cams_now);
+    log.depth_axis = axis.map(|a| [a.x, a.y, a.z]);
+    let mesh = match axis {
+        Some(a) if ctx.prm.cup.depth_mm != 0.0 => {
+            log.depth_moved_mm = ctx.prm.cup.depth_mm;
+            depth::moved(&mesh, &a, ctx.prm.cup.depth_mm)
+        }
+        _ => mesh,
+    };
     let spheres = cup_spheres(&mesh, &obs, &ctx.prm.cup, log.prior_region(ctx.prm))?;
     let (sphere, fitted_sphere, surface_sphere) = (spheres.cup, spheres.fitted, spheres.surface);
     let cup = ctx.prm.cup.catalogue.nearest(sphere.diameter());
@@ -724,6 +736,41 @@ mod tests {
         // Companion: the last view is a view.
         let ok = reconstruct(&sim.input(&template), &with_reference(2), Kernels::Cpu);
         assert!(ok.is_ok(), "{:?}", ok.err());
+    }
+
+    #[test]
+    fn a_depth_offset_moves_the_result_and_its_cup_along_the_depth_axis_and_nothing_else() {
+        let (_, sim) = crate::sim::phantom_case(1, 3).unwrap();
+        let template = Template::standard();
+        let run = |depth_mm: f64| {
+            let mut prm = ReconParams::default();
+            prm.cup.depth_mm = depth_mm;
+            reconstruct(&sim.input(&template), &prm, Kernels::Cpu).unwrap()
+        };
+        let (own, moved) = (run(0.0), run(0.8));
+        // The phantom opens toward the sources (+y): its axis leans +y, at full length.
+        let a = own.log.depth_axis.map(nalgebra::Vector3::from).unwrap();
+        assert!((a.norm() - 1.0).abs() < 1e-9 && a.y > 0.9, "{a:?}");
+        assert_eq!(
+            (own.log.depth_moved_mm, moved.log.depth_moved_mm),
+            (0.0, 0.8)
+        );
+        assert_eq!(moved.log.depth_axis, own.log.depth_axis);
+        for (p, q) in own.mesh.vertices.iter().zip(&moved.mesh.vertices) {
+            assert!((q - p - 0.8 * a).norm() < 1e-9, "{p} {q}");
+        }
+        // The cup keeps its size and moves with the surface.
+        assert!((moved.sphere.radius - own.sphere.radius).abs() < 1e-6);
+        let shift = moved.sphere.center_point() - own.sphere.center_point();
+        assert!((shift - 0.8 * a).norm() < 1e-4, "{shift:?}");
+        assert_eq!(moved.cup, own.cup);
+        // Companion: an offset too large for a correction is refused before any work, named.
+        let mut prm = ReconParams::default();
+        prm.cup.depth_mm = 9.0;
+        let e = reconstruct(&sim.input(&template), &prm, Kernels::Cpu)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("depth_mm"), "{e}");
     }
 
     #[test]

@@ -236,6 +236,11 @@ pub struct CupParams {
     /// The diameter the shrink pulls toward, mm: the training runs' mean fitted diameter (their
     /// mean estimate, so that the bias stays their mean error).
     pub shrink_to_mm: f64,
+    /// The result's depth offset, mm (default 0, none): the reconstruction, and the cup with it,
+    /// moved this far along its depth axis (`depth_axis`: the views' mean direction, toward the
+    /// side the opening faces), where the views do not watch and the template's shape sets the
+    /// depth. Learned with the calibration (`CupCalibration::depth_mm`).
+    pub depth_mm: f64,
 }
 
 /// The largest shrink a cup may be given: a cup that keeps less than a tenth of what its fit says
@@ -266,6 +271,9 @@ impl CupParams {
         if !(self.shrink_to_mm.is_finite() && (0.0..=200.0).contains(&self.shrink_to_mm)) {
             return Some(("shrink_to_mm", self.shrink_to_mm, "finite, 0 to 200 mm"));
         }
+        if !(self.depth_mm.is_finite() && self.depth_mm.abs() <= MAX_DEPTH_MM) {
+            return Some(("depth_mm", self.depth_mm, "finite, within +-5 mm"));
+        }
         // A shrink pulls toward a cup: toward 0 mm (a file that leaves the field out) every cup
         // would be cut by the shrink's share.
         if self.shrink > 0.0 && !(20.0..=100.0).contains(&self.shrink_to_mm) {
@@ -278,6 +286,10 @@ impl CupParams {
         None
     }
 }
+
+/// The largest depth offset a calibration may give (`CupParams::depth_mm`): beyond it the
+/// offset would be a guess at the acetabulum, not a correction of where the result sits.
+pub const MAX_DEPTH_MM: f64 = 5.0;
 
 /// Which part of the reconstructed surface the cup sphere is fitted to.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -421,6 +433,7 @@ impl ReconParams {
             let field = match field {
                 "bias_mm" => "cup.bias_mm",
                 "shrink" => "cup.shrink",
+                "depth_mm" => "cup.depth_mm",
                 _ => "cup.shrink_to_mm",
             };
             return Err(bad(field, v, expected));
@@ -568,6 +581,8 @@ mod tests {
             ),
             ("cup.bias_mm", Box::new(|p| p.cup.bias_mm = f64::NAN)),
             ("cup.bias_mm", Box::new(|p| p.cup.bias_mm = 12.0)),
+            ("cup.depth_mm", Box::new(|p| p.cup.depth_mm = f64::NAN)),
+            ("cup.depth_mm", Box::new(|p| p.cup.depth_mm = -5.5)),
             ("cup.shrink", Box::new(|p| p.cup.shrink = 0.95)),
             ("cup.shrink", Box::new(|p| p.cup.shrink = -0.1)),
             (

@@ -3,7 +3,9 @@
 //! `_y_mm`, `_z_mm`), axis by axis. A mean far from zero along one axis is a displacement every
 //! acetabulum shares: with the paper's views, which all turn about the long axis z, the
 //! results sit about 1 mm off along y, the direction none of them looks across
-//! (docs/population.md, "Where the result sits, and the observation weight").
+//! (docs/population.md, "Where the result sits, and the observation weight"), unless a
+//! calibration's depth offset moves them back (`CupParams::depth_mm`; the mean of runs.csv's
+//! `depth_offset_mm`, also kept here, is what it learns).
 
 use super::table::{methods_in, per_mesh, Row};
 use super::StudyMethod;
@@ -23,6 +25,12 @@ pub struct FrameShift {
     pub mean_mm: [f64; 3],
     /// Its root mean square, x / y / z, mm; NaN without runs.
     pub rms_mm: [f64; 3],
+    /// The mean translation to the truth along each result's depth axis, before any depth
+    /// offset (runs.csv's `depth_offset_mm`, `pipeline::depth_axis`), mm: what a calibration
+    /// learns as the offset; NaN where no run records it.
+    pub depth_mean_mm: f64,
+    /// Runs recording it.
+    pub depth_runs: usize,
 }
 
 /// Per method (in order), the translations over `meshes` (name, runs).
@@ -35,6 +43,12 @@ pub fn frame_shifts(meshes: &[(String, Vec<Row>)]) -> Vec<FrameShift> {
                 t.iter().all(|v| v.is_finite()).then_some(t)
             });
             let all: Vec<[f64; 3]> = shifts.iter().flatten().copied().collect();
+            let depth: Vec<f64> = per_mesh(meshes, method, |r| {
+                r.depth_offset_mm.is_finite().then_some(r.depth_offset_mm)
+            })
+            .into_iter()
+            .flatten()
+            .collect();
             let axis = |k: usize, f: fn(f64) -> f64| -> f64 {
                 crate::geom::mean(&all.iter().map(|t| f(t[k])).collect::<Vec<f64>>())
             };
@@ -44,6 +58,8 @@ pub fn frame_shifts(meshes: &[(String, Vec<Row>)]) -> Vec<FrameShift> {
                 meshes: shifts.len(),
                 mean_mm: [0, 1, 2].map(|k| axis(k, |v| v)),
                 rms_mm: [0, 1, 2].map(|k| axis(k, |v| v * v).sqrt()),
+                depth_mean_mm: crate::geom::mean(&depth),
+                depth_runs: depth.len(),
             }
         })
         .collect()
@@ -84,12 +100,14 @@ mod tests {
         // run from an older runs.csv (NaN) are left out; icp apart.
         let mut older = run(StudyMethod::Srvf, [f64::NAN; 3]);
         older.mae_mm = 0.7;
-        let a = vec![
+        let mut a = vec![
             run(StudyMethod::Srvf, [1.0, -2.0, 0.0]),
             run(StudyMethod::Srvf, [3.0, -2.0, 0.0]),
             run(StudyMethod::Icp, [9.0, 9.0, 9.0]),
             older,
         ];
+        a[0].depth_offset_mm = 0.5;
+        a[1].depth_offset_mm = 1.5;
         let b = vec![run(StudyMethod::Srvf, [-1.0, -2.0, 3.0]), failed(1)];
         let s = frame_shifts(&[("a".into(), a), ("b".into(), b)]);
         let srvf = s.iter().find(|f| f.method == StudyMethod::Srvf).unwrap();
@@ -103,6 +121,10 @@ mod tests {
         let icp = s.iter().find(|f| f.method == StudyMethod::Icp).unwrap();
         assert_eq!((icp.runs, icp.meshes), (1, 1));
         assert!(close(icp.mean_mm[1], 9.0));
+        // The depth offset over the two runs recording it; none recorded for icp.
+        assert_eq!(srvf.depth_runs, 2);
+        assert!(close(srvf.depth_mean_mm, 1.0));
+        assert!(icp.depth_runs == 0 && icp.depth_mean_mm.is_nan());
     }
 
     #[test]

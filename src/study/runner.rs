@@ -239,6 +239,7 @@ fn run_prepared(
         row.frame_shift_y_mm,
         row.frame_shift_z_mm,
     ] = shifted.shift;
+    row.depth_offset_mm = depth_offset_mm(&shifted.shift, &rec.log);
     row.mae_mm = acc.mae_mm;
     row.sd_mm = acc.sd_mm;
     row.p95_mm = acc.p95_mm;
@@ -387,6 +388,16 @@ fn study_with<B: Send>(
 
 /// The largest turn (degrees) and the largest shift (mm) any view's pose correction has, each
 /// over the views on its own; None when no pose was refined.
+/// The result's translation to the truth `shift` along its depth axis, as it was before the
+/// depth offset it was given (moving a result moves its translation to the truth by as much);
+/// NaN without an axis.
+fn depth_offset_mm(shift: &[f64; 3], log: &crate::pipeline::SolveLog) -> f64 {
+    log.depth_axis.map_or(f64::NAN, |a| {
+        let along = |v: &[f64; 3]| v.iter().zip(&a).map(|(x, y)| x * y).sum::<f64>();
+        along(shift) + log.depth_moved_mm * along(&a)
+    })
+}
+
 fn largest_pose_correction(corrections: &[[f64; 2]]) -> Option<[f64; 2]> {
     corrections
         .iter()

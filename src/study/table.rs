@@ -132,6 +132,13 @@ pub struct Row {
     /// The same along z (longitudinal), mm.
     #[serde(serialize_with = "six", default = "nan")]
     pub frame_shift_z_mm: f64,
+    /// The result's translation to the truth along its depth axis (`pipeline::depth_axis`),
+    /// before any depth offset the run was given (`CupParams::depth_mm`), mm: positive where
+    /// the result sat too deep, away from the opening. What `acetab calibrate` learns the
+    /// offset from. NaN when the run failed, the result had no depth axis, or in a runs.csv
+    /// written without it.
+    #[serde(serialize_with = "six", default = "nan")]
+    pub depth_offset_mm: f64,
 }
 
 /// The columns runs.csv gained with the cup's orientation: a file without them still reads (NaN).
@@ -152,6 +159,9 @@ const CAUSE_COLUMNS: usize = 2;
 /// The columns runs.csv gained after the causes (`frame_shift_x_mm`, `_y_mm`, `_z_mm`): a file
 /// without them reads (NaN).
 const SHIFT_AXES_COLUMNS: usize = 3;
+/// The column runs.csv gained after the shift's axes (`depth_offset_mm`): a file without it
+/// reads (NaN).
+const DEPTH_COLUMNS: usize = 1;
 
 fn nan() -> f64 {
     f64::NAN
@@ -227,6 +237,7 @@ impl Row {
             frame_shift_x_mm: f64::NAN,
             frame_shift_y_mm: f64::NAN,
             frame_shift_z_mm: f64::NAN,
+            depth_offset_mm: f64::NAN,
         }
     }
 
@@ -422,11 +433,13 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
         other => perr(1, format!("{other:?}")),
     })?;
     let full = header();
-    // Files written before the shift's axes, before the cause columns too, before the shift
+    // Files written before the depth offset, before the shift's axes too, before the cause
+    // columns too, before the shift
     // columns, before the pose columns, before the outline column as well, before the restart
     // column, or before the orientation columns, have the header without them.
     let prefix = |n: usize| -> csv::StringRecord { full.iter().take(n).collect() };
     let older: Vec<usize> = [
+        DEPTH_COLUMNS,
         SHIFT_AXES_COLUMNS,
         CAUSE_COLUMNS,
         SHIFT_COLUMNS,
@@ -926,6 +939,7 @@ mod tests {
             r1[0].frame_shift_y_mm,
             r1[0].frame_shift_z_mm,
         ) = (0.5, -2.25, 1.0);
+        r1[0].depth_offset_mm = 0.75;
         r1[1].error = "solver: boom, twice".into();
         r1[1].mae_mm = f64::NAN;
         write_csv(&r1, &a.join("runs.csv")).unwrap();
@@ -975,7 +989,17 @@ mod tests {
                 })
                 .collect()
         };
-        // A file from before the shift's axes reads, its axes NaN and the rest as written.
+        // A file from before the depth offset reads, its offset NaN and the rest as written.
+        std::fs::write(b.join("runs.csv"), drop_last(&good, DEPTH_COLUMNS)).unwrap();
+        let back = read_csv(&b.join("runs.csv")).unwrap();
+        assert!(back[0].depth_offset_mm.is_nan() && back[0].frame_shift_y_mm == -2.25);
+        // Companion: written with it, it reads as written.
+        assert_eq!(
+            read_csv(&a.join("runs.csv")).unwrap()[0].depth_offset_mm,
+            0.75
+        );
+        // A file from before the shift's axes too reads, its axes NaN and the rest as written.
+        let good = drop_last(&good, DEPTH_COLUMNS);
         std::fs::write(b.join("runs.csv"), drop_last(&good, SHIFT_AXES_COLUMNS)).unwrap();
         let back = read_csv(&b.join("runs.csv")).unwrap();
         assert!(

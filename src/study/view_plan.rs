@@ -121,6 +121,7 @@ fn corrections(
                     truth_mm: r.truth_mm,
                     resample_sd_mm: r.resample_sd_mm,
                     source: r.source,
+                    depth_offset_mm: f64::NAN,
                 })
             })
             .collect();
@@ -328,6 +329,7 @@ mod tests {
                 truth_mm: r.truth_mm,
                 resample_sd_mm: 0.0,
                 source: r.source,
+                depth_offset_mm: f64::NAN,
             })
             .collect();
         let in_sample = CupCalibration::learn(

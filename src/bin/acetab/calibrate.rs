@@ -139,6 +139,7 @@ pub(crate) fn applied_in(dir: &Path) -> Result<Applied, String> {
     a.cup.bias_mm = number("cup_bias_mm", |_| true, "a number")?;
     a.cup.shrink = number("cup_shrink", |_| true, "a number")?;
     a.cup.shrink_to_mm = number("cup_shrink_to_mm", |_| true, "a number")?;
+    a.cup.depth_mm = number("cup_depth_mm", |_| true, "a number")?;
     if let Some((field, value, expected)) = a.cup.invalid_correction() {
         return Err(format!(
             "{}: study.cup_{field} = {value}: must be {expected}",
@@ -320,6 +321,7 @@ pub fn learn(
                 fitted_mm,
                 truth_mm: r.gt_cup_diameter_mm,
                 resample_sd_mm,
+                depth_offset_mm: r.depth_offset_mm,
                 source,
             });
         }
@@ -361,12 +363,13 @@ pub fn run(args: CalibrateArgs) -> Result<(), String> {
         String::new()
     };
     println!(
-        "{} cup: bias {:+.3} mm{shrink}, model-error SD {:.3} mm from {} runs (training coverage {:.1} %); written to {}",
+        "{} cup: bias {:+.3} mm{shrink}, model-error SD {:.3} mm from {} runs (training coverage {:.1} %); result's depth offset {:+.3} mm; written to {}",
         cal.estimator,
         cal.bias_mm,
         cal.model_sd_mm,
         cal.runs,
         100.0 * cal.training_coverage,
+        cal.depth_mm,
         args.out.display()
     );
     Ok(())

@@ -601,6 +601,7 @@ impl Study<'_> {
             "cup_bias_mm": cfg.params.cup.bias_mm,
             "cup_shrink": cfg.params.cup.shrink,
             "cup_shrink_to_mm": cfg.params.cup.shrink_to_mm,
+            "cup_depth_mm": cfg.params.cup.depth_mm,
             "calibration": calibration,
             "prior": prior_from,
             "provenance": Provenance::here(kernels.name(), adapter.clone(), cfg.threads, seed),

@@ -202,6 +202,14 @@ pub(super) fn sweep(
             f.runs,
             f.meshes,
         );
+        if f.depth_runs > 0 {
+            println!(
+                "{} results' translation to the truth along their depth axis, before any depth offset, over {} runs: mean {:+.2} mm",
+                f.method.name(),
+                f.depth_runs,
+                f.depth_mean_mm
+            );
+        }
     }
     eprintln!(
         "{} meshes in {:.1} s; population table in {}",

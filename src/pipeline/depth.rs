@@ -1,0 +1,94 @@
+//! The result's depth along the views, and its learned offset. Views turned about one body axis
+//! (the paper's antero-posterior view and two obliques at +-20 degrees about the longitudinal
+//! axis) all look along nearly one direction: the depth of the acetabulum along it shows only
+//! in the obliques' small parallax, and the surface that faces it never forms an outline. There
+//! the reconstruction settles where the template's shape, not the X-rays, puts it: on the
+//! shared acetabula every method's result sits 0.6-1.1 mm too deep, away from the opening
+//! (docs/population.md, "The result's depth along the views"). A calibration learned on
+//! acetabula whose surface is known (`CupCalibration::depth_mm`, `CupParams::depth_mm`) moves
+//! the result that far back toward the opening; without one nothing moves.
+
+use crate::geom::{fit_sphere_robust, opening_axis, Mesh};
+use crate::views::Camera;
+use nalgebra::Vector3;
+
+/// Below this |a . d| (the opening axis a against the views' mean direction d) the depth axis
+/// shrinks linearly to zero: an opening turned across the views is too deep along neither side
+/// of them.
+pub const FACING_RAMP: f64 = 0.1;
+
+/// The depth axis of a result `mesh` seen in `cams`: the mean of the unit directions from its
+/// sphere's centre to the views' sources, pointing to the side the opening faces, its length 1
+/// where the opening faces that side clearly (|a . d| >= `FACING_RAMP`) and falling to 0 as the
+/// opening turns across the views. None when no sphere fits the mesh, there are no views, or the
+/// sources' directions cancel out.
+pub fn depth_axis(mesh: &Mesh, cams: &[Camera]) -> Option<Vector3<f64>> {
+    let c = fit_sphere_robust(&mesh.vertices).ok()?.center_point();
+    let d = cams
+        .iter()
+        .filter_map(|cam| (cam.center() - c).try_normalize(1e-12))
+        .sum::<Vector3<f64>>()
+        .try_normalize(1e-9)?;
+    let a = opening_axis(&mesh.vertices, &c);
+    let facing = (a.dot(&d) / FACING_RAMP).clamp(-1.0, 1.0);
+    facing.is_finite().then(|| d * facing)
+}
+
+/// `mesh` moved `mm` along `axis` (a depth offset of `mm` toward the opening).
+pub fn moved(mesh: &Mesh, axis: &Vector3<f64>, mm: f64) -> Mesh {
+    let v = axis * mm;
+    mesh.with_vertices(mesh.vertices.iter().map(|p| p + v).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::{simulated_views, XrayGeometry};
+    use crate::template::{spherical_cap, Placement};
+    use nalgebra::{Point3, Unit};
+
+    fn cap_facing(axis: Vector3<f64>) -> (Mesh, Vec<Camera>) {
+        let place = Placement {
+            center: Point3::new(90.0, 20.0, -560.0),
+            radius: 26.0,
+            axis: Unit::new_normalize(axis),
+        };
+        let mesh = place.place(&spherical_cap(1.0, 2000, 80f64.to_radians()));
+        (
+            mesh,
+            simulated_views(&XrayGeometry::default(), &place.center),
+        )
+    }
+
+    #[test]
+    fn the_axis_points_along_the_views_to_the_side_the_opening_faces() {
+        // The simulated sources stand on +y (the antero-posterior view's, and the obliques'
+        // turned +-20 degrees about z): an opening lateral and a little toward them gives +y, one
+        // a little away from them -y, each of full length.
+        let (toward, cams) = cap_facing(Vector3::new(1.0, 0.4, -0.5));
+        let a = depth_axis(&toward, &cams).unwrap();
+        assert!((a.norm() - 1.0).abs() < 1e-9 && a.y > 0.99, "{a:?}");
+        let (away, cams) = cap_facing(Vector3::new(1.0, -0.4, -0.5));
+        let b = depth_axis(&away, &cams).unwrap();
+        assert!((b.norm() - 1.0).abs() < 1e-9 && b.y < -0.99, "{b:?}");
+        // Companion: an opening square across the views gives (almost) no axis.
+        let (across, cams) = cap_facing(Vector3::new(1.0, 0.0, -0.5));
+        let c = depth_axis(&across, &cams).unwrap();
+        assert!(c.norm() < 0.2, "{c:?}");
+        // No views: no axis.
+        assert!(depth_axis(&toward, &[]).is_none());
+    }
+
+    #[test]
+    fn moved_translates_every_vertex_by_the_offset_along_the_axis() {
+        let (mesh, _) = cap_facing(Vector3::new(1.0, 0.4, -0.5));
+        let axis = Vector3::new(0.0, -1.0, 0.0);
+        let m = moved(&mesh, &axis, 0.8);
+        for (p, q) in mesh.vertices.iter().zip(&m.vertices) {
+            assert!((q - p - Vector3::new(0.0, -0.8, 0.0)).norm() < 1e-12);
+        }
+        assert_eq!(m.triangles, mesh.triangles);
+        // Companion: no offset, no move.
+        assert_eq!(moved(&mesh, &axis, 0.0).vertices, mesh.vertices);
+    }
+}
