@@ -509,13 +509,7 @@ impl CupCalibration {
                 min: MIN_TRAINING_RUNS,
             });
         }
-        // Each source's runs share one unit of weight.
-        let mut per_source = std::collections::BTreeMap::<usize, usize>::new();
-        for r in &runs {
-            *per_source.entry(r.source).or_default() += 1;
-        }
-        let sources = per_source.len() as f64;
-        let weight = |r: &TrainingRun| 1.0 / (sources * per_source[&r.source] as f64);
+        let weight = source_weights(&runs);
         let mean =
             |f: &dyn Fn(&TrainingRun) -> f64| runs.iter().map(|r| weight(r) * f(r)).sum::<f64>();
         let (bias_mm, shrink, shrink_to_mm) = match what {
@@ -603,21 +597,27 @@ impl CupCalibration {
 /// (studies from before the column), since an offset learned from a few runs would move every
 /// result by their chance.
 pub fn depth_offset(runs: &[TrainingRun]) -> f64 {
-    let with: Vec<&TrainingRun> = runs
+    let with: Vec<TrainingRun> = runs
         .iter()
         .filter(|r| r.depth_offset_mm.is_finite())
+        .copied()
         .collect();
     if with.len() < MIN_TRAINING_RUNS {
         return 0.0;
     }
+    let weight = source_weights(&with);
+    with.iter().map(|r| weight(r) * r.depth_offset_mm).sum()
+}
+
+/// Each run's weight in a mean over `runs` where every source of truths weighs the same: one
+/// unit per source, shared by its runs.
+fn source_weights(runs: &[TrainingRun]) -> impl Fn(&TrainingRun) -> f64 {
     let mut per_source = std::collections::BTreeMap::<usize, usize>::new();
-    for r in &with {
+    for r in runs {
         *per_source.entry(r.source).or_default() += 1;
     }
     let sources = per_source.len() as f64;
-    with.iter()
-        .map(|r| r.depth_offset_mm / (sources * per_source[&r.source] as f64))
-        .sum()
+    move |r: &TrainingRun| 1.0 / (sources * per_source[&r.source] as f64)
 }
 
 #[cfg(test)]
