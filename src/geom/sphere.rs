@@ -23,6 +23,14 @@ impl Sphere {
     pub fn center_point(&self) -> Point3<f64> {
         Point3::new(self.center[0], self.center[1], self.center[2])
     }
+    /// The same sphere with its centre moved by `v` (what a fit to the points moved by `v`
+    /// gives).
+    pub fn moved(&self, v: &nalgebra::Vector3<f64>) -> Sphere {
+        Sphere {
+            center: (self.center_point() + v).into(),
+            ..*self
+        }
+    }
 }
 
 /// Why no sphere could be fitted.

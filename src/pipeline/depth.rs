@@ -8,22 +8,23 @@
 //! acetabula whose surface is known (`CupCalibration::depth_mm`, `CupParams::depth_mm`) moves
 //! the result that far back toward the opening; without one nothing moves.
 
-use crate::geom::{fit_sphere_robust, opening_axis, Mesh};
+use crate::geom::{opening_axis, Mesh};
 use crate::views::Camera;
-use nalgebra::Vector3;
+use nalgebra::{Point3, Vector3};
 
 /// Below this |a . d| (the opening axis a against the views' mean direction d) the depth axis
 /// shrinks linearly to zero: an opening turned across the views is too deep along neither side
 /// of them.
 pub const FACING_RAMP: f64 = 0.1;
 
-/// The depth axis of a result `mesh` seen in `cams`: the mean of the unit directions from its
-/// sphere's centre to the views' sources, pointing to the side the opening faces, its length 1
+/// The depth axis of a result `mesh` whose sphere is centred at `center` (its whole surface's,
+/// `CupSpheres::surface`), seen in `cams`: the mean of the unit directions from that centre to
+/// the views' sources, pointing to the side the opening faces, its length 1
 /// where the opening faces that side clearly (|a . d| >= `FACING_RAMP`) and falling to 0 as the
-/// opening turns across the views. None when no sphere fits the mesh, there are no views, or the
-/// sources' directions cancel out.
-pub fn depth_axis(mesh: &Mesh, cams: &[Camera]) -> Option<Vector3<f64>> {
-    let c = fit_sphere_robust(&mesh.vertices).ok()?.center_point();
+/// opening turns across the views. None when there are no views or the sources' directions
+/// cancel out.
+pub fn depth_axis(mesh: &Mesh, center: &Point3<f64>, cams: &[Camera]) -> Option<Vector3<f64>> {
+    let c = *center;
     let d = cams
         .iter()
         .filter_map(|cam| (cam.center() - c).try_normalize(1e-12))
@@ -34,9 +35,8 @@ pub fn depth_axis(mesh: &Mesh, cams: &[Camera]) -> Option<Vector3<f64>> {
     facing.is_finite().then(|| d * facing)
 }
 
-/// `mesh` moved `mm` along `axis` (a depth offset of `mm` toward the opening).
-pub fn moved(mesh: &Mesh, axis: &Vector3<f64>, mm: f64) -> Mesh {
-    let v = axis * mm;
+/// `mesh` moved by `v` (a depth offset: the axis times the offset, toward the opening).
+pub fn moved(mesh: &Mesh, v: &Vector3<f64>) -> Mesh {
     mesh.with_vertices(mesh.vertices.iter().map(|p| p + v).collect())
 }
 
@@ -47,17 +47,15 @@ mod tests {
     use crate::template::{spherical_cap, Placement};
     use nalgebra::{Point3, Unit};
 
-    fn cap_facing(axis: Vector3<f64>) -> (Mesh, Vec<Camera>) {
+    fn cap_facing(axis: Vector3<f64>) -> (Mesh, Point3<f64>, Vec<Camera>) {
         let place = Placement {
             center: Point3::new(90.0, 20.0, -560.0),
             radius: 26.0,
             axis: Unit::new_normalize(axis),
         };
         let mesh = place.place(&spherical_cap(1.0, 2000, 80f64.to_radians()));
-        (
-            mesh,
-            simulated_views(&XrayGeometry::default(), &place.center),
-        )
+        let cams = simulated_views(&XrayGeometry::default(), &place.center);
+        (mesh, place.center, cams)
     }
 
     #[test]
@@ -65,30 +63,30 @@ mod tests {
         // The simulated sources stand on +y (the antero-posterior view's, and the obliques'
         // turned +-20 degrees about z): an opening lateral and a little toward them gives +y, one
         // a little away from them -y, each of full length.
-        let (toward, cams) = cap_facing(Vector3::new(1.0, 0.4, -0.5));
-        let a = depth_axis(&toward, &cams).unwrap();
+        let (toward, c, cams) = cap_facing(Vector3::new(1.0, 0.4, -0.5));
+        let a = depth_axis(&toward, &c, &cams).unwrap();
         assert!((a.norm() - 1.0).abs() < 1e-9 && a.y > 0.99, "{a:?}");
-        let (away, cams) = cap_facing(Vector3::new(1.0, -0.4, -0.5));
-        let b = depth_axis(&away, &cams).unwrap();
+        let (away, c, cams) = cap_facing(Vector3::new(1.0, -0.4, -0.5));
+        let b = depth_axis(&away, &c, &cams).unwrap();
         assert!((b.norm() - 1.0).abs() < 1e-9 && b.y < -0.99, "{b:?}");
         // Companion: an opening square across the views gives (almost) no axis.
-        let (across, cams) = cap_facing(Vector3::new(1.0, 0.0, -0.5));
-        let c = depth_axis(&across, &cams).unwrap();
-        assert!(c.norm() < 0.2, "{c:?}");
+        let (across, c, cams) = cap_facing(Vector3::new(1.0, 0.0, -0.5));
+        let s = depth_axis(&across, &c, &cams).unwrap();
+        assert!(s.norm() < 0.2, "{s:?}");
         // No views: no axis.
-        assert!(depth_axis(&toward, &[]).is_none());
+        assert!(depth_axis(&toward, &c, &[]).is_none());
     }
 
     #[test]
     fn moved_translates_every_vertex_by_the_offset_along_the_axis() {
-        let (mesh, _) = cap_facing(Vector3::new(1.0, 0.4, -0.5));
+        let (mesh, _, _) = cap_facing(Vector3::new(1.0, 0.4, -0.5));
         let axis = Vector3::new(0.0, -1.0, 0.0);
-        let m = moved(&mesh, &axis, 0.8);
+        let m = moved(&mesh, &(axis * 0.8));
         for (p, q) in mesh.vertices.iter().zip(&m.vertices) {
             assert!((q - p - Vector3::new(0.0, -0.8, 0.0)).norm() < 1e-12);
         }
         assert_eq!(m.triangles, mesh.triangles);
         // Companion: no offset, no move.
-        assert_eq!(moved(&mesh, &axis, 0.0).vertices, mesh.vertices);
+        assert_eq!(moved(&mesh, &(axis * 0.0)).vertices, mesh.vertices);
     }
 }

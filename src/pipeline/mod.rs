@@ -607,16 +607,18 @@ fn finish(
     log.converged = converged;
     log.reprojection_rms_px = rms_px(&mesh, &poses.cams_now, &obs);
     log.correspondences = obs.len();
-    let axis = depth_axis(&mesh, &poses.cams_now);
+    let spheres = cup_spheres(&mesh, &obs, &ctx.prm.cup, log.prior_region(ctx.prm))?;
+    let axis = depth_axis(&mesh, &spheres.surface.center_point(), &poses.cams_now);
     log.depth_axis = axis.map(|a| [a.x, a.y, a.z]);
-    let mesh = match axis {
+    // The offset moves the surface and its spheres alike (a fit to moved points is the moved fit).
+    let (mesh, spheres) = match axis {
         Some(a) if ctx.prm.cup.depth_mm != 0.0 => {
             log.depth_moved_mm = ctx.prm.cup.depth_mm;
-            depth::moved(&mesh, &a, ctx.prm.cup.depth_mm)
+            let v = a * ctx.prm.cup.depth_mm;
+            (depth::moved(&mesh, &v), spheres.moved(&v))
         }
-        _ => mesh,
+        _ => (mesh, spheres),
     };
-    let spheres = cup_spheres(&mesh, &obs, &ctx.prm.cup, log.prior_region(ctx.prm))?;
     let (sphere, fitted_sphere, surface_sphere) = (spheres.cup, spheres.fitted, spheres.surface);
     let cup = ctx.prm.cup.catalogue.nearest(sphere.diameter());
     let initial = input.init.place(input.template.mesh());

@@ -392,10 +392,11 @@ fn study_with<B: Send>(
 /// depth offset it was given (moving a result moves its translation to the truth by as much);
 /// NaN without an axis.
 fn depth_offset_mm(shift: &[f64; 3], log: &crate::pipeline::SolveLog) -> f64 {
-    log.depth_axis.map_or(f64::NAN, |a| {
-        let along = |v: &[f64; 3]| v.iter().zip(&a).map(|(x, y)| x * y).sum::<f64>();
-        along(shift) + log.depth_moved_mm * along(&a)
-    })
+    log.depth_axis
+        .map(nalgebra::Vector3::from)
+        .map_or(f64::NAN, |a| {
+            nalgebra::Vector3::from(*shift).dot(&a) + log.depth_moved_mm * a.norm_squared()
+        })
 }
 
 fn largest_pose_correction(corrections: &[[f64; 2]]) -> Option<[f64; 2]> {
