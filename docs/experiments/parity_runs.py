@@ -1,0 +1,134 @@
+"""How much of issue 16's level-5 parity bar is the runs' spread? (stop 68)
+
+The bar: on every acetabulum, srvf's mean MAE at level 5 at most 1.05x the better baseline's
+(icp, icp-normvec), each mean read from three runs. This script reads several level-5 sweeps of
+the same 47 acetabula that differ only in the study seed (each `acetab simulate --gt
+../shared/data/acetabula ../shared/data/pelvis-atlas/acetabula --levels 5 --runs 3 --methods
+srvf,icp,icp-normvec --seed S --threads 2 --uncertainty-samples 0 --out DIR_S`; a population
+check's folder does too, its level-5 rows are read) and prints, per sweep, the acetabula over the
+bar; over the sweeps pooled (3 runs x sweeps a side, paired case by case), the acetabula over it
+with their mean MAE, the MAE with the result's translation taken out (`shifted_mae_mm`), the
+translation's length and its component along the views' mean direction (`depth_offset_mm`,
+before the calibration's offset); how often srvf of one sweep is over 1.05x srvf of another, and
+over the better of two other sweeps' srvf (unpaired: other cases); and how many acetabula a
+check of three runs a side is expected to find over the bar from the runs' spread alone: each
+acetabulum's three runs drawn (with replacement) from its pooled runs, srvf's MAE with each
+other method's of the same case, 2,000 draws of the whole check (random seed 68), with srvf's
+MAE as it is and scaled down by a few per cent (what an srvf that much better would read).
+
+Data: the 8 LibHip cartilage shells (MIT) and 39 JHU I-STAR pelvis-atlas acetabula (CC BY 4.0,
+Han R, Uneri A, et al., Phys. Med. Biol. 64 (2019) 095022) in ../shared/data.
+
+Run: python3 docs/experiments/parity_runs.py DIR_7 DIR_8 DIR_9 ...   (standard library only)
+"""
+import csv
+import itertools
+import os
+import random
+import statistics as st
+import sys
+
+METHODS = ("srvf", "icp", "icp-normvec")
+BAR = 1.05
+
+
+def load(folder):
+    """(mesh, method) -> level-5 rows of one sweep."""
+    out = {}
+    for mesh in sorted(os.listdir(folder)):
+        path = os.path.join(folder, mesh, "runs.csv")
+        if not os.path.isfile(path):
+            continue
+        for row in csv.DictReader(open(path)):
+            if row["level"] == "5" and row["method"] in METHODS and not row["error"]:
+                out.setdefault((mesh, row["method"]), []).append(row)
+    return out
+
+
+def mean(rows, key="mae_mm"):
+    return st.mean(float(r[key]) for r in rows)
+
+
+def paired_runs(sweeps, mesh):
+    """Per case (sweep, run), the three methods' MAEs."""
+    out = []
+    for s in sweeps:
+        by = {k: {r["run"]: float(r["mae_mm"]) for r in s[(mesh, k)]} for k in METHODS}
+        out += [tuple(by[k][run] for k in METHODS) for run in by["srvf"] if all(run in by[k] for k in METHODS)]
+    return out
+
+
+def expected_over(sweeps, meshes, scale, draws=2000, seed=68):
+    """Mean count of acetabula over the bar in a three-run check drawn from the pooled runs."""
+    rng = random.Random(seed)
+    cases = {m: paired_runs(sweeps, m) for m in meshes}
+    total = 0
+    for _ in range(draws):
+        for m in meshes:
+            pick = [rng.choice(cases[m]) for _ in range(3)]
+            srvf = scale * st.mean(p[0] for p in pick)
+            total += srvf > BAR * min(st.mean(p[1] for p in pick), st.mean(p[2] for p in pick))
+    return total / draws
+
+
+def ratio(sweeps, mesh):
+    """srvf's mean MAE over the better baseline's, the given sweeps pooled."""
+    pooled = {k: [r for s in sweeps for r in s[(mesh, k)]] for k in METHODS}
+    return mean(pooled["srvf"]) / min(mean(pooled["icp"]), mean(pooled["icp-normvec"])), pooled
+
+
+def main(folders):
+    sweeps = [load(f) for f in folders]
+    meshes = sorted(
+        {m for m, _ in sweeps[0]}.intersection(*({m for m, _ in s} for s in sweeps[1:]))
+    )
+    meshes = [m for m in meshes if all((m, k) in s for s in sweeps for k in METHODS)]
+    print(f"{len(meshes)} acetabula in all {len(folders)} sweeps")
+    for f, s in zip(folders, sweeps):
+        over = [f"{m} {ratio([s], m)[0]:.3f}" for m in meshes if ratio([s], m)[0] > BAR]
+        print(f"{os.path.basename(os.path.normpath(f))}: {len(over)} over {BAR}x: {', '.join(over)}")
+    ratios = sorted(((ratio(sweeps, m)[0], m) for m in meshes), reverse=True)
+    runs = 3 * len(sweeps)
+    over = [(r, m) for r, m in ratios if r > BAR]
+    print(
+        f"pooled ({runs} runs a side): {len(over)} over {BAR}x; mean ratio "
+        f"{st.mean(r for r, _ in ratios):.3f}, median {st.median(r for r, _ in ratios):.3f}"
+    )
+    for r, m in ratios[: max(len(over), 5)]:
+        pooled = ratio(sweeps, m)[1]
+        cells = []
+        for k in METHODS:
+            rows = pooled[k]
+            depth = mean(rows, "depth_offset_mm") if rows[0].get("depth_offset_mm") else float("nan")
+            cells.append(
+                f"{k} {mean(rows):.3f} (shift-free {mean(rows, 'shifted_mae_mm'):.3f}, "
+                f"shift {mean(rows, 'frame_shift_mm'):.2f}, depth {depth:+.2f})"
+            )
+        print(f"  {m} {r:.3f}: " + "; ".join(cells))
+    if len(sweeps) >= 3:
+        one, two = [], []
+        for a in range(len(sweeps)):
+            rest = [b for b in range(len(sweeps)) if b != a]
+            for b in rest:
+                one.append(sum(mean(sweeps[a][(m, "srvf")]) > BAR * mean(sweeps[b][(m, "srvf")]) for m in meshes))
+            for b, c in itertools.combinations(rest, 2):
+                two.append(
+                    sum(
+                        mean(sweeps[a][(m, "srvf")])
+                        > BAR * min(mean(sweeps[b][(m, "srvf")]), mean(sweeps[c][(m, "srvf")]))
+                        for m in meshes
+                    )
+                )
+        print(
+            f"srvf of one sweep over {BAR}x srvf of another: {min(one)}-{max(one)} acetabula, "
+            f"mean {st.mean(one):.1f}; over the better of two others: {min(two)}-{max(two)}, "
+            f"mean {st.mean(two):.1f}"
+        )
+    cells = [f"x{scale}: {expected_over(sweeps, meshes, scale):.2f}" for scale in (1.0, 0.95, 0.9, 0.86)]
+    print(f"expected over {BAR}x in a check of 3 runs a side (srvf's MAE scaled): " + ", ".join(cells))
+
+
+if __name__ == "__main__":
+    if len(sys.argv) < 2:
+        sys.exit(__doc__)
+    main(sys.argv[1:])
