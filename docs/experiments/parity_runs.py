@@ -85,9 +85,11 @@ def main(folders):
     meshes = [m for m in meshes if all((m, k) in s for s in sweeps for k in METHODS)]
     print(f"{len(meshes)} acetabula in all {len(folders)} sweeps")
     for f, s in zip(folders, sweeps):
-        over = [f"{m} {ratio([s], m)[0]:.3f}" for m in meshes if ratio([s], m)[0] > BAR]
+        each = ((m, ratio([s], m)[0]) for m in meshes)
+        over = [f"{m} {r:.3f}" for m, r in each if r > BAR]
         print(f"{os.path.basename(os.path.normpath(f))}: {len(over)} over {BAR}x: {', '.join(over)}")
-    ratios = sorted(((ratio(sweeps, m)[0], m) for m in meshes), reverse=True)
+    pooled = {m: ratio(sweeps, m) for m in meshes}
+    ratios = sorted(((pooled[m][0], m) for m in meshes), reverse=True)
     runs = 3 * len(sweeps)
     over = [(r, m) for r, m in ratios if r > BAR]
     print(
@@ -95,10 +97,9 @@ def main(folders):
         f"{st.mean(r for r, _ in ratios):.3f}, median {st.median(r for r, _ in ratios):.3f}"
     )
     for r, m in ratios[: max(len(over), 5)]:
-        pooled = ratio(sweeps, m)[1]
         cells = []
         for k in METHODS:
-            rows = pooled[k]
+            rows = pooled[m][1][k]
             depth = mean(rows, "depth_offset_mm") if rows[0].get("depth_offset_mm") else float("nan")
             cells.append(
                 f"{k} {mean(rows):.3f} (shift-free {mean(rows, 'shifted_mae_mm'):.3f}, "

@@ -597,21 +597,22 @@ impl CupCalibration {
 /// (studies from before the column), since an offset learned from a few runs would move every
 /// result by their chance.
 pub fn depth_offset(runs: &[TrainingRun]) -> f64 {
-    let with: Vec<TrainingRun> = runs
+    let with: Vec<&TrainingRun> = runs
         .iter()
         .filter(|r| r.depth_offset_mm.is_finite())
-        .copied()
         .collect();
     if with.len() < MIN_TRAINING_RUNS {
         return 0.0;
     }
-    let weight = source_weights(&with);
+    let weight = source_weights(with.iter().copied());
     with.iter().map(|r| weight(r) * r.depth_offset_mm).sum()
 }
 
 /// Each run's weight in a mean over `runs` where every source of truths weighs the same: one
 /// unit per source, shared by its runs.
-fn source_weights(runs: &[TrainingRun]) -> impl Fn(&TrainingRun) -> f64 {
+fn source_weights<'a>(
+    runs: impl IntoIterator<Item = &'a TrainingRun>,
+) -> impl Fn(&TrainingRun) -> f64 {
     let mut per_source = std::collections::BTreeMap::<usize, usize>::new();
     for r in runs {
         *per_source.entry(r.source).or_default() += 1;

@@ -24,13 +24,12 @@ pub const FACING_RAMP: f64 = 0.1;
 /// opening turns across the views. None when there are no views or the sources' directions
 /// cancel out.
 pub fn depth_axis(mesh: &Mesh, center: &Point3<f64>, cams: &[Camera]) -> Option<Vector3<f64>> {
-    let c = *center;
     let d = cams
         .iter()
-        .filter_map(|cam| (cam.center() - c).try_normalize(1e-12))
+        .filter_map(|cam| (cam.center() - center).try_normalize(1e-12))
         .sum::<Vector3<f64>>()
         .try_normalize(1e-9)?;
-    let a = opening_axis(&mesh.vertices, &c);
+    let a = opening_axis(&mesh.vertices, center);
     let facing = (a.dot(&d) / FACING_RAMP).clamp(-1.0, 1.0);
     facing.is_finite().then(|| d * facing)
 }

@@ -386,8 +386,6 @@ fn study_with<B: Send>(
     Ok((rows, ex, b))
 }
 
-/// The largest turn (degrees) and the largest shift (mm) any view's pose correction has, each
-/// over the views on its own; None when no pose was refined.
 /// The result's translation to the truth `shift` along its depth axis, as it was before the
 /// depth offset it was given (moving a result moves its translation to the truth by as much);
 /// NaN without an axis.
@@ -399,6 +397,8 @@ fn depth_offset_mm(shift: &[f64; 3], log: &crate::pipeline::SolveLog) -> f64 {
         })
 }
 
+/// The largest turn (degrees) and the largest shift (mm) any view's pose correction has, each
+/// over the views on its own; None when no pose was refined.
 fn largest_pose_correction(corrections: &[[f64; 2]]) -> Option<[f64; 2]> {
     corrections
         .iter()
