@@ -19,7 +19,15 @@ MAE as it is and scaled down by a few per cent (what an srvf that much better wo
 Data: the 8 LibHip cartilage shells (MIT) and 39 JHU I-STAR pelvis-atlas acetabula (CC BY 4.0,
 Han R, Uneri A, et al., Phys. Med. Biol. 64 (2019) 095022) in ../shared/data.
 
-Run: python3 docs/experiments/parity_runs.py DIR_7 DIR_8 DIR_9 ...   (standard library only)
+With `--srvf SDIR_7 SDIR_8 ...` (one folder per DIR, the same seeds in the same order) srvf's rows
+are read from those sweeps instead (`--methods srvf` sweeps of a variant: other outlines, other
+settings) and the baselines' from the DIRs, so a variant of srvf meets the same baseline runs
+(stop 69: srvf fed outlines without the 2 px noise). The expected count is also printed with
+srvf's three-run mean replaced by its pooled mean (no run spread of its own), so that what
+srvf's spread adds to the count and what the baselines' spread adds can be told apart.
+
+Run: python3 docs/experiments/parity_runs.py DIR_7 DIR_8 DIR_9 ... [--srvf SDIR_7 SDIR_8 ...]
+(standard library only)
 """
 import csv
 import itertools
@@ -58,15 +66,16 @@ def paired_runs(sweeps, mesh):
     return out
 
 
-def expected_over(sweeps, meshes, scale, draws=2000, seed=68):
-    """Mean count of acetabula over the bar in a three-run check drawn from the pooled runs."""
+def expected_over(sweeps, meshes, scale, draws=2000, seed=68, srvf_spread=True):
+    """Mean count of acetabula over the bar in a three-run check drawn from the pooled runs
+    (without `srvf_spread`, srvf's three-run mean is its pooled mean)."""
     rng = random.Random(seed)
     cases = {m: paired_runs(sweeps, m) for m in meshes}
     total = 0
     for _ in range(draws):
         for m in meshes:
             pick = [rng.choice(cases[m]) for _ in range(3)]
-            srvf = scale * st.mean(p[0] for p in pick)
+            srvf = scale * st.mean(p[0] for p in (pick if srvf_spread else cases[m]))
             total += srvf > BAR * min(st.mean(p[1] for p in pick), st.mean(p[2] for p in pick))
     return total / draws
 
@@ -77,17 +86,28 @@ def ratio(sweeps, mesh):
     return mean(pooled["srvf"]) / min(mean(pooled["icp"]), mean(pooled["icp-normvec"])), pooled
 
 
-def main(folders):
+def with_srvf_from(sweep, variant):
+    """`sweep` with its srvf rows replaced by `variant`'s."""
+    out = {k: v for k, v in sweep.items() if k[1] != "srvf"}
+    out.update({k: v for k, v in variant.items() if k[1] == "srvf"})
+    return out
+
+
+def main(folders, srvf_folders=None):
     sweeps = [load(f) for f in folders]
+    labels = [os.path.basename(os.path.normpath(f)) for f in folders]
+    if srvf_folders:
+        sweeps = [with_srvf_from(s, load(v)) for s, v in zip(sweeps, srvf_folders)]
+        labels = [f"{a} (srvf: {os.path.normpath(v)})" for a, v in zip(labels, srvf_folders)]
     meshes = sorted(
         {m for m, _ in sweeps[0]}.intersection(*({m for m, _ in s} for s in sweeps[1:]))
     )
     meshes = [m for m in meshes if all((m, k) in s for s in sweeps for k in METHODS)]
     print(f"{len(meshes)} acetabula in all {len(folders)} sweeps")
-    for f, s in zip(folders, sweeps):
+    for label, s in zip(labels, sweeps):
         each = ((m, ratio([s], m)[0]) for m in meshes)
         over = [f"{m} {r:.3f}" for m, r in each if r > BAR]
-        print(f"{os.path.basename(os.path.normpath(f))}: {len(over)} over {BAR}x: {', '.join(over)}")
+        print(f"{label}: {len(over)} over {BAR}x: {', '.join(over)}")
     pooled = {m: ratio(sweeps, m) for m in meshes}
     ratios = sorted(((pooled[m][0], m) for m in meshes), reverse=True)
     runs = 3 * len(sweeps)
@@ -127,9 +147,20 @@ def main(folders):
         )
     cells = [f"x{scale}: {expected_over(sweeps, meshes, scale):.2f}" for scale in (1.0, 0.95, 0.9, 0.86)]
     print(f"expected over {BAR}x in a check of 3 runs a side (srvf's MAE scaled): " + ", ".join(cells))
+    cells = [
+        f"x{scale}: {expected_over(sweeps, meshes, scale, srvf_spread=False):.2f}" for scale in (1.0, 0.95, 0.9, 0.86)
+    ]
+    print("  the same with srvf at its pooled mean (no run spread of its own): " + ", ".join(cells))
 
 
 if __name__ == "__main__":
-    if len(sys.argv) < 2:
+    args = sys.argv[1:]
+    variant = None
+    if "--srvf" in args:
+        at = args.index("--srvf")
+        args, variant = args[:at], args[at + 1 :]
+        if len(variant) != len(args):
+            sys.exit(f"--srvf takes one folder per sweep: {len(args)} sweeps, {len(variant)} srvf folders")
+    if not args:
         sys.exit(__doc__)
-    main(sys.argv[1:])
+    main(args, variant)
