@@ -22,7 +22,9 @@ Han R, Uneri A, et al., Phys. Med. Biol. 64 (2019) 095022) in ../shared/data.
 With `--srvf SDIR_7 SDIR_8 ...` (one folder per DIR, the same seeds in the same order) srvf's rows
 are read from those sweeps instead (`--methods srvf` sweeps of a variant: other outlines, other
 settings) and the baselines' from the DIRs, so a variant of srvf meets the same baseline runs
-(stop 69: srvf fed outlines without the 2 px noise). The expected count is also printed with
+(stop 69: srvf fed outlines without the 2 px noise). Runs are paired by seed and run number:
+the same simulated X-rays where the variant ran the same protocol, otherwise only the same
+acetabulum (a variant of another protocol draws other outlines). The expected count is also printed with
 srvf's three-run mean replaced by its pooled mean (no run spread of its own), so that what
 srvf's spread adds to the count and what the baselines' spread adds can be told apart.
 
