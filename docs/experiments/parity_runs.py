@@ -73,11 +73,12 @@ def expected_over(sweeps, meshes, scale, draws=2000, seed=68, srvf_spread=True):
     (without `srvf_spread`, srvf's three-run mean is its pooled mean)."""
     rng = random.Random(seed)
     cases = {m: paired_runs(sweeps, m) for m in meshes}
+    pooled_srvf = {m: st.mean(p[0] for p in cases[m]) for m in meshes}
     total = 0
     for _ in range(draws):
         for m in meshes:
             pick = [rng.choice(cases[m]) for _ in range(3)]
-            srvf = scale * st.mean(p[0] for p in (pick if srvf_spread else cases[m]))
+            srvf = scale * (st.mean(p[0] for p in pick) if srvf_spread else pooled_srvf[m])
             total += srvf > BAR * min(st.mean(p[1] for p in pick), st.mean(p[2] for p in pick))
     return total / draws
 
@@ -129,19 +130,14 @@ def main(folders, srvf_folders=None):
             )
         print(f"  {m} {r:.3f}: " + "; ".join(cells))
     if len(sweeps) >= 3:
+        srvf = [{m: mean(s[(m, "srvf")]) for m in meshes} for s in sweeps]
         one, two = [], []
         for a in range(len(sweeps)):
             rest = [b for b in range(len(sweeps)) if b != a]
             for b in rest:
-                one.append(sum(mean(sweeps[a][(m, "srvf")]) > BAR * mean(sweeps[b][(m, "srvf")]) for m in meshes))
+                one.append(sum(srvf[a][m] > BAR * srvf[b][m] for m in meshes))
             for b, c in itertools.combinations(rest, 2):
-                two.append(
-                    sum(
-                        mean(sweeps[a][(m, "srvf")])
-                        > BAR * min(mean(sweeps[b][(m, "srvf")]), mean(sweeps[c][(m, "srvf")]))
-                        for m in meshes
-                    )
-                )
+                two.append(sum(srvf[a][m] > BAR * min(srvf[b][m], srvf[c][m]) for m in meshes))
         print(
             f"srvf of one sweep over {BAR}x srvf of another: {min(one)}-{max(one)} acetabula, "
             f"mean {st.mean(one):.1f}; over the better of two others: {min(two)}-{max(two)}, "
