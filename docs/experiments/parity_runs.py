@@ -24,9 +24,9 @@ are read from those sweeps instead (`--methods srvf` sweeps of a variant: other 
 settings) and the baselines' from the DIRs, so a variant of srvf meets the same baseline runs
 (stop 69: srvf fed outlines without the 2 px noise). Runs are paired by seed and run number:
 the same simulated X-rays where the variant ran the same protocol, otherwise only the same
-acetabulum (a variant of another protocol draws other outlines). The expected count is also printed with
-srvf's three-run mean replaced by its pooled mean (no run spread of its own), so that what
-srvf's spread adds to the count and what the baselines' spread adds can be told apart.
+acetabulum (a variant of another protocol draws other outlines). The expected count is also
+printed with srvf's three-run mean replaced by its pooled mean (no run spread of its own), so
+that what srvf's spread adds to the count and what the baselines' spread adds can be told apart.
 
 Run: python3 docs/experiments/parity_runs.py DIR_7 DIR_8 DIR_9 ... [--srvf SDIR_7 SDIR_8 ...]
 (standard library only)
@@ -68,11 +68,12 @@ def paired_runs(sweeps, mesh):
     return out
 
 
-def expected_over(sweeps, meshes, scale, draws=2000, seed=68, srvf_spread=True):
+def expected_over(cases, scale, draws=2000, seed=68, srvf_spread=True):
     """Mean count of acetabula over the bar in a three-run check drawn from the pooled runs
-    (without `srvf_spread`, srvf's three-run mean is its pooled mean)."""
+    (`cases`: each acetabulum's `paired_runs`; without `srvf_spread`, srvf's three-run mean is
+    its pooled mean)."""
     rng = random.Random(seed)
-    cases = {m: paired_runs(sweeps, m) for m in meshes}
+    meshes = list(cases)
     pooled_srvf = {m: st.mean(p[0] for p in cases[m]) for m in meshes}
     total = 0
     for _ in range(draws):
@@ -143,10 +144,11 @@ def main(folders, srvf_folders=None):
             f"mean {st.mean(one):.1f}; over the better of two others: {min(two)}-{max(two)}, "
             f"mean {st.mean(two):.1f}"
         )
-    cells = [f"x{scale}: {expected_over(sweeps, meshes, scale):.2f}" for scale in (1.0, 0.95, 0.9, 0.86)]
+    cases = {m: paired_runs(sweeps, m) for m in meshes}
+    cells = [f"x{scale}: {expected_over(cases, scale):.2f}" for scale in (1.0, 0.95, 0.9, 0.86)]
     print(f"expected over {BAR}x in a check of 3 runs a side (srvf's MAE scaled): " + ", ".join(cells))
     cells = [
-        f"x{scale}: {expected_over(sweeps, meshes, scale, srvf_spread=False):.2f}" for scale in (1.0, 0.95, 0.9, 0.86)
+        f"x{scale}: {expected_over(cases, scale, srvf_spread=False):.2f}" for scale in (1.0, 0.95, 0.9, 0.86)
     ]
     print("  the same with srvf at its pooled mean (no run spread of its own): " + ", ".join(cells))
 
