@@ -28,6 +28,11 @@ acetabulum (a variant of another protocol draws other outlines). The expected co
 printed with srvf's three-run mean replaced by its pooled mean (no run spread of its own), so
 that what srvf's spread adds to the count and what the baselines' spread adds can be told apart.
 
+Per sweep it also reads the bar for each method in turn (its mean MAE over 1.05x the better of
+the other two) and srvf's against each baseline alone; and over the sweeps, srvf's and
+icp-normvec's runs of the same case paired, whether the result nearer its observed outlines
+(`outline_px`) is the more accurate one (stop 71: a score the X-rays give to choose between them).
+
 Run: python3 docs/experiments/parity_runs.py DIR_7 DIR_8 DIR_9 ... [--srvf SDIR_7 SDIR_8 ...]
 (standard library only)
 """
@@ -64,7 +69,11 @@ def paired_runs(sweeps, mesh):
     out = []
     for s in sweeps:
         by = {k: {r["run"]: float(r["mae_mm"]) for r in s[(mesh, k)]} for k in METHODS}
-        out += [tuple(by[k][run] for k in METHODS) for run in by["srvf"] if all(run in by[k] for k in METHODS)]
+        out += [
+            tuple(by[k][run] for k in METHODS)
+            for run in by["srvf"]
+            if all(run in by[k] for k in METHODS)
+        ]
     return out
 
 
@@ -90,6 +99,35 @@ def ratio(sweeps, mesh):
     return mean(pooled["srvf"]) / min(mean(pooled["icp"]), mean(pooled["icp-normvec"])), pooled
 
 
+def each_over(sweep, meshes):
+    """Per method, the acetabula where its mean MAE is over the bar times the better of the other
+    two methods' (the bar read for each method in turn); then srvf against each baseline alone."""
+    mu = [{k: mean(sweep[(m, k)]) for k in METHODS} for m in meshes]
+    each = {
+        k: sum(x[k] > BAR * min(x[o] for o in METHODS if o != k) for x in mu) for k in METHODS
+    }
+    alone = {k: sum(x["srvf"] > BAR * x[k] for x in mu) for k in METHODS[1:]}
+    return each, alone
+
+
+def outline_score(sweeps, meshes):
+    """srvf's and icp-normvec's runs of the same case paired: the correlation of the difference of
+    their distance to the observed outlines (`outline_px`) with the difference of their MAE, the
+    share of pairs where the result nearer its outlines is the more accurate one, and the count."""
+    d_px, d_mae = [], []
+    for s in sweeps:
+        for m in meshes:
+            other = {r["run"]: r for r in s[(m, "icp-normvec")]}
+            for r in s[(m, "srvf")]:
+                o = other.get(r["run"])
+                if o is None:
+                    continue
+                d_px.append(float(r["outline_px"]) - float(o["outline_px"]))
+                d_mae.append(float(r["mae_mm"]) - float(o["mae_mm"]))
+    agree = sum((a < 0) == (b < 0) for a, b in zip(d_px, d_mae)) / max(len(d_px), 1)
+    return st.correlation(d_px, d_mae), agree, len(d_px)
+
+
 def with_srvf_from(sweep, variant):
     """`sweep` with its srvf rows replaced by `variant`'s."""
     out = {k: v for k, v in sweep.items() if k[1] != "srvf"}
@@ -112,6 +150,13 @@ def main(folders, srvf_folders=None):
         each = ((m, ratio([s], m)[0]) for m in meshes)
         over = [f"{m} {r:.3f}" for m, r in each if r > BAR]
         print(f"{label}: {len(over)} over {BAR}x: {', '.join(over)}")
+        each, alone = each_over(s, meshes)
+        print(
+            f"  each method over {BAR}x the better of the other two: "
+            + ", ".join(f"{k} {n}" for k, n in each.items())
+            + f"; srvf over {BAR}x one baseline: "
+            + ", ".join(f"{k} {n}" for k, n in alone.items())
+        )
     pooled = {m: ratio(sweeps, m) for m in meshes}
     ratios = sorted(((pooled[m][0], m) for m in meshes), reverse=True)
     runs = 3 * len(sweeps)
@@ -124,7 +169,9 @@ def main(folders, srvf_folders=None):
         cells = []
         for k in METHODS:
             rows = pooled[m][1][k]
-            depth = mean(rows, "depth_offset_mm") if rows[0].get("depth_offset_mm") else float("nan")
+            depth = (
+                mean(rows, "depth_offset_mm") if rows[0].get("depth_offset_mm") else float("nan")
+            )
             cells.append(
                 f"{k} {mean(rows):.3f} (shift-free {mean(rows, 'shifted_mae_mm'):.3f}, "
                 f"shift {mean(rows, 'frame_shift_mm'):.2f}, depth {depth:+.2f})"
@@ -144,11 +191,20 @@ def main(folders, srvf_folders=None):
             f"mean {st.mean(one):.1f}; over the better of two others: {min(two)}-{max(two)}, "
             f"mean {st.mean(two):.1f}"
         )
+    corr, agree, n = outline_score(sweeps, meshes)
+    print(
+        f"srvf and icp-normvec run by run ({n} pairs): the difference of their outline_px "
+        f"correlates {corr:.2f} with that of their MAE; the result nearer its outlines is the "
+        f"more accurate in {100 * agree:.0f} %"
+    )
     cases = {m: paired_runs(sweeps, m) for m in meshes}
     cells = [f"x{scale}: {expected_over(cases, scale):.2f}" for scale in (1.0, 0.95, 0.9, 0.86)]
-    print(f"expected over {BAR}x in a check of 3 runs a side (srvf's MAE scaled): " + ", ".join(cells))
+    print(
+        f"expected over {BAR}x in a check of 3 runs a side (srvf's MAE scaled): " + ", ".join(cells)
+    )
     cells = [
-        f"x{scale}: {expected_over(cases, scale, srvf_spread=False):.2f}" for scale in (1.0, 0.95, 0.9, 0.86)
+        f"x{scale}: {expected_over(cases, scale, srvf_spread=False):.2f}"
+        for scale in (1.0, 0.95, 0.9, 0.86)
     ]
     print("  the same with srvf at its pooled mean (no run spread of its own): " + ", ".join(cells))
 
@@ -160,7 +216,10 @@ if __name__ == "__main__":
         at = args.index("--srvf")
         args, variant = args[:at], args[at + 1 :]
         if len(variant) != len(args):
-            sys.exit(f"--srvf takes one folder per sweep: {len(args)} sweeps, {len(variant)} srvf folders")
+            sys.exit(
+                f"--srvf takes one folder per sweep: {len(args)} sweeps, "
+                f"{len(variant)} srvf folders"
+            )
     if not args:
         sys.exit(__doc__)
     main(args, variant)
