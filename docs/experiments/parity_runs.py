@@ -38,6 +38,7 @@ Run: python3 docs/experiments/parity_runs.py DIR_7 DIR_8 DIR_9 ... [--srvf SDIR_
 """
 import csv
 import itertools
+import math
 import os
 import random
 import statistics as st
@@ -122,9 +123,13 @@ def outline_score(sweeps, meshes):
                 o = other.get(r["run"])
                 if o is None:
                     continue
-                d_px.append(float(r["outline_px"]) - float(o["outline_px"]))
-                d_mae.append(float(r["mae_mm"]) - float(o["mae_mm"]))
-    agree = sum((a < 0) == (b < 0) for a, b in zip(d_px, d_mae)) / max(len(d_px), 1)
+                px = float(r["outline_px"]) - float(o["outline_px"])
+                if math.isfinite(px):
+                    d_px.append(px)
+                    d_mae.append(float(r["mae_mm"]) - float(o["mae_mm"]))
+    if len(d_px) < 2:
+        return float("nan"), float("nan"), len(d_px)
+    agree = sum((a < 0) == (b < 0) for a, b in zip(d_px, d_mae)) / len(d_px)
     return st.correlation(d_px, d_mae), agree, len(d_px)
 
 
@@ -150,10 +155,10 @@ def main(folders, srvf_folders=None):
         each = ((m, ratio([s], m)[0]) for m in meshes)
         over = [f"{m} {r:.3f}" for m, r in each if r > BAR]
         print(f"{label}: {len(over)} over {BAR}x: {', '.join(over)}")
-        each, alone = each_over(s, meshes)
+        counts, alone = each_over(s, meshes)
         print(
             f"  each method over {BAR}x the better of the other two: "
-            + ", ".join(f"{k} {n}" for k, n in each.items())
+            + ", ".join(f"{k} {n}" for k, n in counts.items())
             + f"; srvf over {BAR}x one baseline: "
             + ", ".join(f"{k} {n}" for k, n in alone.items())
         )
