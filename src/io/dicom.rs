@@ -317,6 +317,26 @@ pub fn read_dicom_image(path: &Path) -> Result<image::GrayImage, DicomError> {
             decoded.samples_per_pixel()
         )));
     }
+    // The conversion below reads 1, 8 or 16 bits a pixel, builds a table of 2^BitsStored entries
+    // and asserts on a BitsStored of 0 or over 32: a value the pixels cannot have is refused
+    // here, with the tag named.
+    let (stored, allocated) = (decoded.bits_stored(), decoded.bits_allocated());
+    if !matches!(allocated, 1 | 8 | 16) {
+        return Err(DicomError::Tag {
+            path: path.to_path_buf(),
+            tag: "BitsAllocated (0028,0100)".into(),
+            value: allocated.to_string(),
+            reason: "must be 1, 8 or 16 for a grey X-ray".into(),
+        });
+    }
+    if stored == 0 || stored > allocated {
+        return Err(DicomError::Tag {
+            path: path.to_path_buf(),
+            tag: "BitsStored (0028,0101)".into(),
+            value: stored.to_string(),
+            reason: format!("must be 1 to BitsAllocated (0028,0100) = {allocated}"),
+        });
+    }
     // Modality values, then the file's first window (linear), or its range when it has none.
     let raw: Vec<f32> = decoded
         .to_vec_frame(0)
@@ -555,6 +575,87 @@ mod tests {
         write_dicom_xray(&p, &x).unwrap();
         let e = read_dicom_geometry(&p).unwrap_err().to_string();
         assert!(e.contains("(0018,1111)") && e.contains("c.dcm"), "{e}");
+    }
+
+    /// The file at `p` with BitsStored (0028,0101) set to `bits`.
+    fn with_bits_stored(p: &Path, bits: u16) {
+        let mut obj = dicom_object::open_file(p).unwrap();
+        obj.put(DataElement::new(
+            tags::BITS_STORED,
+            VR::US,
+            PrimitiveValue::from(bits),
+        ));
+        obj.write_to_file(p).unwrap();
+    }
+
+    #[test]
+    fn bits_stored_the_pixels_cannot_have_is_named_not_a_panic() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("d.dcm");
+        for bits in [0, 17, 32, 40] {
+            write_dicom_xray(
+                &p,
+                &xray(Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0)),
+            )
+            .unwrap();
+            with_bits_stored(&p, bits);
+            let e = read_dicom_image(&p).unwrap_err().to_string();
+            assert!(
+                e.contains("d.dcm") && e.contains("(0028,0101)") && e.contains(&bits.to_string()),
+                "{e}"
+            );
+            // For drawing, the caller names the file: the reason comes without it.
+            let r = crate::io::read_xray_image(&p).unwrap_err();
+            assert!(
+                r.starts_with("DICOM tag BitsStored (0028,0101)") && !r.contains("d.dcm"),
+                "{r}"
+            );
+        }
+    }
+
+    #[test]
+    fn bits_allocated_the_conversion_cannot_read_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("f.dcm");
+        for bits in [0u16, 7] {
+            write_dicom_xray(
+                &p,
+                &xray(Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0)),
+            )
+            .unwrap();
+            let mut obj = dicom_object::open_file(&p).unwrap();
+            obj.put(DataElement::new(
+                tags::BITS_ALLOCATED,
+                VR::US,
+                PrimitiveValue::from(bits),
+            ));
+            obj.write_to_file(&p).unwrap();
+            let e = read_dicom_image(&p).unwrap_err().to_string();
+            assert!(
+                e.contains("f.dcm")
+                    && e.contains("BitsAllocated (0028,0100) = ")
+                    && e.contains(&format!("= {bits}:")),
+                "{e}"
+            );
+        }
+    }
+
+    #[test]
+    fn bits_stored_up_to_bits_allocated_reads() {
+        // The companion: the check refuses no value the pixels can have.
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("e.dcm");
+        for bits in [1, 12, 16] {
+            write_dicom_xray(
+                &p,
+                &xray(Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0)),
+            )
+            .unwrap();
+            with_bits_stored(&p, bits);
+            let img = read_dicom_image(&p).unwrap();
+            assert_eq!(img.dimensions(), (40, 30), "bits stored {bits}");
+            assert!(crate::io::read_xray_image(&p).is_ok(), "bits stored {bits}");
+        }
     }
 
     #[test]

@@ -23,9 +23,14 @@ pub use shown::shown;
 /// An X-ray for drawing: a DICOM file's pixels (`read_dicom_image`) or a PNG or JPEG.
 pub fn read_xray_image(path: &std::path::Path) -> Result<image::DynamicImage, String> {
     if is_dicom(path) {
+        // The caller names the file; a DICOM error names it too, so it is said once.
         read_dicom_image(path)
             .map(image::DynamicImage::ImageLuma8)
-            .map_err(|e| e.to_string())
+            .map_err(|e| {
+                let e = e.to_string();
+                let named = format!("{}: ", path.display());
+                e.strip_prefix(&named).map_or(e.clone(), str::to_string)
+            })
     } else {
         image::open(path).map_err(|e| e.to_string())
     }
