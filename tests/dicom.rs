@@ -237,4 +237,38 @@ fn dicom_files_that_cannot_give_a_view_are_refused_by_tag() {
         &d.join("e-out"),
         &["views[2].image", "2048x2048", "1024x2048"],
     );
+    // A pixel spacing so fine that SID / spacing is no focal length: the error says where the
+    // value came from ...
+    let g = d.join("g");
+    std::fs::create_dir(&g).unwrap();
+    let case = dicom_case(&g, Some(([1e-6, 1e-6], SpacingTag::Imager)), Some(1100.0));
+    refused(
+        &case,
+        &d.join("g-out"),
+        &[
+            "case.json",
+            "views[0].k.fx",
+            "focal length",
+            "view0.dcm",
+            "(0018,1110)",
+        ],
+    );
+    // ... and an absurd focal length the case gives itself is the case's own.
+    let h = d.join("h");
+    std::fs::create_dir(&h).unwrap();
+    let case = dicom_case(&h, Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0));
+    let mut file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&case).unwrap()).unwrap();
+    file["views"][0]["k"] = serde_json::json!({"fx": 1e9, "fy": 5500.0});
+    std::fs::write(&case, file.to_string()).unwrap();
+    refused(&case, &d.join("h-out"), &["views[0].k.fx", "focal length"]);
+    let o = bin()
+        .arg("reconstruct")
+        .arg(&case)
+        .arg("--out")
+        .arg(d.join("h-out"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("SID / pixel spacing"), "{err}");
 }

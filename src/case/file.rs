@@ -492,13 +492,21 @@ impl CaseFile {
                     }
                 }
             }
-            for (name, val) in [("k.fx", fx), ("k.fy", fy)] {
+            for (i, (name, val)) in [("k.fx", fx), ("k.fy", fy)].into_iter().enumerate() {
                 if !(val.is_finite() && val > 0.0 && val < ABSURD) {
+                    // A focal length the case did not give came from the image's tags: say so.
+                    let from = match (&image, k_source[i]) {
+                        (Some(img), "dicom") => format!(
+                            " (SID / pixel spacing of {}: tags (0018,1110) and (0018,1164) or (0028,0030))",
+                            img.path.display()
+                        ),
+                        _ => String::new(),
+                    };
                     return Err(field_err(
                         path,
                         f(name),
                         val,
-                        "focal length must be a positive finite number of pixels",
+                        format!("focal length must be a positive finite number of pixels{from}"),
                     ));
                 }
             }
