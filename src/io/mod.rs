@@ -28,8 +28,10 @@ pub fn read_xray_image(path: &std::path::Path) -> Result<image::DynamicImage, St
             .map(image::DynamicImage::ImageLuma8)
             .map_err(|e| {
                 let e = e.to_string();
-                let named = format!("{}: ", path.display());
-                e.strip_prefix(&named).map_or(e.clone(), str::to_string)
+                match e.strip_prefix(&format!("{}: ", path.display())) {
+                    Some(reason) => reason.to_string(),
+                    None => e,
+                }
             })
     } else {
         image::open(path).map_err(|e| e.to_string())
