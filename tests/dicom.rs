@@ -53,6 +53,18 @@ fn dicom_case(dir: &Path, spacing: Option<([f64; 2], SpacingTag)>, sid: Option<f
     dir.join("case.json")
 }
 
+/// `dicom_case` in a new folder `name` under `dir`.
+fn dicom_case_in(
+    dir: &Path,
+    name: &str,
+    spacing: Option<([f64; 2], SpacingTag)>,
+    sid: Option<f64>,
+) -> PathBuf {
+    let sub = dir.join(name);
+    std::fs::create_dir(&sub).unwrap();
+    dicom_case(&sub, spacing, sid)
+}
+
 /// Give view 0 of the case file at `case` the nominal focal length (5500 px) in `k`.
 fn give_k(case: &Path) {
     let mut file: serde_json::Value =
@@ -160,9 +172,7 @@ fn dicom_files_that_cannot_give_a_view_are_refused_by_tag() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     // No pixel spacing.
-    let a = d.join("a");
-    std::fs::create_dir(&a).unwrap();
-    let case = dicom_case(&a, None, Some(1100.0));
+    let case = dicom_case_in(d, "a", None, Some(1100.0));
     refused(
         &case,
         &d.join("a-out"),
@@ -175,18 +185,14 @@ fn dicom_files_that_cannot_give_a_view_are_refused_by_tag() {
         ],
     );
     // No source-to-detector distance.
-    let b = d.join("b");
-    std::fs::create_dir(&b).unwrap();
-    let case = dicom_case(&b, Some(([0.2, 0.2], SpacingTag::Imager)), None);
+    let case = dicom_case_in(d, "b", Some(([0.2, 0.2], SpacingTag::Imager)), None);
     refused(
         &case,
         &d.join("b-out"),
         &["case.json", "views[0].k", "view0.dcm", "(0018,1110)"],
     );
     // A DICOM file that is not an image (a text report: no pixel data).
-    let c = d.join("c");
-    std::fs::create_dir(&c).unwrap();
-    let case = dicom_case(&c, Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0));
+    let case = dicom_case_in(d, "c", Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0));
     {
         use dicom_core::{DataElement, PrimitiveValue, VR};
         use dicom_dictionary_std::{tags, uids};
@@ -205,7 +211,7 @@ fn dicom_files_that_cannot_give_a_view_are_refused_by_tag() {
                 .media_storage_sop_instance_uid("2.25.99"),
         )
         .unwrap()
-        .write_to_file(c.join("view1.dcm"))
+        .write_to_file(case.with_file_name("view1.dcm"))
         .unwrap();
     }
     refused(
@@ -219,16 +225,14 @@ fn dicom_files_that_cannot_give_a_view_are_refused_by_tag() {
         ],
     );
     // A file named .dcm that is not DICOM at all.
-    std::fs::write(c.join("view1.dcm"), b"not a dicom file").unwrap();
+    std::fs::write(case.with_file_name("view1.dcm"), b"not a dicom file").unwrap();
     refused(
         &case,
         &d.join("c2-out"),
         &["views[1].image", "view1.dcm", "not a DICOM Part 10 file"],
     );
     // The size in the case must match the DICOM's Rows and Columns.
-    let e = d.join("e");
-    std::fs::create_dir(&e).unwrap();
-    let case = dicom_case(&e, Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0));
+    let case = dicom_case_in(d, "e", Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0));
     let mut file: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&case).unwrap()).unwrap();
     file["views"][2]["width"] = serde_json::json!(1024);
@@ -241,9 +245,12 @@ fn dicom_files_that_cannot_give_a_view_are_refused_by_tag() {
     );
     // A pixel spacing so fine that SID / spacing is no focal length: the error says where the
     // value came from ...
-    let g = d.join("g");
-    std::fs::create_dir(&g).unwrap();
-    let case = dicom_case(&g, Some(([1e-6, 1e-6], SpacingTag::Imager)), Some(1100.0));
+    let case = dicom_case_in(
+        d,
+        "g",
+        Some(([1e-6, 1e-6], SpacingTag::Imager)),
+        Some(1100.0),
+    );
     refused(
         &case,
         &d.join("g-out"),
@@ -256,9 +263,7 @@ fn dicom_files_that_cannot_give_a_view_are_refused_by_tag() {
         ],
     );
     // ... and an absurd focal length the case gives itself is the case's own.
-    let h = d.join("h");
-    std::fs::create_dir(&h).unwrap();
-    let case = dicom_case(&h, Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0));
+    let case = dicom_case_in(d, "h", Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0));
     let mut file: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&case).unwrap()).unwrap();
     file["views"][0]["k"] = serde_json::json!({"fx": 1e9, "fy": 5500.0});
