@@ -302,11 +302,18 @@ pub fn read_dicom_geometry(path: &Path) -> Result<DicomGeometry, DicomError> {
 pub fn read_dicom_image(path: &Path) -> Result<image::GrayImage, DicomError> {
     let obj = open(path)?;
     let geo = geometry_of(&obj, path)?;
-    let bad = |reason: String| DicomError::Tag {
+    let tag_err = |tag: &str, value: String, reason: String| DicomError::Tag {
         path: path.to_path_buf(),
-        tag: "PixelData (7FE0,0010)".into(),
-        value: format!("{}x{}", geo.columns, geo.rows),
+        tag: tag.into(),
+        value,
         reason,
+    };
+    let bad = |reason: String| {
+        tag_err(
+            "PixelData (7FE0,0010)",
+            format!("{}x{}", geo.columns, geo.rows),
+            reason,
+        )
     };
     let decoded = obj
         .decode_pixel_data_frame(0)
@@ -322,20 +329,18 @@ pub fn read_dicom_image(path: &Path) -> Result<image::GrayImage, DicomError> {
     // here, with the tag named.
     let (stored, allocated) = (decoded.bits_stored(), decoded.bits_allocated());
     if !matches!(allocated, 1 | 8 | 16) {
-        return Err(DicomError::Tag {
-            path: path.to_path_buf(),
-            tag: "BitsAllocated (0028,0100)".into(),
-            value: allocated.to_string(),
-            reason: "must be 1, 8 or 16 for a grey X-ray".into(),
-        });
+        return Err(tag_err(
+            "BitsAllocated (0028,0100)",
+            allocated.to_string(),
+            "must be 1, 8 or 16 for a grey X-ray".into(),
+        ));
     }
     if stored == 0 || stored > allocated {
-        return Err(DicomError::Tag {
-            path: path.to_path_buf(),
-            tag: "BitsStored (0028,0101)".into(),
-            value: stored.to_string(),
-            reason: format!("must be 1 to BitsAllocated (0028,0100) = {allocated}"),
-        });
+        return Err(tag_err(
+            "BitsStored (0028,0101)",
+            stored.to_string(),
+            format!("must be 1 to BitsAllocated (0028,0100) = {allocated}"),
+        ));
     }
     // Modality values, then the file's first window (linear), or its range when it has none.
     let raw: Vec<f32> = decoded
@@ -577,14 +582,10 @@ mod tests {
         assert!(e.contains("(0018,1111)") && e.contains("c.dcm"), "{e}");
     }
 
-    /// The file at `p` with BitsStored (0028,0101) set to `bits`.
-    fn with_bits_stored(p: &Path, bits: u16) {
+    /// The file at `p` with the US tag `tag` set to `v`.
+    fn with_us(p: &Path, tag: Tag, v: u16) {
         let mut obj = dicom_object::open_file(p).unwrap();
-        obj.put(DataElement::new(
-            tags::BITS_STORED,
-            VR::US,
-            PrimitiveValue::from(bits),
-        ));
+        obj.put(DataElement::new(tag, VR::US, PrimitiveValue::from(v)));
         obj.write_to_file(p).unwrap();
     }
 
@@ -598,7 +599,7 @@ mod tests {
                 &xray(Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0)),
             )
             .unwrap();
-            with_bits_stored(&p, bits);
+            with_us(&p, tags::BITS_STORED, bits);
             let e = read_dicom_image(&p).unwrap_err().to_string();
             assert!(
                 e.contains("d.dcm") && e.contains("(0028,0101)") && e.contains(&bits.to_string()),
@@ -623,13 +624,7 @@ mod tests {
                 &xray(Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0)),
             )
             .unwrap();
-            let mut obj = dicom_object::open_file(&p).unwrap();
-            obj.put(DataElement::new(
-                tags::BITS_ALLOCATED,
-                VR::US,
-                PrimitiveValue::from(bits),
-            ));
-            obj.write_to_file(&p).unwrap();
+            with_us(&p, tags::BITS_ALLOCATED, bits);
             let e = read_dicom_image(&p).unwrap_err().to_string();
             assert!(
                 e.contains("f.dcm")
@@ -651,7 +646,7 @@ mod tests {
                 &xray(Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0)),
             )
             .unwrap();
-            with_bits_stored(&p, bits);
+            with_us(&p, tags::BITS_STORED, bits);
             let img = read_dicom_image(&p).unwrap();
             assert_eq!(img.dimensions(), (40, 30), "bits stored {bits}");
             assert!(crate::io::read_xray_image(&p).is_ok(), "bits stored {bits}");
