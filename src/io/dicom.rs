@@ -582,8 +582,13 @@ mod tests {
         assert!(e.contains("(0018,1111)") && e.contains("c.dcm"), "{e}");
     }
 
-    /// The file at `p` with the US tag `tag` set to `v`.
-    fn with_us(p: &Path, tag: Tag, v: u16) {
+    /// A sound X-ray written to `p`, then its US tag `tag` set to `v`.
+    fn xray_with_us(p: &Path, tag: Tag, v: u16) {
+        write_dicom_xray(
+            p,
+            &xray(Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0)),
+        )
+        .unwrap();
         let mut obj = dicom_object::open_file(p).unwrap();
         obj.put(DataElement::new(tag, VR::US, PrimitiveValue::from(v)));
         obj.write_to_file(p).unwrap();
@@ -594,12 +599,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("d.dcm");
         for bits in [0, 17, 32, 40] {
-            write_dicom_xray(
-                &p,
-                &xray(Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0)),
-            )
-            .unwrap();
-            with_us(&p, tags::BITS_STORED, bits);
+            xray_with_us(&p, tags::BITS_STORED, bits);
             let e = read_dicom_image(&p).unwrap_err().to_string();
             assert!(
                 e.contains("d.dcm") && e.contains("(0028,0101)") && e.contains(&bits.to_string()),
@@ -619,12 +619,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("f.dcm");
         for bits in [0u16, 7] {
-            write_dicom_xray(
-                &p,
-                &xray(Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0)),
-            )
-            .unwrap();
-            with_us(&p, tags::BITS_ALLOCATED, bits);
+            xray_with_us(&p, tags::BITS_ALLOCATED, bits);
             let e = read_dicom_image(&p).unwrap_err().to_string();
             assert!(
                 e.contains("f.dcm")
@@ -641,12 +636,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("e.dcm");
         for bits in [1, 12, 16] {
-            write_dicom_xray(
-                &p,
-                &xray(Some(([0.2, 0.2], SpacingTag::Imager)), Some(1100.0)),
-            )
-            .unwrap();
-            with_us(&p, tags::BITS_STORED, bits);
+            xray_with_us(&p, tags::BITS_STORED, bits);
             let img = read_dicom_image(&p).unwrap();
             assert_eq!(img.dimensions(), (40, 30), "bits stored {bits}");
             assert!(crate::io::read_xray_image(&p).is_ok(), "bits stored {bits}");
