@@ -63,12 +63,18 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, MeshIoError> {
     };
     let (vertices, triangles) = match ext_of(path).as_str() {
         "stl" => {
-            let mut f = std::fs::File::open(path).map_err(io)?;
-            let m = stl_io::read_stl(&mut f).map_err(|e| MeshIoError::Parse {
+            let bytes = std::fs::read(path).map_err(io)?;
+            let parse = |reason: String| MeshIoError::Parse {
                 path: path.to_path_buf(),
                 format: "STL",
-                reason: e.to_string(),
+                reason,
+            };
+            let m = stl_io::read_stl(&mut std::io::Cursor::new(&bytes)).map_err(|e| {
+                parse(stl_size_mismatch(&bytes, None).unwrap_or_else(|| e.to_string()))
             })?;
+            if let Some(reason) = stl_size_mismatch(&bytes, Some(m.faces.len())) {
+                return Err(parse(reason));
+            }
             let v = m
                 .vertices
                 .iter()
@@ -132,6 +138,42 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, MeshIoError> {
     mesh.welded(1e-6).map_err(|source| MeshIoError::Mesh {
         path: path.to_path_buf(),
         source,
+    })
+}
+
+/// Where a binary STL's size disagrees with the triangle count in its header, what is wrong.
+/// `read`: the triangles the file gave when it was read (None where it could not be read). A
+/// header whose count is the triangles read, followed by at least one more triangle's bytes,
+/// would silently drop them; a file shorter than its header says cannot be read at all. An
+/// ASCII STL (starting with "solid") whose bytes 80-84 happen to be read as a count is left to
+/// its reader: it is not binary unless what was read matches that count.
+fn stl_size_mismatch(bytes: &[u8], read: Option<usize>) -> Option<String> {
+    const HEADER: u64 = 84;
+    const TRIANGLE: u64 = 50;
+    let declared = u32::from_le_bytes(bytes.get(80..84)?.try_into().ok()?) as u64;
+    let expected = HEADER + TRIANGLE * declared;
+    let len = bytes.len() as u64;
+    let mismatch = match read {
+        Some(n) => n as u64 == declared && len >= expected + TRIANGLE,
+        None => !bytes.starts_with(b"solid") && len != expected,
+    };
+    mismatch.then(|| {
+        format!(
+            "binary STL whose header says {declared} triangles ({expected} bytes), but the file \
+             has {len} bytes{}: is the header's triangle count wrong, or the file cut or joined \
+             to another?",
+            if len > expected {
+                let more = (len - expected) / TRIANGLE;
+                let what = if more == 1 {
+                    "triangle's"
+                } else {
+                    "triangles'"
+                };
+                format!(", {more} more {what} worth after them")
+            } else {
+                String::new()
+            }
+        )
     })
 }
 
@@ -419,6 +461,52 @@ mod tests {
         let text = std::fs::read_to_string(&p).unwrap();
         assert!(text.contains("property uchar red"));
         assert_same_geometry(&m, &read_mesh(&p).unwrap(), 1e-9);
+    }
+
+    /// A binary STL whose header counts fewer triangles than the file holds is refused (it
+    /// was read silently without the rest), as is one cut short; the sound file and one with a
+    /// few bytes of padding after its triangles are read whole.
+    #[test]
+    fn binary_stl_size_must_match_its_header() {
+        let m = hemisphere(10.0, 400);
+        let tmp = tmpdir("stlcount");
+        let d = tmp.path();
+        let sound = d.join("sound.stl");
+        write_stl_binary(&m, &sound).unwrap();
+        let bytes = std::fs::read(&sound).unwrap();
+        let n = u32::from_le_bytes(bytes[80..84].try_into().unwrap());
+        assert_eq!(bytes.len(), 84 + 50 * n as usize);
+        assert_eq!(
+            read_mesh(&sound).unwrap().triangles.len(),
+            m.triangles.len()
+        );
+        let mut padded = bytes.clone();
+        padded.extend_from_slice(&[0u8; 7]);
+        let p = d.join("padded.stl");
+        std::fs::write(&p, &padded).unwrap();
+        assert_eq!(read_mesh(&p).unwrap().triangles.len(), m.triangles.len());
+
+        let mut undercounted = bytes.clone();
+        undercounted[80..84].copy_from_slice(&(n - 3).to_le_bytes());
+        let p = d.join("undercounted.stl");
+        std::fs::write(&p, &undercounted).unwrap();
+        let e = read_mesh(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("undercounted.stl")
+                && e.contains(&format!("header says {} triangles", n - 3))
+                && e.contains("3 more triangles"),
+            "{e}"
+        );
+
+        let p = d.join("cut.stl");
+        std::fs::write(&p, &bytes[..bytes.len() - 60]).unwrap();
+        let e = read_mesh(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("cut.stl")
+                && e.contains(&format!("header says {n} triangles"))
+                && e.contains(&format!("has {} bytes", bytes.len() - 60)),
+            "{e}"
+        );
     }
 
     #[test]

@@ -131,6 +131,15 @@ rows.append(("far_away.obj", "simulate", "is the mesh in millimetres?"))
 open(os.path.join(out, "two_pieces.obj"), "w").write(
     "v 0 0 0\nv 30 0 0\nv 0 30 0\nv 100 0 0\nv 130 0 0\nv 100 30 0\nf 1 2 3\nf 4 5 6\n")
 rows.append(("two_pieces.obj", "simulate", "2 separate pieces"))
+# A binary STL whose header counts one triangle fewer than it holds (a tetrahedron's four): read
+# as it says, the last triangle would be dropped without a word.
+tri = [((0, 0, 0), (30, 0, 0), (0, 30, 0)), ((0, 0, 0), (0, 30, 0), (0, 0, 30)),
+       ((0, 0, 0), (0, 0, 30), (30, 0, 0)), ((30, 0, 0), (0, 0, 30), (0, 30, 0))]
+stl = b"\0" * 80 + struct.pack("<I", len(tri) - 1)
+for t in tri:
+    stl += struct.pack("<3f", 0, 0, 0) + b"".join(struct.pack("<3f", *v) for v in t) + b"\0\0"
+open(os.path.join(out, "undercounted.stl"), "wb").write(stl)
+rows.append(("undercounted.stl", "simulate", "header says 3 triangles"))
 with open(os.path.join(out, "expected.tsv"), "w") as f:
     f.write("# file\tcommand\texpected substring of the error\n")
     for r in rows:
