@@ -606,9 +606,10 @@ fn simulate_names_a_bad_list_entry_and_writes_nothing() {
         (
             "--views",
             "z:0,y:30",
-            "at least two views from distinct directions",
+            "at least two views 15 degrees or more apart",
         ),
-        ("--views", "z:0,z:1.5", "2 degrees or more apart"),
+        ("--views", "z:0,z:1.5", "15 degrees or more apart"),
+        ("--views", "z:0,z:6,z:-6", "15 degrees or more apart"),
         (
             "--views",
             "z:0,z:400,z:-20",

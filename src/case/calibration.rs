@@ -157,8 +157,8 @@ impl Case {
             a += across;
             b += across * cam.center().coords;
         }
-        // Rays 2 degrees apart or more (MIN_VIEW_SPREAD_DEG) leave the smallest eigenvalue
-        // about 1e-3; parallel ones 0.
+        // Rays 2 degrees apart leave the smallest eigenvalue about 1e-3 (a case's views are
+        // held 15 apart, MIN_VIEW_SPREAD_DEG); parallel ones 0.
         let smallest = a.symmetric_eigenvalues().min();
         if !(smallest > 1e-4) {
             return None;

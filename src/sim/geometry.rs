@@ -3,7 +3,7 @@
 //! one turned about body axes (default: about the longitudinal axis z by 0, +20 and -20 degrees)
 //! and aimed at the object.
 
-use crate::views::{widest_spread_deg, Camera, Intrinsics, MIN_VIEW_SPREAD_DEG};
+use crate::views::{spread_too_narrow, Camera, Intrinsics};
 pub use crate::views::{BodyAxis, ViewRotation};
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 
@@ -37,7 +37,7 @@ pub struct GeometryError {
 impl XrayGeometry {
     /// Distances and pixel size finite and positive, the object between the source and the
     /// detector, a non-empty image, and finite view angles with two sources at least
-    /// `MIN_VIEW_SPREAD_DEG` apart (one view cannot place anything in depth).
+    /// `MIN_VIEW_SPREAD_DEG` apart (closer ones leave the depth of the cap along them open).
     pub fn validate(&self) -> Result<(), GeometryError> {
         let bad = |field, value: String, expected| GeometryError {
             field,
@@ -76,12 +76,13 @@ impl XrayGeometry {
             .iter()
             .map(ViewRotation::source_direction)
             .collect();
-        if widest_spread_deg(&sources) < MIN_VIEW_SPREAD_DEG {
+        if spread_too_narrow(&sources).is_some() {
             let list: Vec<String> = self.views.iter().map(|v| v.to_string()).collect();
             return Err(bad(
                 "views",
                 format!("[{}]", list.join(",")),
-                "at least two views from distinct directions (2 degrees or more apart)",
+                "at least two views 15 degrees or more apart (MIN_VIEW_SPREAD_DEG: closer views \
+                 leave the cap's depth along them open)",
             ));
         }
         Ok(())
@@ -222,13 +223,25 @@ mod tests {
         for (field, g) in cases {
             assert_eq!(g.validate().map_err(|e| e.field), Err(field), "{g:?}");
         }
-        // Sources 1 degree apart see the same outline: refused as one view.
-        assert_eq!(
-            about_z(&[0.0, 359.0]).validate().map_err(|e| e.field),
-            Err("views")
-        );
-        // Companion: two views 3 degrees apart are enough, about any axis.
-        assert_eq!(about_z(&[0.0, 357.0]).validate(), Ok(()));
+        // Sources 1 degree apart see the same outline, and 12 degrees leave the depth open:
+        // refused.
+        for spread in [1.0, 12.0, 14.9] {
+            assert_eq!(
+                about_z(&[0.0, 360.0 - spread])
+                    .validate()
+                    .map_err(|e| e.field),
+                Err("views")
+            );
+            assert_eq!(
+                about_z(&[-spread / 2.0, spread / 2.0])
+                    .validate()
+                    .map_err(|e| e.field),
+                Err("views")
+            );
+        }
+        // Companion: two views 15 degrees apart are enough, about any axis.
+        assert_eq!(about_z(&[0.0, 345.0]).validate(), Ok(()));
+        assert_eq!(about_z(&[-7.5, 7.5]).validate(), Ok(()));
         let inlet = XrayGeometry {
             views: vec![ViewRotation::about_z(0.0), "x:25".parse().unwrap()],
             ..Default::default()
