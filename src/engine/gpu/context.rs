@@ -5,7 +5,15 @@ use super::{
     deform::DeformKernel, project::ProjectKernel, silhouette::SilhouetteKernel,
     srvf_band::SrvfBandKernel, srvf_dp::SrvfDpKernel,
 };
-use std::sync::Mutex;
+use std::sync::{Mutex, MutexGuard};
+
+/// One lock for everything acetab does on an OpenGL device, in every engine of the process.
+/// wgpu's GL backend shares one context per adapter behind a lock it waits for at most 6 s and
+/// then panics ("Could not lock adapter context"); a reading-back wait holds that lock while a
+/// long dispatch runs (seconds on Mesa's software GL), so two threads working the same device
+/// at once could abort the process. On GL the engine's kernels therefore take turns here, where
+/// waiting is unbounded. Vulkan, Metal and DX12 are not serialised.
+static GL_TURNS: Mutex<()> = Mutex::new(());
 
 /// Everything that can go wrong on the GPU side.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -146,11 +154,15 @@ pub struct Gpu<'a> {
     pub(crate) surface: super::surface::SurfaceKernel,
     pub(crate) pool: BufferPool,
     pub(crate) staging: Mutex<Option<wgpu::Buffer>>,
+    /// Whether the device is OpenGL, whose kernels take turns (`GL_TURNS`).
+    takes_turns: bool,
 }
 
 impl<'a> Gpu<'a> {
     /// Compile every kernel on the caller's device. Validation errors come back as `Err`.
     pub fn new(device: &'a wgpu::Device, queue: &'a wgpu::Queue) -> Result<Self, GpuError> {
+        let takes_turns = device.adapter_info().backend == wgpu::Backend::Gl;
+        let _turn = takes_turns.then(lock_turns);
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let deform = DeformKernel::new(device);
         let project = ProjectKernel::new(device);
@@ -175,7 +187,16 @@ impl<'a> Gpu<'a> {
             surface,
             pool: BufferPool::default(),
             staging: Mutex::new(None),
+            takes_turns,
         })
+    }
+
+    /// This thread's turn on the device, held until dropped: on OpenGL, one kernel call at a
+    /// time over every engine of the process (`GL_TURNS`); elsewhere none is needed. Each public
+    /// kernel call takes it first, so everything it creates, writes, submits, waits for and drops
+    /// happens inside its turn.
+    pub(crate) fn turn(&self) -> Option<MutexGuard<'static, ()>> {
+        self.takes_turns.then(lock_turns)
     }
 
     /// The borrowed device.
@@ -314,5 +335,93 @@ impl<'a> Gpu<'a> {
         };
         stage.unmap();
         Ok(out)
+    }
+}
+
+/// The turns' lock (a thread that panicked inside its turn leaves nothing half-done on the host
+/// side, so a poisoned lock is taken as it is).
+fn lock_turns() -> MutexGuard<'static, ()> {
+    GL_TURNS.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl Drop for Gpu<'_> {
+    /// The pooled and staging buffers are released inside a turn, as everything else is.
+    fn drop(&mut self) {
+        let _turn = self.turn();
+        drop(std::mem::take(&mut self.pool));
+        let staging = self.staging.get_mut().unwrap_or_else(|e| e.into_inner());
+        drop(staging.take());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::cpu::project::ViewRows;
+    use std::sync::mpsc;
+    use std::time::Duration;
+
+    /// An OpenGL device (Mesa's llvmpipe where nothing else is installed), or None with a
+    /// message when this machine has no GL adapter.
+    fn gl_device() -> Option<(wgpu::Device, wgpu::Queue)> {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+        desc.backends = wgpu::Backends::GL;
+        let instance = wgpu::Instance::new(desc);
+        let adapter = match pollster::block_on(instance.request_adapter(&Default::default())) {
+            Ok(a) => a,
+            Err(e) => {
+                eprintln!("no OpenGL adapter here ({e}): the GL turn test is skipped");
+                return None;
+            }
+        };
+        pollster::block_on(adapter.request_device(&Default::default())).ok()
+    }
+
+    /// Engine `b` projects one vertex on another thread while this thread holds engine `a`'s
+    /// turn; whether `b`'s result arrived within `wait`, and (after the turn is let go) the
+    /// result itself.
+    fn finished_during_turn(a: &Gpu, b: &Gpu, wait: Duration) -> (bool, Vec<[f32; 4]>) {
+        let cams = crate::sim::simulated_views(
+            &crate::sim::XrayGeometry::default(),
+            &nalgebra::Point3::origin(),
+        );
+        let view = ViewRows::from_camera(&cams[0]);
+        std::thread::scope(|s| {
+            let (tx, rx) = mpsc::channel();
+            let turn = a.turn();
+            s.spawn(move || {
+                let _ = tx.send(b.project(&[[0.0, 0.0, 0.0, 1.0]], 1, &[view]));
+            });
+            let during = rx.recv_timeout(wait);
+            drop(turn);
+            let arrived = during.is_ok();
+            let out = during
+                .or_else(|_| rx.recv())
+                .expect("the projecting thread sends")
+                .expect("one vertex projects");
+            (arrived, out)
+        })
+    }
+
+    #[test]
+    fn on_opengl_a_second_engine_waits_for_the_first_ones_turn() {
+        let Some((device, queue)) = gl_device() else {
+            return;
+        };
+        let a = Gpu::new(&device, &queue).expect("pipelines compile on GL");
+        let b = Gpu::new(&device, &queue).expect("pipelines compile on GL");
+        assert!(a.takes_turns && b.takes_turns, "a GL device takes turns");
+        let (arrived, out) = finished_during_turn(&a, &b, Duration::from_millis(1500));
+        assert!(!arrived, "engine b ran its kernel inside engine a's turn");
+        assert_eq!(out.len(), 1, "b's projection after the turn");
+        // Companion: an engine that does not take turns runs straight through a held turn, and
+        // the check above rejects it.
+        let mut free = Gpu::new(&device, &queue).expect("pipelines compile on GL");
+        free.takes_turns = false;
+        let (arrived, _) = finished_during_turn(&a, &free, Duration::from_secs(120));
+        assert!(
+            arrived,
+            "an engine without turns must not wait, so the check can fail"
+        );
     }
 }

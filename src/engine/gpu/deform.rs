@@ -41,6 +41,7 @@ pub fn dispatch_size(vertex_count: u32, meshes: u32) -> (u32, u32) {
 impl Gpu<'_> {
     /// Deform every mesh of the batch; output as `cpu::deform::deform`.
     pub fn deform(&self, b: &DeformBatch) -> Result<Vec<[f32; 4]>, GpuError> {
+        let _turn = self.turn();
         const K: &str = "deform";
         if b.mesh_count == 0 || b.vertex_count == 0 {
             return Ok(Vec::new());

@@ -67,6 +67,7 @@ impl Gpu<'_> {
         vertex_count: usize,
         views: &[ViewRows],
     ) -> Result<Vec<[f32; 4]>, GpuError> {
+        let _turn = self.turn();
         let out = self.project_to_buffer(vertices, vertex_count, views)?;
         let Some((buf, bytes)) = out else {
             return Ok(Vec::new());

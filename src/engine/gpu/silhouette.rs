@@ -124,6 +124,7 @@ impl Gpu<'_> {
         triangles: &[u32],
         window: &Window,
     ) -> Result<Silhouette, GpuError> {
+        let _turn = self.turn();
         const K: &str = "silhouette";
         let pbuf = self.pool.upload(
             self.device,
@@ -146,6 +147,7 @@ impl Gpu<'_> {
         view: &ViewRows,
         size: u32,
     ) -> Result<Silhouette, GpuError> {
+        let _turn = self.turn();
         let empty = GpuError::Input {
             kernel: "silhouette",
             message: "no vertex lies in front of the source".into(),

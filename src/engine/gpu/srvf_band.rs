@@ -35,6 +35,7 @@ impl SrvfBandKernel {
 impl Gpu<'_> {
     /// The (cost, back-pointer) tables of every problem, as `cpu::srvf_band::band_tables`.
     pub fn srvf_band_tables(&self, b: &BandBatch) -> Result<(Vec<f32>, Vec<u32>), GpuError> {
+        let _turn = self.turn();
         const K: &str = "srvf_band";
         let problems = b.headers.len() as u32;
         if problems == 0 {

@@ -82,6 +82,7 @@ impl SrvfDpKernel {
 impl Gpu<'_> {
     /// The (cost, back-pointer) tables of every problem, as `cpu::srvf_dp::dp_tables`.
     pub fn srvf_dp_tables(&self, b: &DpBatch) -> Result<(Vec<f32>, Vec<u32>), GpuError> {
+        let _turn = self.turn();
         const K: &str = "srvf_dp";
         if b.problems == 0 {
             return Ok((Vec::new(), Vec::new()));

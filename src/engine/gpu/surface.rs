@@ -48,6 +48,7 @@ impl Gpu<'_> {
         triangles: &[u32],
         view: &SurfaceView,
     ) -> Result<Vec<[u8; 4]>, GpuError> {
+        let _turn = self.turn();
         const K: &str = "surface";
         let input = |message: String| GpuError::Input { kernel: K, message };
         let n = view.size() as u32;
