@@ -5,15 +5,42 @@ use super::{
     deform::DeformKernel, project::ProjectKernel, silhouette::SilhouetteKernel,
     srvf_band::SrvfBandKernel, srvf_dp::SrvfDpKernel,
 };
-use std::sync::{Mutex, MutexGuard};
+use std::sync::{Condvar, Mutex};
 
 /// One lock for everything acetab does on an OpenGL device, in every engine of the process.
 /// wgpu's GL backend shares one context per adapter behind a lock it waits for at most 6 s and
 /// then panics ("Could not lock adapter context"); a reading-back wait holds that lock while a
 /// long dispatch runs (seconds on Mesa's software GL), so two threads working the same device
 /// at once could abort the process. On GL the engine's kernels therefore take turns here, where
-/// waiting is unbounded. Vulkan, Metal and DX12 are not serialised.
-static GL_TURNS: Mutex<()> = Mutex::new(());
+/// waiting is unbounded. Vulkan, Metal and DX12 are not serialised. The flag says whether a turn
+/// is taken; the condition variable wakes the threads waiting for it.
+static GL_TURNS: (Mutex<bool>, Condvar) = (Mutex::new(false), Condvar::new());
+
+/// One thread's turn on an OpenGL device (`GL_TURNS`), given back when dropped. A token rather
+/// than a lock guard, so that an engine being dropped can keep it until its last field is gone.
+pub(crate) struct Turn(());
+
+impl Turn {
+    /// Wait for the turn and take it (a thread that panicked while it held the flag left
+    /// nothing half-done on the host side, so a poisoned lock is taken as it is).
+    fn take() -> Turn {
+        let (taken, freed) = &GL_TURNS;
+        let mut taken = taken.lock().unwrap_or_else(|e| e.into_inner());
+        while *taken {
+            taken = freed.wait(taken).unwrap_or_else(|e| e.into_inner());
+        }
+        *taken = true;
+        Turn(())
+    }
+}
+
+impl Drop for Turn {
+    fn drop(&mut self) {
+        let (taken, freed) = &GL_TURNS;
+        *taken.lock().unwrap_or_else(|e| e.into_inner()) = false;
+        freed.notify_one();
+    }
+}
 
 /// Everything that can go wrong on the GPU side.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -156,13 +183,16 @@ pub struct Gpu<'a> {
     pub(crate) staging: Mutex<Option<wgpu::Buffer>>,
     /// Whether the device is OpenGL, whose kernels take turns (`GL_TURNS`).
     takes_turns: bool,
+    /// The turn an engine being dropped holds while its fields go; declared last, so that it is
+    /// dropped after the pipelines and buffers above.
+    dropping: Option<Turn>,
 }
 
 impl<'a> Gpu<'a> {
     /// Compile every kernel on the caller's device. Validation errors come back as `Err`.
     pub fn new(device: &'a wgpu::Device, queue: &'a wgpu::Queue) -> Result<Self, GpuError> {
         let takes_turns = device.adapter_info().backend == wgpu::Backend::Gl;
-        let _turn = takes_turns.then(lock_turns);
+        let _turn = takes_turns.then(Turn::take);
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let deform = DeformKernel::new(device);
         let project = ProjectKernel::new(device);
@@ -188,6 +218,7 @@ impl<'a> Gpu<'a> {
             pool: BufferPool::default(),
             staging: Mutex::new(None),
             takes_turns,
+            dropping: None,
         })
     }
 
@@ -195,8 +226,8 @@ impl<'a> Gpu<'a> {
     /// time over every engine of the process (`GL_TURNS`); elsewhere none is needed. Each public
     /// kernel call takes it first, so everything it creates, writes, submits, waits for and drops
     /// happens inside its turn.
-    pub(crate) fn turn(&self) -> Option<MutexGuard<'static, ()>> {
-        self.takes_turns.then(lock_turns)
+    pub(crate) fn turn(&self) -> Option<Turn> {
+        self.takes_turns.then(Turn::take)
     }
 
     /// The borrowed device.
@@ -338,19 +369,11 @@ impl<'a> Gpu<'a> {
     }
 }
 
-/// The turns' lock (a thread that panicked inside its turn leaves nothing half-done on the host
-/// side, so a poisoned lock is taken as it is).
-fn lock_turns() -> MutexGuard<'static, ()> {
-    GL_TURNS.lock().unwrap_or_else(|e| e.into_inner())
-}
-
 impl Drop for Gpu<'_> {
-    /// The pooled and staging buffers are released inside a turn, as everything else is.
+    /// Everything the engine made (its pipelines, pooled and staging buffers) is released inside
+    /// a turn, as everything else is: the turn taken here is the last field to go.
     fn drop(&mut self) {
-        let _turn = self.turn();
-        drop(std::mem::take(&mut self.pool));
-        let staging = self.staging.get_mut().unwrap_or_else(|e| e.into_inner());
-        drop(staging.take());
+        self.dropping = self.turn();
     }
 }
 
@@ -377,30 +400,37 @@ mod tests {
         pollster::block_on(adapter.request_device(&Default::default())).ok()
     }
 
-    /// Engine `b` projects one vertex on another thread while this thread holds engine `a`'s
-    /// turn; whether `b`'s result arrived within `wait`, and (after the turn is let go) the
-    /// result itself.
-    fn finished_during_turn(a: &Gpu, b: &Gpu, wait: Duration) -> (bool, Vec<[f32; 4]>) {
-        let cams = crate::sim::simulated_views(
-            &crate::sim::XrayGeometry::default(),
-            &nalgebra::Point3::origin(),
-        );
-        let view = ViewRows::from_camera(&cams[0]);
+    /// `work` runs on another thread while this thread holds engine `a`'s turn; whether it
+    /// finished within `wait`, and (after the turn is let go) what it returned.
+    fn finished_during_turn<R: Send>(
+        a: &Gpu,
+        wait: Duration,
+        work: impl FnOnce() -> R + Send,
+    ) -> (bool, R) {
         std::thread::scope(|s| {
             let (tx, rx) = mpsc::channel();
             let turn = a.turn();
             s.spawn(move || {
-                let _ = tx.send(b.project(&[[0.0, 0.0, 0.0, 1.0]], 1, &[view]));
+                let _ = tx.send(work());
             });
             let during = rx.recv_timeout(wait);
             drop(turn);
             let arrived = during.is_ok();
             let out = during
                 .or_else(|_| rx.recv())
-                .expect("the projecting thread sends")
-                .expect("one vertex projects");
+                .expect("the working thread sends");
             (arrived, out)
         })
+    }
+
+    /// Engine `b` projects one vertex (the result, or its error).
+    fn project_one(b: &Gpu) -> Result<Vec<[f32; 4]>, GpuError> {
+        let cams = crate::sim::simulated_views(
+            &crate::sim::XrayGeometry::default(),
+            &nalgebra::Point3::origin(),
+        );
+        let view = ViewRows::from_camera(&cams[0]);
+        b.project(&[[0.0, 0.0, 0.0, 1.0]], 1, &[view])
     }
 
     #[test]
@@ -411,17 +441,24 @@ mod tests {
         let a = Gpu::new(&device, &queue).expect("pipelines compile on GL");
         let b = Gpu::new(&device, &queue).expect("pipelines compile on GL");
         assert!(a.takes_turns && b.takes_turns, "a GL device takes turns");
-        let (arrived, out) = finished_during_turn(&a, &b, Duration::from_millis(1500));
+        let short = Duration::from_millis(1500);
+        let (arrived, out) = finished_during_turn(&a, short, || project_one(&b));
         assert!(!arrived, "engine b ran its kernel inside engine a's turn");
-        assert_eq!(out.len(), 1, "b's projection after the turn");
-        // Companion: an engine that does not take turns runs straight through a held turn, and
-        // the check above rejects it.
+        assert_eq!(out.expect("one vertex projects").len(), 1);
+        // An engine dropped releases what it made inside a turn too.
+        let (arrived, ()) = finished_during_turn(&a, short, move || drop(b));
+        assert!(!arrived, "engine b was dropped inside engine a's turn");
+        // Companions: an engine that does not take turns runs, and is dropped, straight through
+        // a held turn, and the checks above reject it.
+        let long = Duration::from_secs(120);
         let mut free = Gpu::new(&device, &queue).expect("pipelines compile on GL");
         free.takes_turns = false;
-        let (arrived, _) = finished_during_turn(&a, &free, Duration::from_secs(120));
+        let (arrived, _) = finished_during_turn(&a, long, || project_one(&free));
         assert!(
             arrived,
             "an engine without turns must not wait, so the check can fail"
         );
+        let (arrived, ()) = finished_during_turn(&a, long, move || drop(free));
+        assert!(arrived, "dropping an engine without turns must not wait");
     }
 }
