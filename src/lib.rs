@@ -47,7 +47,7 @@ pub mod study;
 pub use case::{Case, CaseFile};
 pub use contours::{ContourSource, ModelContour};
 pub use correspond::{Method, Observation};
-pub use engine::gpu::{Gpu, GpuDevice, GpuError};
+pub use engine::gpu::{GlTurn, Gpu, GpuDevice, GpuError};
 pub use engine::{BackendChoice, Kernels};
 pub use geom::{Curve, Mesh, Sphere};
 pub use pipeline::{

@@ -3,7 +3,7 @@
 //! one turned about body axes (default: about the longitudinal axis z by 0, +20 and -20 degrees)
 //! and aimed at the object.
 
-use crate::views::{spread_too_narrow, Camera, Intrinsics};
+use crate::views::{spread_too_narrow, Camera, Intrinsics, MIN_VIEW_SPREAD_DEG};
 pub use crate::views::{BodyAxis, ViewRotation};
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 
@@ -31,7 +31,7 @@ pub struct GeometryError {
     /// Its value.
     pub value: String,
     /// What it must be.
-    pub expected: &'static str,
+    pub expected: String,
 }
 
 impl XrayGeometry {
@@ -39,11 +39,13 @@ impl XrayGeometry {
     /// detector, a non-empty image, and finite view angles with two sources at least
     /// `MIN_VIEW_SPREAD_DEG` apart (closer ones leave the depth of the cap along them open).
     pub fn validate(&self) -> Result<(), GeometryError> {
-        let bad = |field, value: String, expected| GeometryError {
-            field,
-            value: crate::io::shown(&value),
-            expected,
-        };
+        fn bad(field: &'static str, value: String, expected: impl Into<String>) -> GeometryError {
+            GeometryError {
+                field,
+                value: crate::io::shown(&value),
+                expected: expected.into(),
+            }
+        }
         for (field, v) in [
             ("source_to_object", self.source_to_object),
             ("pixel_size", self.pixel_size),
@@ -81,8 +83,10 @@ impl XrayGeometry {
             return Err(bad(
                 "views",
                 format!("[{}]", list.join(",")),
-                "at least two views 15 degrees or more apart (MIN_VIEW_SPREAD_DEG: closer views \
-                 leave the cap's depth along them open)",
+                format!(
+                    "at least two views {MIN_VIEW_SPREAD_DEG} degrees or more apart \
+                     (MIN_VIEW_SPREAD_DEG: closer views leave the cap's depth along them open)"
+                ),
             ));
         }
         Ok(())

@@ -25,7 +25,7 @@ pub fn spread_too_narrow(directions: &[Vector3<f64>]) -> Option<f64> {
 }
 
 /// The largest angle, degrees, between any two of `directions` (0 for fewer than two).
-pub fn widest_spread_deg(directions: &[Vector3<f64>]) -> f64 {
+fn widest_spread_deg(directions: &[Vector3<f64>]) -> f64 {
     directions
         .iter()
         .enumerate()

@@ -6,39 +6,82 @@ use super::{
     srvf_band::SrvfBandKernel, srvf_dp::SrvfDpKernel,
 };
 use std::sync::{Condvar, Mutex};
+use std::thread::ThreadId;
 
-/// One lock for everything acetab does on an OpenGL device, in every engine of the process.
-/// wgpu's GL backend shares one context per adapter behind a lock it waits for at most 6 s and
-/// then panics ("Could not lock adapter context"); a reading-back wait holds that lock while a
-/// long dispatch runs (seconds on Mesa's software GL), so two threads working the same device
-/// at once could abort the process. On GL the engine's kernels therefore take turns here, where
-/// waiting is unbounded. Vulkan, Metal and DX12 are not serialised. The flag says whether a turn
-/// is taken; the condition variable wakes the threads waiting for it.
-static GL_TURNS: (Mutex<bool>, Condvar) = (Mutex::new(false), Condvar::new());
+/// One lock for everything done on an OpenGL device, in every engine of the process and by a
+/// host that takes its own turns (`GlTurn`). wgpu's GL backend shares one context per adapter
+/// behind a lock it waits for at most 6 s and then panics ("Could not lock adapter context"); a
+/// reading-back wait holds that lock while a long dispatch runs (seconds on Mesa's software GL),
+/// so two threads working the same device at once could abort the process. On GL the engine's
+/// kernels therefore take turns here, where waiting is unbounded. Vulkan, Metal and DX12 are not
+/// serialised. The state names the thread holding the turn and how many turns it holds (a
+/// thread may take it again inside its own: a host's turn, then an engine's call in it); the
+/// condition variable wakes the threads waiting for it.
+static GL_TURNS: (Mutex<Option<(ThreadId, usize)>>, Condvar) = (Mutex::new(None), Condvar::new());
 
-/// One thread's turn on an OpenGL device (`GL_TURNS`), given back when dropped. A token rather
-/// than a lock guard, so that an engine being dropped can keep it until its last field is gone.
+/// One turn on an OpenGL device (`GL_TURNS`), given back when dropped. A token rather than a
+/// lock guard, so that an engine being dropped can keep it until its last field is gone.
 pub(crate) struct Turn(());
 
 impl Turn {
-    /// Wait for the turn and take it (a thread that panicked while it held the flag left
-    /// nothing half-done on the host side, so a poisoned lock is taken as it is).
+    /// Wait until no other thread holds the turn, then take it (again, where this thread holds
+    /// it already). A thread that panicked while it held the lock left nothing half-done on the
+    /// host side, so a poisoned lock is taken as it is.
     fn take() -> Turn {
-        let (taken, freed) = &GL_TURNS;
-        let mut taken = taken.lock().unwrap_or_else(|e| e.into_inner());
-        while *taken {
-            taken = freed.wait(taken).unwrap_or_else(|e| e.into_inner());
+        let me = std::thread::current().id();
+        let (held, freed) = &GL_TURNS;
+        let mut held = held.lock().unwrap_or_else(|e| e.into_inner());
+        loop {
+            match *held {
+                None => {
+                    *held = Some((me, 1));
+                    break;
+                }
+                Some((owner, ref mut n)) if owner == me => {
+                    *n += 1;
+                    break;
+                }
+                Some(_) => held = freed.wait(held).unwrap_or_else(|e| e.into_inner()),
+            }
         }
-        *taken = true;
         Turn(())
     }
 }
 
 impl Drop for Turn {
     fn drop(&mut self) {
-        let (taken, freed) = &GL_TURNS;
-        *taken.lock().unwrap_or_else(|e| e.into_inner()) = false;
-        freed.notify_one();
+        let (held, freed) = &GL_TURNS;
+        let mut held = held.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, n)) = held.as_mut() {
+            *n -= 1;
+            if *n == 0 {
+                *held = None;
+                freed.notify_all();
+            }
+        }
+    }
+}
+
+/// A host's turn on an OpenGL device that it shares with acetab's engines. A planning tool that
+/// works on the same GL device from threads of its own (its uploads, submissions, polls and
+/// read-backs) while acetab computes on it holds one around that work, so that neither waits on
+/// wgpu's context lock past the GL backend's 6 s limit (which panics): while it is held, acetab's
+/// kernel calls on other threads wait, and the host's `take` waits for theirs. Acetab's own calls
+/// made on the thread that holds it go straight in (a thread's turns nest). Not `Send`: it is
+/// given back on the thread that took it.
+pub struct GlTurn {
+    _turn: Turn,
+    _here: std::marker::PhantomData<*const ()>,
+}
+
+impl GlTurn {
+    /// Wait for the turn on `device` and take it: `None` where the device is not OpenGL
+    /// (Vulkan, Metal and DX12 need no turns), so the host may call this whatever its backend.
+    pub fn take(device: &wgpu::Device) -> Option<GlTurn> {
+        (device.adapter_info().backend == wgpu::Backend::Gl).then(|| GlTurn {
+            _turn: Turn::take(),
+            _here: std::marker::PhantomData,
+        })
     }
 }
 
@@ -460,5 +503,72 @@ mod tests {
         );
         let (arrived, ()) = finished_during_turn(&a, long, move || drop(free));
         assert!(arrived, "dropping an engine without turns must not wait");
+    }
+
+    /// The engine's call arrives on a detached thread (which takes `host`'s turn first when
+    /// asked to) within `wait`?
+    fn arrives_within(b: &'static Gpu<'static>, take_host_turn: bool, wait: Duration) -> bool {
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            let _host = take_host_turn.then(|| GlTurn::take(b.device()));
+            let _ = tx.send(project_one(b).map(|v| v.len()));
+        });
+        match rx.recv_timeout(wait) {
+            Ok(out) => {
+                assert_eq!(out.expect("one vertex projects"), 1);
+                true
+            }
+            Err(_) => false,
+        }
+    }
+
+    #[test]
+    fn a_hosts_turn_holds_engines_on_other_threads_back_and_not_its_own_threads_calls() {
+        let Some((device, queue)) = gl_device() else {
+            return;
+        };
+        // Leaked, so that a call stuck in a turn (a failure) cannot hold the test's end.
+        let device: &'static wgpu::Device = Box::leak(Box::new(device));
+        let queue: &'static wgpu::Queue = Box::leak(Box::new(queue));
+        let b: &'static Gpu<'static> = Box::leak(Box::new(
+            Gpu::new(device, queue).expect("pipelines compile on GL"),
+        ));
+        // A thread that holds its own turn calls the engine inside it: the turns nest.
+        assert!(
+            arrives_within(b, true, Duration::from_secs(120)),
+            "an engine's call waited for the turn its own thread held"
+        );
+        // The companion: while this thread holds the host's turn, the same call on another
+        // thread waits for it, and the check above would reject that.
+        let host = GlTurn::take(device).expect("a GL device takes turns");
+        assert!(
+            !arrives_within(b, false, Duration::from_millis(1500)),
+            "an engine ran inside a host's turn taken on another thread"
+        );
+        drop(host);
+        // Given back, the turn lets the waiting call through (it arrives, and any new one does).
+        assert!(arrives_within(b, false, Duration::from_secs(120)));
+    }
+
+    #[test]
+    fn a_device_that_is_not_opengl_gives_no_turn() {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+        desc.backends = wgpu::Backends::VULKAN | wgpu::Backends::METAL | wgpu::Backends::DX12;
+        let instance = wgpu::Instance::new(desc);
+        let Ok(adapter) = pollster::block_on(instance.request_adapter(&Default::default())) else {
+            eprintln!("no Vulkan, Metal or DX12 adapter here: the no-turn test is skipped");
+            return;
+        };
+        let (device, _queue) =
+            pollster::block_on(adapter.request_device(&Default::default())).expect("a device");
+        assert!(
+            GlTurn::take(&device).is_none(),
+            "{:?} took a GL turn",
+            adapter.get_info().backend
+        );
+        // The companion: an OpenGL device gives one.
+        if let Some((gl, _q)) = gl_device() {
+            assert!(GlTurn::take(&gl).is_some(), "an OpenGL device gave no turn");
+        }
     }
 }

@@ -14,7 +14,7 @@ pub mod srvf_dp;
 pub mod surface;
 
 pub use batcher::{BatcherStats, GpuBatcher, KernelStats};
-pub use context::{Gpu, GpuDevice, GpuError};
+pub use context::{GlTurn, Gpu, GpuDevice, GpuError};
 
 /// The WGSL sources, by kernel name (validated by the naga test and compiled by `Gpu::new`).
 pub const SHADERS: [(&str, &str); 6] = [
