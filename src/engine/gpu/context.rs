@@ -505,8 +505,8 @@ mod tests {
         assert!(arrived, "dropping an engine without turns must not wait");
     }
 
-    /// The engine's call arrives on a detached thread (which takes `host`'s turn first when
-    /// asked to) within `wait`?
+    /// Whether engine `b`'s projection, made on a detached thread that first takes a host's
+    /// turn of its own when `take_host_turn` is set, arrives within `wait`.
     fn arrives_within(b: &'static Gpu<'static>, take_host_turn: bool, wait: Duration) -> bool {
         let (tx, rx) = mpsc::channel();
         std::thread::spawn(move || {
