@@ -62,6 +62,11 @@ impl Drop for Turn {
     }
 }
 
+/// Whether work on `device` takes turns (`GL_TURNS`): an OpenGL device does.
+fn takes_turns(device: &wgpu::Device) -> bool {
+    device.adapter_info().backend == wgpu::Backend::Gl
+}
+
 /// A host's turn on an OpenGL device that it shares with acetab's engines. A planning tool that
 /// works on the same GL device from threads of its own (its uploads, submissions, polls and
 /// read-backs) while acetab computes on it holds one around that work, so that neither waits on
@@ -78,7 +83,7 @@ impl GlTurn {
     /// Wait for the turn on `device` and take it: `None` where the device is not OpenGL
     /// (Vulkan, Metal and DX12 need no turns), so the host may call this whatever its backend.
     pub fn take(device: &wgpu::Device) -> Option<GlTurn> {
-        (device.adapter_info().backend == wgpu::Backend::Gl).then(|| GlTurn {
+        takes_turns(device).then(|| GlTurn {
             _turn: Turn::take(),
             _here: std::marker::PhantomData,
         })
@@ -234,7 +239,7 @@ pub struct Gpu<'a> {
 impl<'a> Gpu<'a> {
     /// Compile every kernel on the caller's device. Validation errors come back as `Err`.
     pub fn new(device: &'a wgpu::Device, queue: &'a wgpu::Queue) -> Result<Self, GpuError> {
-        let takes_turns = device.adapter_info().backend == wgpu::Backend::Gl;
+        let takes_turns = takes_turns(device);
         let _turn = takes_turns.then(Turn::take);
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let deform = DeformKernel::new(device);
