@@ -212,8 +212,18 @@ impl SimSetup {
                 Some(observed_alpha(truth, &cam, &self.placement)),
             )
             .map_err(|source| SimError::Contour { view, source })?;
-            let curve = annotate(&outline.points, &cam, self, errors, &mut rng)
-                .map_err(|source| SimError::Contour { view, source })?;
+            let curve =
+                annotate(&outline.points, &cam, self, errors, &mut rng).map_err(|count| {
+                    SimError::Annotation {
+                        view,
+                        count,
+                        outline: outline.points.len(),
+                        left_out: errors.left_out,
+                        click_px: errors.click_px,
+                        raster_px: errors.raster_px,
+                        min: MIN_KEPT_POINTS,
+                    }
+                })?;
             observed.push(vec![curve]);
         }
         Ok(self.case_of(observed, init, seed))
@@ -221,14 +231,15 @@ impl SimSetup {
 }
 
 /// An annotator's trace of the closed outline `pts` seen by `cam`: the left-out arc removed,
-/// then the drift and the jitter added.
+/// then the drift and the jitter added; or, where fewer than `MIN_KEPT_POINTS` are left, how
+/// many are.
 fn annotate(
     pts: &[Point2<f64>],
     cam: &Camera,
     setup: &SimSetup,
     e: &RealisticErrors,
     rng: &mut rand_chacha::ChaCha8Rng,
-) -> Result<Curve, crate::contours::ContourError> {
+) -> Result<Curve, usize> {
     let (kept, closed) = leave_out_arc(pts, cam, setup, e.left_out);
     let kept = if e.click_px > 0.0 {
         clicked(&kept, closed, e.click_px)
@@ -236,7 +247,7 @@ fn annotate(
         kept
     };
     if kept.len() < MIN_KEPT_POINTS {
-        return Err(crate::contours::ContourError::TooFewPoints { count: kept.len() });
+        return Err(kept.len());
     }
     let s = arc_positions(&kept);
     let total = s.last().copied().unwrap_or(0.0)
@@ -264,9 +275,7 @@ fn annotate(
         points
     };
     if points.len() < MIN_KEPT_POINTS {
-        return Err(crate::contours::ContourError::TooFewPoints {
-            count: points.len(),
-        });
+        return Err(points.len());
     }
     Ok(Curve { points, closed })
 }
@@ -594,6 +603,23 @@ mod tests {
                 .to_string();
             assert!(err.contains("click_px"), "{err}");
         }
+        // Clicks farther apart than the outline is long leave too few points: refused as the
+        // annotation's, with the count and the setting, not as the truth's outline.
+        let sparse = RealisticErrors {
+            click_px: 1e9,
+            ..dense.clone()
+        };
+        let err = s.realistic_case(&truth, &sparse, &level, 5).unwrap_err();
+        assert!(
+            matches!(err, SimError::Annotation { view: 0, count, click_px, .. }
+                if count < MIN_KEPT_POINTS && click_px == 1e9),
+            "{err}"
+        );
+        let err = err.to_string();
+        assert!(
+            err.contains("simulated annotation in view 0") && err.contains("click_px 1000000000"),
+            "{err}"
+        );
     }
 
     /// A mask's boundary: with `raster_px` every annotation point is the centre of a grid cell,

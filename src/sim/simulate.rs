@@ -89,6 +89,29 @@ pub enum SimError {
         /// Why.
         source: ContourError,
     },
+    /// A simulated annotation keeps too few points: the realistic protocol's left-out arc,
+    /// click spacing or mask grid thin the view's outline below what a curve needs.
+    #[error(
+        "simulated annotation in view {view}: {count} points left of the outline's {outline} \
+         (left_out {left_out}, click_px {click_px}, raster_px {raster_px}); at least {min} are \
+         needed: the realistic settings thin the outline too far"
+    )]
+    Annotation {
+        /// The view.
+        view: usize,
+        /// Points the annotation kept.
+        count: usize,
+        /// Points of the truth's outline in the view.
+        outline: usize,
+        /// The share of the outline left out.
+        left_out: f64,
+        /// The click spacing, px (0: the outline's own points).
+        click_px: f64,
+        /// The mask grid's pitch, px (0: none).
+        raster_px: f64,
+        /// The fewest points an annotation keeps.
+        min: usize,
+    },
     /// The simulated view geometry is unusable.
     #[error("{0}")]
     Geometry(#[from] GeometryError),
