@@ -241,6 +241,89 @@ impl Row {
         }
     }
 
+    /// The first value no run of the program can have, as runs.csv's column, the value and what
+    /// it must be (NaN is "not recorded" and passes everywhere): a level outside 1-5, an
+    /// infinite number, a negative distance, SD, diameter or time, a probability outside [0, 1]
+    /// or a Brier score outside [0, 2]. A hand-edited or damaged file is refused with it rather than learned or
+    /// summarised from.
+    pub fn implausible(&self) -> Option<String> {
+        if !(1..=5).contains(&self.level) {
+            return Some(format!(
+                "column \"level\": {} is not a noise level 1 to 5",
+                self.level
+            ));
+        }
+        let at_least_0 = [
+            ("mae_mm", self.mae_mm),
+            ("sd_mm", self.sd_mm),
+            ("p95_mm", self.p95_mm),
+            ("recon_mae_mm", self.recon_mae_mm),
+            ("seconds", self.seconds),
+            ("cup_sd_mm", self.cup_sd_mm),
+            ("outline_px", self.outline_px),
+            ("pose_turn_deg", self.pose_turn_deg),
+            ("pose_shift_mm", self.pose_shift_mm),
+            ("frame_shift_mm", self.frame_shift_mm),
+            ("shifted_mae_mm", self.shifted_mae_mm),
+        ];
+        let above_0 = [
+            ("cup_diameter_mm", self.cup_diameter_mm),
+            ("gt_cup_diameter_mm", self.gt_cup_diameter_mm),
+            ("surface_fit_diameter_mm", self.surface_fit_diameter_mm),
+            ("limb_diameter_mm", self.limb_diameter_mm),
+        ];
+        let unit = [("size_probability", self.size_probability)];
+        // A Brier score over the catalogue's sizes: 0 (certain and right) to 2 (certain, wrong).
+        let brier = [("brier", self.brier)];
+        let signed = [
+            ("inclination_deg", self.inclination_deg),
+            ("anteversion_deg", self.anteversion_deg),
+            ("inclination_err_deg", self.inclination_err_deg),
+            ("anteversion_err_deg", self.anteversion_err_deg),
+            ("frame_shift_x_mm", self.frame_shift_x_mm),
+            ("frame_shift_y_mm", self.frame_shift_y_mm),
+            ("frame_shift_z_mm", self.frame_shift_z_mm),
+            ("depth_offset_mm", self.depth_offset_mm),
+        ];
+        let bad = |column: &str, v: f64, expected: &str| {
+            Some(format!(
+                "column {column:?}: {} is not {expected} (or NaN: not recorded)",
+                crate::io::shown(&v.to_string())
+            ))
+        };
+        let groups: [(&[(&str, f64)], fn(f64) -> bool, &str); 5] = [
+            (
+                &at_least_0,
+                |v| v.is_finite() && v >= 0.0,
+                "a finite number >= 0",
+            ),
+            (
+                &above_0,
+                |v| v.is_finite() && v > 0.0,
+                "a finite number > 0",
+            ),
+            (
+                &unit,
+                |v| (0.0..=1.0).contains(&v),
+                "a probability in [0, 1]",
+            ),
+            (
+                &brier,
+                |v| (0.0..=2.0).contains(&v),
+                "a Brier score in [0, 2]",
+            ),
+            (&signed, f64::is_finite, "a finite number"),
+        ];
+        for (columns, ok, expected) in groups {
+            for &(column, v) in columns {
+                if !v.is_nan() && !ok(v) {
+                    return bad(column, v, expected);
+                }
+            }
+        }
+        None
+    }
+
     /// Cup minus truth, mm.
     pub fn cup_error_mm(&self) -> f64 {
         self.cup_diameter_mm - self.gt_cup_diameter_mm
@@ -467,6 +550,8 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
         }
     };
     let mut rows = Vec::new();
+    // Each row's line, for naming the first of two lines of one run.
+    let mut lines: Vec<usize> = Vec::new();
     for rec in rd.records() {
         let rec = rec.map_err(|e| {
             let line = e.position().map_or(0, |p| p.line() as usize);
@@ -500,6 +585,22 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
             };
             perr(line, reason)
         })?;
+        if let Some(reason) = row.implausible() {
+            return Err(perr(line, reason));
+        }
+        if let Some(first) = rows.iter().position(|r: &Row| r.key() == row.key()) {
+            return Err(perr(
+                line,
+                format!(
+                    "{} level {} run {} is already on line {} (a run is one line; two studies' files joined?)",
+                    row.method.name(),
+                    row.level,
+                    row.run,
+                    lines[first]
+                ),
+            ));
+        }
+        lines.push(line);
         rows.push(row);
     }
     Ok(rows)
@@ -1064,6 +1165,81 @@ mod tests {
             .collect();
         std::fs::write(b.join("runs.csv"), short).unwrap();
         assert!(read_csv(&b.join("runs.csv")).is_err());
+    }
+
+    /// A runs.csv holding a value no run can have (a negative SD or diameter, an infinite
+    /// offset, a probability above 1, a level 9) is refused naming its line, column and value,
+    /// as is a run on two lines (files joined); the file as written, NaN where a run records
+    /// nothing, and the same run number at another level or method read (the companions).
+    #[test]
+    fn a_runs_csv_with_an_impossible_value_or_a_run_twice_is_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("runs.csv");
+        let mut rows = vec![
+            row(StudyMethod::Srvf, 1, 0, 0.5),
+            row(StudyMethod::Srvf, 3, 0, 0.625),
+            row(StudyMethod::Icp, 1, 0, 0.75),
+        ];
+        (rows[0].cup_sd_mm, rows[0].size_probability, rows[0].brier) = (0.75, 0.5, 1.5);
+        (rows[0].depth_offset_mm, rows[0].limb_diameter_mm) = (-0.25, 49.5);
+        write_csv(&rows, &path).unwrap();
+        let good = std::fs::read_to_string(&path).unwrap();
+        // (Debug: NaN, a value not recorded, is not equal to itself.)
+        assert_eq!(
+            format!("{:?}", read_csv(&path).unwrap()),
+            format!("{rows:?}")
+        );
+        let header: Vec<&str> = good.lines().next().unwrap().split(',').collect();
+        // `good` with `column` of line 2 (the first run) set to `value`.
+        let with = |column: &str, value: &str| -> String {
+            let k = header.iter().position(|h| *h == column).unwrap();
+            let mut lines: Vec<String> = good.lines().map(str::to_string).collect();
+            let mut f: Vec<&str> = lines[1].split(',').collect();
+            f[k] = value;
+            lines[1] = f.join(",");
+            lines.join("\n") + "\n"
+        };
+        for (column, value) in [
+            ("cup_sd_mm", "-0.5"),
+            ("cup_diameter_mm", "-1"),
+            ("gt_cup_diameter_mm", "0"),
+            ("limb_diameter_mm", "inf"),
+            ("mae_mm", "-0.1"),
+            ("seconds", "-1"),
+            ("depth_offset_mm", "-inf"),
+            ("size_probability", "1.5"),
+            ("brier", "2.5"),
+            ("level", "9"),
+        ] {
+            std::fs::write(&path, with(column, value)).unwrap();
+            let e = read_csv(&path).unwrap_err().to_string();
+            assert!(
+                e.contains("line 2") && e.contains(&format!("column {column:?}: {value}")),
+                "{column} = {value}: {e}"
+            );
+        }
+        // Companions: NaN (not recorded) and the range's ends read.
+        for (column, value) in [
+            ("cup_sd_mm", "NaN"),
+            ("cup_sd_mm", "0"),
+            ("size_probability", "1"),
+            ("brier", "2"),
+            ("depth_offset_mm", "NaN"),
+            ("level", "5"),
+        ] {
+            std::fs::write(&path, with(column, value)).unwrap();
+            assert!(read_csv(&path).is_ok(), "{column} = {value}");
+        }
+        // A run on two lines.
+        std::fs::write(&path, good.clone() + good.lines().nth(2).unwrap() + "\n").unwrap();
+        let e = read_csv(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("line 5") && e.contains("srvf level 3 run 0 is already on line 3"),
+            "{e}"
+        );
+        rows.push(row(StudyMethod::Icp, 3, 0, 0.75));
+        write_csv(&rows, &path).unwrap();
+        assert_eq!(read_csv(&path).unwrap().len(), 4);
     }
 
     /// A merge whose shards hold every run of their study passes; one that lacks runs (a shard

@@ -313,8 +313,10 @@ pub fn learn(
             .iter()
             .filter(|r| r.method == method && r.error.is_empty())
         {
-            // The resampled SD alone: the study's SD without the model error it already held;
-            // the estimator's own diameter, without the correction the study made.
+            // The resampled SD alone: the study's SD without the model error it already held
+            // (NaN, no resampling, gives 0, as in `acetab plan-views`: the model SD learned
+            // then holds the whole spread); the estimator's own diameter, without the
+            // correction the study made.
             let resample = (r.cup_sd_mm * r.cup_sd_mm - model * model).max(0.0).sqrt();
             let (fitted_mm, resample_sd_mm) = applied.undo(r.cup_diameter_mm, resample);
             runs.push(TrainingRun {
