@@ -931,6 +931,26 @@ fn pose_study_with_every_run_failed_is_an_error() {
     assert!(err.contains("pose-study: all 1 runs failed"), "{err}");
     let o = run("5");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // A turn beyond 180 degrees is refused before any run, naming the flag; 180 runs.
+    let turn = |deg: &str| {
+        bin()
+            .args(["pose-study", "--runs", "1", "--threads", "1", "--deg", deg])
+            .output()
+            .unwrap()
+    };
+    let o = turn("1e9");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--deg 1000000000: must be at most 180"),
+        "{err}"
+    );
+    let o = turn("180");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !err.contains("at most 180") && !err.contains("panicked"),
+        "{err}"
+    );
 }
 
 /// A study in which every run fails (no regularisation, so the deformation flies off) is an

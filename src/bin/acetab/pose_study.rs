@@ -11,7 +11,8 @@ pub struct PoseStudyArgs {
     /// Runs, each with its own pose errors and start.
     #[arg(long, default_value_t = 10, value_parser = count_in(1, MAX_RUNS))]
     pub runs: usize,
-    /// Rotation error of views 1 and 2, degrees, about a random axis through the object.
+    /// Rotation error of views 1 and 2, degrees (0 to 180), about a random axis through the
+    /// object.
     #[arg(long, default_value_t = 2.0)]
     pub deg: f64,
     /// Translation error of views 1 and 2, mm, in a random direction.
@@ -56,6 +57,12 @@ pub fn run(args: PoseStudyArgs) -> Result<(), String> {
     if !(deg.is_finite() && mm.is_finite() && deg >= 0.0 && mm >= 0.0) {
         return Err(format!(
             "--deg {deg} / --mm {mm}: must be finite and non-negative"
+        ));
+    }
+    if deg > 180.0 {
+        return Err(format!(
+            "--deg {deg}: must be at most 180 (a turn beyond it is a smaller turn the other way, \
+             so the study would report an error it did not make)"
         ));
     }
     let truth = load_truth(&gt)?;
