@@ -124,6 +124,14 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, MeshIoError> {
             }
             (v, t)
         }
+        // A path that is not there is named as missing, whatever its extension says (a
+        // folder or file name mistyped reads better so than as an unsupported extension).
+        _ if !path.exists() => {
+            return Err(io(std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                "no such file or folder",
+            )))
+        }
         ext => {
             return Err(MeshIoError::Extension {
                 path: path.to_path_buf(),
@@ -533,7 +541,16 @@ mod tests {
         assert!(e.contains("short.ply") && !e.contains('\n'), "{e:?}");
         let e = read_mesh(&d.join("nothing.stl")).unwrap_err().to_string();
         assert!(e.contains("nothing.stl"), "{e}");
+        std::fs::write(d.join("x.xyz"), "0 0 0\n").unwrap();
         let e = read_mesh(&d.join("x.xyz")).unwrap_err().to_string();
         assert!(e.contains("unsupported"), "{e}");
+        // A path that is not there is named as missing, not as an unsupported extension.
+        for missing in ["no-such-folder", "y.xyz"] {
+            let e = read_mesh(&d.join(missing)).unwrap_err().to_string();
+            assert!(
+                e.contains(missing) && e.contains("no such file or folder"),
+                "{e}"
+            );
+        }
     }
 }
