@@ -226,6 +226,15 @@ impl PriorFile {
             ));
         }
         for (i, m) in f.meshes.iter().enumerate() {
+            // One mesh twice would weigh twice in the mean and the modes (`prior build`
+            // refuses two meshes of one name).
+            if let Some(first) = f.meshes[..i].iter().position(|o| o.name == m.name) {
+                return Err(field(
+                    format!("meshes[{i}].name"),
+                    m.name.clone(),
+                    format!("a name no other mesh has (meshes[{first}] has it too)"),
+                ));
+            }
             if !(m.radius_mm.is_finite() && (10.0..=80.0).contains(&m.radius_mm)) {
                 return Err(field(
                     format!("meshes[{i}].radius_mm ({})", m.name),
@@ -399,6 +408,18 @@ mod tests {
         g.meshes[0].deviation[5] = Some(3.0);
         let e = PriorFile::parse(&g.to_json(), p).unwrap_err().to_string();
         assert!(e.contains("meshes[0].deviation") && e.contains('3'), "{e}");
+        // One mesh listed twice (it would weigh twice); the companion: the file as written,
+        // every name once, reads.
+        assert!(PriorFile::parse(&f.to_json(), p).is_ok());
+        let mut g = f.clone();
+        g.meshes.push(g.meshes[0].clone());
+        let e = PriorFile::parse(&g.to_json(), p).unwrap_err().to_string();
+        let last = g.meshes.len() - 1;
+        assert!(
+            e.contains(&format!("meshes[{last}].name = {}", g.meshes[0].name))
+                && e.contains("meshes[0] has it too"),
+            "{e}"
+        );
         let mut g = f.clone();
         g.modes = 12;
         let e = PriorFile::parse(&g.to_json(), p).unwrap_err().to_string();
