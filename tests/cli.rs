@@ -916,36 +916,30 @@ fn merge_joins_shards_and_refuses_to_overwrite_one_or_read_a_bad_cell() {
 }
 
 /// A pose study whose every run fails (views shifted a kilometre) is an error, not a table of
-/// nothing with exit 0; the same study with the default shift succeeds (the companion).
+/// nothing with exit 0; the same study with the default shift succeeds (the companion). A turn
+/// beyond 180 degrees is refused before any run, naming the flag; 180 is not (the companion).
 #[test]
 fn pose_study_with_every_run_failed_is_an_error() {
-    let run = |mm: &str| {
+    let run = |flag: &str, value: &str| {
         bin()
-            .args(["pose-study", "--runs", "1", "--threads", "1", "--mm", mm])
+            .args(["pose-study", "--runs", "1", "--threads", "1", flag, value])
             .output()
             .unwrap()
     };
-    let o = run("1000000");
+    let o = run("--mm", "1000000");
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("pose-study: all 1 runs failed"), "{err}");
-    let o = run("5");
+    let o = run("--mm", "5");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    // A turn beyond 180 degrees is refused before any run, naming the flag; 180 runs.
-    let turn = |deg: &str| {
-        bin()
-            .args(["pose-study", "--runs", "1", "--threads", "1", "--deg", deg])
-            .output()
-            .unwrap()
-    };
-    let o = turn("1e9");
+    let o = run("--deg", "1e9");
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(
         err.contains("--deg 1000000000: must be at most 180"),
         "{err}"
     );
-    let o = turn("180");
+    let o = run("--deg", "180");
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         !err.contains("at most 180") && !err.contains("panicked"),

@@ -244,8 +244,8 @@ impl Row {
     /// The first value no run of the program can have, as runs.csv's column, the value and what
     /// it must be (NaN is "not recorded" and passes everywhere): a level outside 1-5, an
     /// infinite number, a negative distance, SD, diameter or time, a probability outside [0, 1]
-    /// or a Brier score outside [0, 2]. A hand-edited or damaged file is refused with it rather than learned or
-    /// summarised from.
+    /// or a Brier score outside [0, 2]. A hand-edited or damaged file is refused with it
+    /// rather than learned or summarised from.
     pub fn implausible(&self) -> Option<String> {
         if !(1..=5).contains(&self.level) {
             return Some(format!(
@@ -550,8 +550,8 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
         }
     };
     let mut rows = Vec::new();
-    // Each row's line, for naming the first of two lines of one run.
-    let mut lines: Vec<usize> = Vec::new();
+    // Each run's line, for naming the first of two lines of one run.
+    let mut lines: BTreeMap<(StudyMethod, u32, usize), usize> = BTreeMap::new();
     for rec in rd.records() {
         let rec = rec.map_err(|e| {
             let line = e.position().map_or(0, |p| p.line() as usize);
@@ -588,7 +588,7 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
         if let Some(reason) = row.implausible() {
             return Err(perr(line, reason));
         }
-        if let Some(first) = rows.iter().position(|r: &Row| r.key() == row.key()) {
+        if let Some(first) = lines.insert(row.key(), line) {
             return Err(perr(
                 line,
                 format!(
@@ -596,11 +596,10 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
                     row.method.name(),
                     row.level,
                     row.run,
-                    lines[first]
+                    first
                 ),
             ));
         }
-        lines.push(line);
         rows.push(row);
     }
     Ok(rows)
