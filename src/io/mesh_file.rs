@@ -132,6 +132,11 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, MeshIoError> {
                 "no such file or folder",
             )))
         }
+        _ if path.is_dir() => {
+            return Err(io(std::io::Error::other(
+                "a folder, not a mesh file (.stl, .ply or .obj)",
+            )))
+        }
         ext => {
             return Err(MeshIoError::Extension {
                 path: path.to_path_buf(),
@@ -544,6 +549,9 @@ mod tests {
         std::fs::write(d.join("x.xyz"), "0 0 0\n").unwrap();
         let e = read_mesh(&d.join("x.xyz")).unwrap_err().to_string();
         assert!(e.contains("unsupported"), "{e}");
+        // A folder is named as one.
+        let e = read_mesh(d).unwrap_err().to_string();
+        assert!(e.contains("a folder, not a mesh file"), "{e}");
         // A path that is not there is named as missing, not as an unsupported extension.
         for missing in ["no-such-folder", "y.xyz"] {
             let e = read_mesh(&d.join(missing)).unwrap_err().to_string();

@@ -242,14 +242,16 @@ impl Row {
     }
 
     /// The first value no run of the program can have, as runs.csv's column, the value and what
-    /// it must be (NaN is "not recorded" and passes everywhere): a level outside 1-5, an
+    /// it must be (NaN is "not recorded" and passes everywhere): a level outside 0-5, an
     /// infinite number, a negative distance, SD, diameter or time, a probability outside [0, 1]
     /// or a Brier score outside [0, 2]. A hand-edited or damaged file is refused with it
     /// rather than learned or summarised from.
     pub fn implausible(&self) -> Option<String> {
-        if !(1..=5).contains(&self.level) {
+        // The library's noise levels (`NoiseLevel::level`): 0, no start noise, runs from the
+        // library and Python; the command line's studies take 1-5.
+        if crate::sim::NoiseLevel::level(self.level).is_none() {
             return Some(format!(
-                "column \"level\": {} is not a noise level 1 to 5",
+                "column \"level\": {} is not a noise level 0 to 5",
                 self.level
             ));
         }
@@ -1167,7 +1169,7 @@ mod tests {
     }
 
     /// A runs.csv holding a value no run can have (a negative SD or diameter, an infinite
-    /// offset, a probability above 1, a level 9) is refused naming its line, column and value,
+    /// offset, a probability above 1, a level 6) is refused naming its line, column and value,
     /// as is a run on two lines (files joined); the file as written, NaN where a run records
     /// nothing, and the same run number at another level or method read (the companions).
     #[test]
@@ -1208,7 +1210,7 @@ mod tests {
             ("depth_offset_mm", "-inf"),
             ("size_probability", "1.5"),
             ("brier", "2.5"),
-            ("level", "9"),
+            ("level", "6"),
         ] {
             std::fs::write(&path, with(column, value)).unwrap();
             let e = read_csv(&path).unwrap_err().to_string();
@@ -1225,6 +1227,7 @@ mod tests {
             ("brier", "2"),
             ("depth_offset_mm", "NaN"),
             ("level", "5"),
+            ("level", "0"),
         ] {
             std::fs::write(&path, with(column, value)).unwrap();
             assert!(read_csv(&path).is_ok(), "{column} = {value}");
