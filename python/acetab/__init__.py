@@ -283,7 +283,11 @@ def align(
     for name, c in (("a", a), ("b", b)):
         if c.ndim != 2 or c.shape[1] != 2:
             raise ValueError(f"{name}: shape {c.shape}; a curve is an (N, 2) array of x, y")
-    return _acetab.align(a, b, str(mode), int(samples), float(anchor))
+    samples = _whole(samples, "samples")
+    if not 0 <= samples < 2**32:
+        # (the engine names its own range for any count that fits)
+        raise ValueError(f"samples = {samples}: expected a count of samples per curve")
+    return _acetab.align(a, b, str(mode), samples, float(anchor))
 
 
 def simulate(

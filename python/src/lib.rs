@@ -440,6 +440,33 @@ fn simulate_json(py: Python<'_>, options_json: &str) -> PyResult<String> {
             })
         })
         .collect::<PyResult<Vec<_>>>()?;
+    // A study of no level or no method, or of one listed twice (its runs would come twice,
+    // the same seeds, one row each), is refused as the command line refuses it.
+    for (name, listed) in [
+        (
+            "levels",
+            o.levels.iter().map(|l| l.to_string()).collect::<Vec<_>>(),
+        ),
+        (
+            "methods",
+            methods.iter().map(|m| m.name().to_string()).collect(),
+        ),
+    ] {
+        if listed.is_empty() {
+            return Err(PyValueError::new_err(format!(
+                "{name}=[]: a study needs at least one"
+            )));
+        }
+        if let Some((k, twice)) = listed
+            .iter()
+            .enumerate()
+            .find(|(k, x)| listed[..*k].contains(x))
+        {
+            return Err(PyValueError::new_err(format!(
+                "{name}[{k}] = {twice}: listed twice"
+            )));
+        }
+    }
     let estimator = cup_estimator(&o.cup_estimator, &o.prior)?;
     let (protocol, shipped): (Protocol, fn() -> CupCalibration) = match o.protocol.as_str() {
         "ideal" => (Protocol::Ideal, CupCalibration::shipped(false, estimator)),

@@ -282,6 +282,10 @@ def test_align_finds_a_moved_copy_and_tells_another_shape():
         acetab.align(a[:, :1], b)
     with pytest.raises(ValueError, match="samples"):
         acetab.align(a, b, samples=3)
+    # A negative or fractional count is a ValueError too, not Python's OverflowError.
+    for bad in (-1, 2.5, True):
+        with pytest.raises(ValueError, match="samples"):
+            acetab.align(a, b, samples=bad)
 
 
 def test_simulate_is_seeded_and_reports_runs():
@@ -297,3 +301,14 @@ def test_simulate_is_seeded_and_reports_runs():
         acetab.simulate("no_such_mesh.stl", levels=[1], runs=1)
     with pytest.raises(ValueError, match="protocol"):
         acetab.simulate("phantom", protocol="clinical")
+    # A study of nothing, or of a level or method twice, is refused (not an empty or doubled
+    # list of runs); level 0, no start noise, runs (the companion).
+    for kw, says in [
+        (dict(levels=[]), r"levels=\[\]"),
+        (dict(methods=[]), r"methods=\[\]"),
+        (dict(levels=[1, 3, 1]), r"levels\[2\] = 1: listed twice"),
+        (dict(methods=["icp", "srvf", "icp"]), r"methods\[2\] = icp: listed twice"),
+    ]:
+        with pytest.raises(ValueError, match=says):
+            acetab.simulate("phantom", **{"levels": [1], "runs": 1, **kw})
+    assert [r["level"] for r in acetab.simulate("phantom", levels=[0], runs=1)] == [0]
