@@ -48,9 +48,10 @@ pub struct StudyConfig {
 
 impl StudyConfig {
     /// What a study cannot run with, before any run: a contour noise that is not a finite
-    /// SD >= 0, a level outside 0..=5, a shard index not below a shard count >= 1, and the
-    /// reconstruction settings `ReconParams::validate` refuses. (No levels, runs or methods
-    /// is an empty study, not an error.)
+    /// SD >= 0, a level outside 0..=5, a level or method listed twice (its runs would come
+    /// twice, one runs.csv line each, which `read_csv` refuses), a shard index not below a shard
+    /// count >= 1, and the reconstruction settings `ReconParams::validate` refuses. (No levels,
+    /// runs or methods is an empty study, not an error.)
     pub fn validate(&self) -> Result<(), SimError> {
         let bad = |field, value: String, expected| SimError::Setting {
             field,
@@ -70,6 +71,17 @@ impl StudyConfig {
             .find(|l| NoiseLevel::level(**l).is_none())
         {
             return Err(bad("levels", l.to_string(), "0 to 5"));
+        }
+        let twice = |names: Vec<String>| {
+            (1..names.len())
+                .find(|&k| names[..k].contains(&names[k]))
+                .map(|k| names[k].clone())
+        };
+        if let Some(l) = twice(self.levels.iter().map(u32::to_string).collect()) {
+            return Err(bad("levels", l, "each level listed once"));
+        }
+        if let Some(m) = twice(self.methods.iter().map(|m| m.name().to_string()).collect()) {
+            return Err(bad("methods", m, "each method listed once"));
         }
         if let Protocol::Realistic(e) = &self.protocol {
             e.validate()?;
@@ -431,6 +443,16 @@ mod tests {
             ..Default::default()
         };
         assert_eq!(field(level6), "levels");
+        let level_twice = StudyConfig {
+            levels: vec![1, 3, 1],
+            ..Default::default()
+        };
+        assert_eq!(field(level_twice), "levels");
+        let method_twice = StudyConfig {
+            methods: vec![StudyMethod::Icp, StudyMethod::Srvf, StudyMethod::Icp],
+            ..Default::default()
+        };
+        assert_eq!(field(method_twice), "methods");
         let shard = StudyConfig {
             shard: (2, 2),
             ..Default::default()
