@@ -7,9 +7,13 @@ use crate::geom::{
     convex_hull_area, longest_segment, signed_area, stray_point, widest_extent, winding_number,
     Curve,
 };
-use crate::pipeline::Input;
+use crate::pipeline::{
+    Input, ABSURD, IMAGE_MARGIN, MIN_OUTLINE_EXTENT_PX, MIN_OUTLINE_POINTS, START_RADIUS_MM,
+};
 use crate::template::{Placement, Template};
-use crate::views::{spread_too_narrow, Camera, Intrinsics, MIN_VIEW_SPREAD_DEG};
+use crate::views::{
+    spread_too_narrow, Camera, Intrinsics, MAX_VIEWS, MIN_VIEWS, MIN_VIEW_SPREAD_DEG,
+};
 use nalgebra::{Matrix3, Point2, Point3, Rotation3, Unit, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -211,14 +215,9 @@ fn field_err(
     }
 }
 
-/// Largest coordinate magnitude accepted anywhere (mm or px): beyond it the input is absurd.
-const ABSURD: f64 = 1e7;
-
-/// Least share of its convex hull a closed contour must enclose. The outlines simulated from the
-/// 47 shared acetabula and 31 more mixed from the pelvis atlas (three views, 2 px noise, five
-/// draws each) enclose 76 % or more, the example case's 95-97 %; points on a line enclose 0 %, and
-/// an outline whose second half was joined on backwards (a figure of eight) 22 %.
-pub const MIN_HULL_FILL: f64 = 0.5;
+// The least share of its convex hull a closed contour must enclose, and the other outline rules
+// the library holds every caller to (`pipeline::check_input`).
+pub use crate::pipeline::MIN_HULL_FILL;
 
 /// A closed outline's longest step, as a share of its widest extent, at which it looks like an
 /// open arc joined by its chord. The closed outlines simulated from the 47 shared acetabula
@@ -334,20 +333,20 @@ impl CaseFile {
 
     /// Check every field and build the cameras, curves and placement.
     pub fn validate(&self, path: &Path) -> Result<Case, CaseError> {
-        if self.views.len() < 2 {
+        if self.views.len() < MIN_VIEWS {
             return Err(field_err(
                 path,
                 "views",
                 self.views.len(),
-                "at least 2 views are needed (3 recommended)",
+                format!("at least {MIN_VIEWS} views are needed (3 recommended)"),
             ));
         }
-        if self.views.len() > 64 {
+        if self.views.len() > MAX_VIEWS {
             return Err(field_err(
                 path,
                 "views",
                 self.views.len(),
-                "at most 64 views",
+                format!("at most {MAX_VIEWS} views"),
             ));
         }
         let tp = &self.template;
@@ -361,12 +360,13 @@ impl CaseFile {
                 ));
             }
         }
-        if !(tp.radius.is_finite() && tp.radius > 1.0 && tp.radius < 200.0) {
+        let (lo, hi) = START_RADIUS_MM;
+        if !(tp.radius.is_finite() && tp.radius > lo && tp.radius < hi) {
             return Err(field_err(
                 path,
                 "template.radius",
                 tp.radius,
-                "must be between 1 and 200 mm",
+                format!("must be between {lo} and {hi} mm"),
             ));
         }
         let axis = Vector3::from(tp.axis);
@@ -597,7 +597,7 @@ impl CaseFile {
             let mut curves = Vec::new();
             for (ci, c) in v.contours.iter().enumerate() {
                 let cf = |name: &str| format!("views[{vi}].contours[{ci}].{name}");
-                let margin = 0.5 * (width.max(height)) as f64;
+                let margin = IMAGE_MARGIN * f64::from(width.max(height));
                 for (pi, p) in c.points.iter().enumerate() {
                     if !p[0].is_finite() || !p[1].is_finite() {
                         return Err(field_err(
@@ -648,21 +648,21 @@ impl CaseFile {
                     index.pop();
                 }
                 let distinct = pts.len();
-                if distinct < 4 {
+                if distinct < MIN_OUTLINE_POINTS {
                     return Err(field_err(
                         path,
                         cf("points"),
                         format!("{} distinct points", distinct),
-                        "a contour needs at least 4 distinct points",
+                        format!("a contour needs at least {MIN_OUTLINE_POINTS} distinct points"),
                     ));
                 }
                 let extent = pts.iter().map(|p| (p - pts[0]).norm()).fold(0.0, f64::max);
-                if extent < 2.0 {
+                if extent < MIN_OUTLINE_EXTENT_PX {
                     return Err(field_err(
                         path,
                         cf("points"),
                         format!("extent {extent:.3} px"),
-                        "the contour is smaller than 2 pixels",
+                        format!("the contour is smaller than {MIN_OUTLINE_EXTENT_PX} pixels"),
                     ));
                 }
                 // A closed outline traced round more than once (two passes of the annotation

@@ -67,6 +67,21 @@ pub enum MeshError {
 impl Mesh {
     /// Build a mesh, check it and compute vertex normals.
     pub fn new(vertices: Vec<Point3<f64>>, triangles: Vec<[u32; 3]>) -> Result<Mesh, MeshError> {
+        let mut mesh = Mesh {
+            vertices,
+            triangles,
+            normals: Vec::new(),
+        };
+        mesh.check()?;
+        mesh.recompute_normals();
+        Ok(mesh)
+    }
+
+    /// What `new` checks, for a mesh whose fields were filled in directly (they are public): at
+    /// least three vertices and one triangle, finite coordinates, every triangle's corners among
+    /// the vertices, an area.
+    pub fn check(&self) -> Result<(), MeshError> {
+        let (vertices, triangles) = (&self.vertices, &self.triangles);
         if triangles.is_empty() || vertices.len() < 3 {
             return Err(MeshError::Empty);
         }
@@ -84,17 +99,11 @@ impl Mesh {
                 });
             }
         }
-        let mut mesh = Mesh {
-            vertices,
-            triangles,
-            normals: Vec::new(),
-        };
-        let area = mesh.area();
+        let area = self.area();
         if !(area > 1e-9) {
             return Err(MeshError::Degenerate { area });
         }
-        mesh.recompute_normals();
-        Ok(mesh)
+        Ok(())
     }
 
     /// Number of vertices.

@@ -156,6 +156,9 @@ impl<'a> ClosedPolyline<'a> {
 /// Resample a closed polyline to `t` points evenly spaced in arc length, starting at point 0.
 /// Also returns each sample's position as a fractional vertex index into `p`.
 pub fn resample_closed(p: &[Point2<f64>], t: usize) -> (Vec<Point2<f64>>, Vec<f64>) {
+    if let Some(few) = too_few(p, t) {
+        return few;
+    }
     let s = cumulative(p, true);
     let total = s[s.len() - 1];
     (0..t)
@@ -165,11 +168,24 @@ pub fn resample_closed(p: &[Point2<f64>], t: usize) -> (Vec<Point2<f64>>, Vec<f6
 
 /// Resample an open polyline to `t` points evenly spaced in arc length, both ends included.
 pub fn resample_open(p: &[Point2<f64>], t: usize) -> (Vec<Point2<f64>>, Vec<f64>) {
+    if let Some(few) = too_few(p, t) {
+        return few;
+    }
     let s = cumulative(p, false);
     let total = s[s.len() - 1];
     (0..t)
         .map(|i| sample(p, &s, total * i as f64 / (t - 1).max(1) as f64))
         .unzip()
+}
+
+/// A polyline of fewer than two points has no length to sample along: none (no points) or `t`
+/// copies of its one point, each at parameter 0.
+fn too_few(p: &[Point2<f64>], t: usize) -> Option<(Vec<Point2<f64>>, Vec<f64>)> {
+    match p {
+        [] => Some((Vec::new(), Vec::new())),
+        [one] => Some((vec![*one; t], vec![0.0; t])),
+        _ => None,
+    }
 }
 
 /// How many times the closed polyline `p` goes round the point `about` (counter-clockwise
@@ -264,6 +280,20 @@ pub fn longest_segment(p: &[Point2<f64>]) -> Option<(usize, f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A polyline of fewer than two points resamples to nothing or to copies of its point (it
+    /// panicked); companion: two points resample along their segment.
+    #[test]
+    fn a_polyline_of_one_point_or_none_resamples_without_a_panic() {
+        let a = Point2::new(3.0, 4.0);
+        assert_eq!(resample_closed(&[], 5), (Vec::new(), Vec::new()));
+        assert_eq!(resample_open(&[], 5), (Vec::new(), Vec::new()));
+        assert_eq!(resample_closed(&[a], 3), (vec![a; 3], vec![0.0; 3]));
+        assert_eq!(resample_open(&[a], 3), (vec![a; 3], vec![0.0; 3]));
+        let b = Point2::new(5.0, 4.0);
+        let (pts, _) = resample_open(&[a, b], 3);
+        assert_eq!(pts, vec![a, Point2::new(4.0, 4.0), b]);
+    }
 
     /// A closed curve entered anywhere, either way round, comes out the same: run the positive
     /// way from its leftmost point; an open one keeps its points and ends, run the positive

@@ -11,6 +11,7 @@ mod deformation;
 mod depth;
 mod fallback;
 mod guards;
+mod input_check;
 mod log;
 mod params;
 mod placement;
@@ -31,6 +32,10 @@ pub use fallback::{params_used, Fallback, FALLBACKS};
 pub use guards::{
     first_failure, folded_share, odd_view, view_label, GuardFailure, GuardParams, Judged, Refusal,
     VIEW_NOTE_MIN_PX, VIEW_NOTE_RATIO,
+};
+pub use input_check::{
+    check_input, check_views, ABSURD, IMAGE_MARGIN, MIN_HULL_FILL, MIN_OUTLINE_EXTENT_PX,
+    MIN_OUTLINE_POINTS, START_RADIUS_MM,
 };
 pub use log::{OrientationTrial, RestartCause, SolveLog};
 pub use params::{
@@ -121,6 +126,16 @@ pub enum ReconError {
     /// The result failed a guard and no fallback passed (see `reconstruct`).
     #[error("the result was refused: {0}")]
     Guard(Refusal),
+    /// A view, outline or start that no run can stand behind (see `check_input`).
+    #[error("input {field} = {value}: must be {expected}")]
+    Input {
+        /// The input, as a path into `Input` (`cameras[1].k.fx`, `observed[0][0].points[17]`).
+        field: String,
+        /// Its value.
+        value: String,
+        /// What it must be.
+        expected: String,
+    },
     /// A setting outside what the method can run with (see `ReconParams::validate`).
     #[error("setting {field} = {value}: must be {expected}")]
     Param {
@@ -206,7 +221,7 @@ pub fn reconstruct(
     kernels: Kernels,
 ) -> Result<Reconstruction, ReconError> {
     prm.validate()?;
-    check_views(input, prm)?;
+    check_pose_view(input, prm)?;
     let observed = entered(input.observed);
     let input = &Input {
         observed: &observed,
@@ -318,13 +333,9 @@ pub(super) fn attempt(
 }
 
 /// As many observed outline sets as views, and a pose reference that is one of the views.
-fn check_views(input: &Input, prm: &ReconParams) -> Result<(), ReconError> {
-    if input.cameras.len() != input.observed.len() {
-        return Err(ReconError::Mismatch {
-            views: input.cameras.len(),
-            observed: input.observed.len(),
-        });
-    }
+/// The input (`check_input`), and the pose refinement's reference view among its views.
+fn check_pose_view(input: &Input, prm: &ReconParams) -> Result<(), ReconError> {
+    check_input(input)?;
     if let Some(pp) = prm
         .pose
         .as_ref()

@@ -293,6 +293,14 @@ pub fn cup_report(
     kernels: Kernels,
     up: &UncertaintyParams,
 ) -> Result<CupReport, ReconError> {
+    super::check_views(&rec.cameras, observed)?;
+    if !(up.model_sd_mm.is_finite() && up.model_sd_mm >= 0.0) {
+        return Err(ReconError::Param {
+            field: "uncertainty model_sd_mm",
+            value: crate::io::shown(&up.model_sd_mm.to_string()),
+            expected: "a finite SD >= 0",
+        });
+    }
     // The resamples are solved as the result was: from the outlines entered where `reconstruct`
     // enters them, with the fallback's settings when one gave it.
     let observed = &super::entered(observed)[..];
@@ -309,13 +317,6 @@ pub fn cup_report(
         Ok(cup_spheres(m, o, &used.cup, region)?.cup.diameter())
     };
     let (diam, noise_px) = resampled_diameters(rec, &ctx, up, &cup)?;
-    if !(up.model_sd_mm.is_finite() && up.model_sd_mm >= 0.0) {
-        return Err(ReconError::Param {
-            field: "uncertainty model_sd_mm",
-            value: crate::io::shown(&up.model_sd_mm.to_string()),
-            expected: "a finite SD >= 0",
-        });
-    }
     let (_, resample_sd) = mean_sd(&diam, true);
     let mut sorted = diam.clone();
     sorted.sort_by(f64::total_cmp);

@@ -49,6 +49,19 @@ pub enum TemplateError {
         /// `MAX_TEMPLATE_VERTICES`.
         max: usize,
     },
+    /// Not a mesh: a triangle's corner that is not a vertex, a non-finite coordinate, no area.
+    #[error("the template's mesh: {0}")]
+    Mesh(#[from] crate::geom::MeshError),
+    /// Its triangles wind the other way round: they face the sphere's centre.
+    #[error(
+        "{:.0} % of the template's area faces its sphere's centre: its triangles must wind \
+         counter-clockwise seen from outside (reverse each triangle's corners)",
+        100.0 * share
+    )]
+    Inward {
+        /// The share of its area facing inward.
+        share: f64,
+    },
     /// No border: a closed surface has no rim to meet the outlines.
     #[error("the template has no border (a closed surface has no rim)")]
     NoRim,
@@ -106,7 +119,13 @@ impl Template {
 
     /// The caller's own template: a mesh on the unit sphere about the origin (its best-fit
     /// sphere's centre within 0.25 of it, radius 0.75-1.25), opening towards +z, with a border.
-    pub fn new(mesh: Mesh) -> Result<Template, TemplateError> {
+    /// The mesh is checked as `Mesh::new` checks one (its fields are public), and its normals
+    /// are recomputed when there are not one per vertex.
+    pub fn new(mut mesh: Mesh) -> Result<Template, TemplateError> {
+        mesh.check()?;
+        if mesh.normals.len() != mesh.vertices.len() {
+            mesh.recompute_normals();
+        }
         if mesh.vertex_count() > MAX_TEMPLATE_VERTICES {
             return Err(TemplateError::TooLarge {
                 count: mesh.vertex_count(),
@@ -116,10 +135,28 @@ impl Template {
         let s = fit_sphere_robust(&mesh.vertices).ok();
         let unit =
             s.filter(|s| s.center_point().coords.norm() <= 0.25 && (s.radius - 1.0).abs() <= 0.25);
-        if unit.is_none() {
+        let Some(unit) = unit else {
             return Err(TemplateError::NotUnit {
                 center: s.map_or([f64::NAN; 3], |s| s.center),
                 radius: s.map_or(f64::NAN, |s| s.radius),
+            });
+        };
+        // Outward by the right-hand rule, as the method's normals and guards take a surface:
+        // the share of the area whose triangles face the sphere's centre.
+        let centre = unit.center_point();
+        let (mut inward, mut total) = (0.0, 0.0);
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
+            let n = (b - a).cross(&(c - a));
+            let area = 0.5 * n.norm();
+            total += area;
+            if n.dot(&(a - centre)) < 0.0 {
+                inward += area;
+            }
+        }
+        if inward > 0.5 * total {
+            return Err(TemplateError::Inward {
+                share: inward / total,
             });
         }
         let t = Template::marked(mesh);
@@ -204,6 +241,28 @@ mod tests {
         )
         .unwrap();
         assert_eq!(Template::new(octahedron), Err(TemplateError::NoRim));
+        // A mesh whose public fields were filled in directly is checked as `Mesh::new` checks
+        // one (a corner that is no vertex panicked), its normals made when it has none, and
+        // one wound the other way round is named.
+        let mut corner = t.mesh().clone();
+        corner.triangles[0][0] = 1_000_000;
+        assert!(matches!(
+            Template::new(corner),
+            Err(TemplateError::Mesh(
+                crate::geom::MeshError::IndexOutOfRange { .. }
+            ))
+        ));
+        let mut flipped = t.mesh().clone();
+        for tri in &mut flipped.triangles {
+            tri.swap(1, 2);
+        }
+        assert!(matches!(
+            Template::new(flipped),
+            Err(TemplateError::Inward { share }) if share > 0.99
+        ));
+        let mut bare = t.mesh().clone();
+        bare.normals.clear();
+        assert_eq!(Template::new(bare).unwrap().mesh(), t.mesh());
         for (field, p) in [
             (
                 "polar_deg",

@@ -8,6 +8,12 @@ pub use turn::{view_set_mismatch_deg, BodyAxis, ViewRotation, MAX_PAIRED_VIEWS};
 
 use nalgebra::Vector3;
 
+/// The fewest views a reconstruction takes (three recommended: the paper's set).
+pub const MIN_VIEWS: usize = 2;
+
+/// The most views a reconstruction takes.
+pub const MAX_VIEWS: usize = 64;
+
 /// The least angle, degrees, between the viewing directions of some two views of a set: below
 /// it the views see nearly the same outline and the cap's depth along them is left open (the
 /// paper's views span 40). Measured (docs/population.md, "Malformed meshes, curves,
