@@ -27,6 +27,9 @@ pub enum ContourError {
         /// How many.
         count: usize,
     },
+    /// A triangle's corner that is no vertex of the mesh (its fields are public).
+    #[error("{0}")]
+    Mesh(crate::geom::MeshError),
     /// No outline: the triangulation failed or found no simple boundary (the reason).
     #[error("the Delaunay triangulation failed: {0}")]
     Delaunay(String),
@@ -129,6 +132,7 @@ fn contour_in_view(
     cam: &Camera,
     alpha: Alpha<'_>,
 ) -> Result<ModelContour, ContourError> {
+    mesh.check_corners().map_err(ContourError::Mesh)?;
     let mut projected = Vec::with_capacity(mesh.vertex_count());
     for (vertex, v) in mesh.vertices.iter().enumerate() {
         projected.push(

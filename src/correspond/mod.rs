@@ -173,6 +173,12 @@ pub fn correspond_on(
     prm: &CorrespondParams,
     dp: srvf::DpOn,
 ) -> Result<Vec<Observation>, SrvfError> {
+    if model.vertex_ids.len() != model.points.len() {
+        return Err(SrvfError::ModelIds {
+            ids: model.vertex_ids.len(),
+            points: model.points.len(),
+        });
+    }
     let obs_pts = observed.points.as_slice();
     let pairs: Vec<Pair> = match method {
         Method::Srvf => {
@@ -380,6 +386,26 @@ mod polygon_tests {
     /// (measured 0.7 / 4.4 and 0.7 / 7.0 degrees, every point kept).
     fn holds_on_deep_notches(prm: &CorrespondParams) -> Result<(), String> {
         notch_check(prm, &[(0.7, 40.0, 1), (0.6, 50.0, 2)], 8.0, 2.0 / 3.0)
+    }
+
+    /// A model contour built by hand with fewer vertex ids than points panicked in every
+    /// method; it is an error now. Companion: the model as made pairs.
+    #[test]
+    fn a_model_contour_with_ids_and_points_apart_is_an_error() {
+        let m = model();
+        let c = deep_notch(0.7, 40.0, 1);
+        let prm = CorrespondParams::default();
+        for method in [Method::Srvf, Method::Icp, Method::IcpNormvec] {
+            assert!(!correspond(method, 0, &m, &c, &prm).unwrap().is_empty());
+            let short = ModelContour {
+                vertex_ids: m.vertex_ids[..1].to_vec(),
+                points: m.points.clone(),
+            };
+            assert!(matches!(
+                correspond(method, 0, &short, &c, &prm),
+                Err(SrvfError::ModelIds { ids: 1, .. })
+            ));
+        }
     }
 
     #[test]

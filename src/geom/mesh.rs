@@ -90,18 +90,26 @@ impl Mesh {
                 return Err(MeshError::NonFinite { index, value });
             }
         }
-        for (t, tri) in triangles.iter().enumerate() {
-            if let Some(&index) = tri.iter().find(|&&i| i as usize >= vertices.len()) {
-                return Err(MeshError::IndexOutOfRange {
-                    triangle: t,
-                    index,
-                    vertex_count: vertices.len(),
-                });
-            }
-        }
+        self.check_corners()?;
         let area = self.area();
         if !(area > 1e-9) {
             return Err(MeshError::Degenerate { area });
+        }
+        Ok(())
+    }
+
+    /// Every triangle's corners among the vertices (part of `check`; cheap enough for every
+    /// call of a function that indexes the vertices by them).
+    pub fn check_corners(&self) -> Result<(), MeshError> {
+        let n = self.vertices.len();
+        for (t, tri) in self.triangles.iter().enumerate() {
+            if let Some(&index) = tri.iter().find(|&&i| i as usize >= n) {
+                return Err(MeshError::IndexOutOfRange {
+                    triangle: t,
+                    index,
+                    vertex_count: n,
+                });
+            }
         }
         Ok(())
     }

@@ -438,6 +438,13 @@ impl ReconParams {
             };
             return Err(bad(field, v, expected));
         }
+        if !self.cup.catalogue.is_well_formed() {
+            return Err(bad(
+                "cup.catalogue.sizes_mm",
+                format!("{:?}", self.cup.catalogue.sizes_mm),
+                "at least one size, each finite and > 0 mm, ascending without repeats (CupCatalogue::parse makes one)",
+            ));
+        }
         if self.cup.estimator == CupEstimator::PriorRegion
             && (self.deformation.shape_prior.is_none() || self.deformation.sphere_prior <= 0.0)
         {
@@ -540,6 +547,18 @@ mod tests {
             ("weights.obs", Box::new(|p| p.weights.obs = f64::NAN)),
             ("weights.obs", Box::new(|p| p.weights.obs = 0.0)),
             ("weights.obs", Box::new(|p| p.weights.obs = 1e300)),
+            (
+                "cup.catalogue.sizes_mm",
+                Box::new(|p| p.cup.catalogue.sizes_mm.clear()),
+            ),
+            (
+                "cup.catalogue.sizes_mm",
+                Box::new(|p| p.cup.catalogue.sizes_mm = vec![f64::NAN]),
+            ),
+            (
+                "cup.catalogue.sizes_mm",
+                Box::new(|p| p.cup.catalogue.sizes_mm = vec![52.0, 50.0]),
+            ),
             ("weights.rot", Box::new(|p| p.weights.rot = 2e6)),
             (
                 "placement.restart_above_px",

@@ -57,6 +57,15 @@ pub fn accuracy_and_shift(samples: &[nalgebra::Point3<f64>], recon: &Mesh) -> (A
 
 /// The statistics of truth -> reconstruction distances `d`.
 fn accuracy_of(d: &[f64]) -> Accuracy {
+    // No samples (a truth without area): nothing was measured, which is not an error of 0.
+    if d.is_empty() {
+        return Accuracy {
+            mae_mm: f64::NAN,
+            sd_mm: f64::NAN,
+            p95_mm: f64::NAN,
+            max_mm: f64::NAN,
+        };
+    }
     let s = DistanceStats::from(d);
     Accuracy {
         mae_mm: s.mean,
@@ -166,6 +175,20 @@ pub fn write_errors_ply(recon: &Mesh, errors: &[f64], path: &Path) -> Result<(),
 mod tests {
     use super::*;
     use crate::template::spherical_cap;
+
+    /// A truth with nothing to sample measured no error, which is not an error of 0 (it read
+    /// 0); companion: a surface against itself reads 0.
+    #[test]
+    fn nothing_measured_is_not_an_error_of_zero() {
+        let cap = spherical_cap(25.0, 500, 60f64.to_radians());
+        assert!(accuracy(&cap, &cap).mae_mm < 1e-9);
+        let empty = Mesh {
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+            normals: Vec::new(),
+        };
+        assert!(accuracy(&empty, &cap).mae_mm.is_nan());
+    }
 
     #[test]
     fn the_error_ply_maps_the_covered_part_and_greys_what_the_truth_lacks() {

@@ -63,6 +63,14 @@ impl CupCatalogue {
         Ok(CupCatalogue { sizes_mm: sizes })
     }
 
+    /// Whether the sizes are a catalogue: at least one, each finite and > 0, ascending without
+    /// repeats (what `parse` makes; the field is public, and a host may fill it itself).
+    pub fn is_well_formed(&self) -> bool {
+        !self.sizes_mm.is_empty()
+            && self.sizes_mm.iter().all(|v| v.is_finite() && *v > 0.0)
+            && self.sizes_mm.windows(2).all(|w| w[0] < w[1])
+    }
+
     /// Whether the catalogue can hold a cup of `diameter`: it lies no further below the smallest
     /// size, or above the largest, than half the step to its neighbour (1 mm for a catalogue
     /// of one size). A cup outside is not sized: the nearest size would be a guess.

@@ -78,6 +78,10 @@ pub enum SimError {
     /// No sphere fits the ground truth.
     #[error("ground truth sphere fit: {0}")]
     Sphere(#[from] SphereFitError),
+    /// The ground truth is not a mesh (its fields are public): a triangle corner that is no
+    /// vertex, a non-finite coordinate, no area (`Mesh::check`).
+    #[error("ground truth mesh: {0}")]
+    Mesh(crate::geom::MeshError),
     /// The ground truth's outer side could not be cut out.
     #[error("ground truth outer side: {0}")]
     Surface(crate::geom::MeshError),
@@ -247,6 +251,7 @@ impl SimSetup {
     /// The set-up of `truth` in `geometry`'s views.
     pub fn new(truth: &Mesh, geometry: &XrayGeometry) -> Result<SimSetup, SimError> {
         geometry.validate()?;
+        truth.check().map_err(SimError::Mesh)?;
         let (placement, sphere) = fit_placement(truth)?;
         let cameras = simulated_views(geometry, &placement.center);
         let mut outlines = Vec::new();
@@ -370,6 +375,31 @@ pub fn perturb_poses(
 mod tests {
     use super::*;
     use crate::sim::{phantom, PhantomParams};
+
+    /// A truth whose public fields were filled in wrongly is named: a triangle corner that is
+    /// no vertex panicked (in the contour of the truth, as in `model_contour` of any such
+    /// mesh), a NaN vertex was "the points are degenerate". Companion: the phantom sets up.
+    #[test]
+    fn a_truth_that_is_not_a_mesh_is_named() {
+        let truth = phantom(&PhantomParams::default()).mesh;
+        let setup = SimSetup::new(&truth, &XrayGeometry::default()).unwrap();
+        let cam = &setup.cameras[0];
+        assert!(crate::contours::model_contour(&truth, cam, None).is_ok());
+        let mut corner = truth.clone();
+        corner.triangles[0][1] = 10_000_000;
+        assert!(matches!(
+            crate::contours::model_contour(&corner, cam, None),
+            Err(crate::contours::ContourError::Mesh(_))
+        ));
+        let mut nan = truth.clone();
+        nan.vertices[3].x = f64::NAN;
+        for bad in [corner, nan] {
+            assert!(matches!(
+                SimSetup::new(&bad, &XrayGeometry::default()),
+                Err(SimError::Mesh(_))
+            ));
+        }
+    }
 
     #[test]
     fn the_outline_sphere_finds_a_sphere_and_misses_what_the_views_do_not_see() {

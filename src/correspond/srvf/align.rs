@@ -148,6 +148,15 @@ pub enum SrvfError {
     /// A sample count outside MIN_SAMPLES..=MAX_SAMPLES.
     #[error("samples must be {MIN_SAMPLES} to {MAX_SAMPLES} (got {0})")]
     SampleCount(usize),
+    /// A model contour whose vertex ids and points differ in number (its fields are public;
+    /// `model_contour` makes them one for one).
+    #[error("the model contour has {ids} vertex ids for {points} points; it needs one for each")]
+    ModelIds {
+        /// Its vertex ids.
+        ids: usize,
+        /// Its points.
+        points: usize,
+    },
 }
 
 /// The result: distance, rotation, seed and, per arc-length sample of A, where it lands on B.
