@@ -8,7 +8,8 @@ use crate::geom::{
     Curve,
 };
 use crate::pipeline::{
-    Input, ABSURD, IMAGE_MARGIN, MIN_OUTLINE_EXTENT_PX, MIN_OUTLINE_POINTS, START_RADIUS_MM,
+    Input, ABSURD, IMAGE_MARGIN, MAX_OUTLINE_POINTS, MIN_OUTLINE_EXTENT_PX, MIN_OUTLINE_POINTS,
+    START_RADIUS_MM,
 };
 use crate::template::{Placement, Template};
 use crate::views::{
@@ -597,6 +598,14 @@ impl CaseFile {
             let mut curves = Vec::new();
             for (ci, c) in v.contours.iter().enumerate() {
                 let cf = |name: &str| format!("views[{vi}].contours[{ci}].{name}");
+                if c.points.len() > MAX_OUTLINE_POINTS {
+                    return Err(field_err(
+                        path,
+                        cf("points"),
+                        format!("{} points", c.points.len()),
+                        format!("a contour has at most {MAX_OUTLINE_POINTS} points (thin it)"),
+                    ));
+                }
                 let margin = IMAGE_MARGIN * f64::from(width.max(height));
                 for (pi, p) in c.points.iter().enumerate() {
                     if !p[0].is_finite() || !p[1].is_finite() {

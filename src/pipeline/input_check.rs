@@ -18,6 +18,12 @@ pub const MIN_HULL_FILL: f64 = 0.5;
 /// An outline has at least this many distinct points. Case files are held to it too.
 pub const MIN_OUTLINE_POINTS: usize = 4;
 
+/// An outline has at most this many points: a rim clicked or traced at one point a pixel has a
+/// few thousand, and the solve's time grows with the count (400,000 points a view: 39 s on the
+/// demo case against 0.4 s; docs/population.md, "The library's own input, checked"). Case
+/// files are held to it too.
+pub const MAX_OUTLINE_POINTS: usize = 100_000;
+
 /// An outline spans at least this many pixels. Case files are held to it too.
 pub const MIN_OUTLINE_EXTENT_PX: f64 = 2.0;
 
@@ -168,6 +174,13 @@ fn check_outlines(i: usize, curves: &[Curve], cam: &Camera) -> Result<(), ReconE
 }
 
 fn check_outline(field: &str, c: &Curve, cam: &Camera) -> Result<(), ReconError> {
+    if c.points.len() > MAX_OUTLINE_POINTS {
+        return Err(fault(
+            format!("{field}.points"),
+            format!("{} points", c.points.len()),
+            format!("an outline of at most {MAX_OUTLINE_POINTS} points (thin it)"),
+        ));
+    }
     let margin = IMAGE_MARGIN * f64::from(cam.width.max(cam.height));
     let (w, h) = (f64::from(cam.width), f64::from(cam.height));
     for (k, p) in c.points.iter().enumerate() {
@@ -416,6 +429,18 @@ mod tests {
                 Box::new(|s| {
                     let c = s.observed[0][0].clone();
                     s.observed[0].push(c)
+                }),
+            ),
+            (
+                "observed[2][0].points",
+                Box::new(|s| {
+                    let c = &mut s.observed[2][0];
+                    let n = MAX_OUTLINE_POINTS / c.points.len() + 1;
+                    c.points = c
+                        .points
+                        .iter()
+                        .flat_map(|p| std::iter::repeat_n(*p, n))
+                        .collect();
                 }),
             ),
             ("init.radius", Box::new(|s| s.init.radius = -s.init.radius)),
