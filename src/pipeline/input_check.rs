@@ -10,9 +10,11 @@ use crate::template::Placement;
 use crate::views::{spread_too_narrow, Camera, MAX_VIEWS, MIN_VIEWS, MIN_VIEW_SPREAD_DEG};
 use nalgebra::{Matrix3, Point2, Vector3};
 
-/// A closed outline encloses at least this share of its convex hull (points on one line enclose
-/// nothing; an outline joined in the wrong order little, its loops' areas cancelling). Case
-/// files are held to it too.
+/// A closed outline encloses at least this share of its convex hull. The outlines simulated from
+/// the 47 shared acetabula and 31 more mixed from the pelvis atlas (three views, 2 px noise, five
+/// draws each) enclose 76 % or more, the example case's 95-97 %; points on a line enclose 0 %,
+/// and an outline whose second half was joined on backwards (a figure of eight) 22 %. Case files
+/// are held to it too.
 pub const MIN_HULL_FILL: f64 = 0.5;
 
 /// An outline has at least this many distinct points. Case files are held to it too.

@@ -332,7 +332,6 @@ pub(super) fn attempt(
     finish(&ctx, input, deformed, log)
 }
 
-/// As many observed outline sets as views, and a pose reference that is one of the views.
 /// The input (`check_input`), and the pose refinement's reference view among its views.
 fn check_pose_view(input: &Input, prm: &ReconParams) -> Result<(), ReconError> {
     check_input(input)?;
