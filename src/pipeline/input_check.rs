@@ -467,8 +467,8 @@ mod tests {
         assert!(check_input(&sim.input(&Template::standard())).is_ok());
     }
 
-    /// `cup_report` checks the outlines it is given against the result's views. Companion: the
-    /// outlines the result was fitted to give a report.
+    /// `cup_report` checks the outlines it is given against the result's views, and its resample
+    /// count. Companion: the outlines the result was fitted to, with two resamples, give a report.
     #[test]
     fn a_cup_report_on_outlines_that_do_not_fit_its_views_is_refused() {
         let (_, sim) = phantom_case(1, 3).expect("the demo case");
@@ -490,6 +490,20 @@ mod tests {
             matches!(report(&empty), Err(ReconError::Input { ref field, .. }) if field == "observed[2]")
         );
         assert!(report(&sim.observed).is_ok());
+        // Nor does it take a resample count no spread can come from (it solved one for none).
+        for samples in [0, 1, 1001] {
+            let few = UncertaintyParams {
+                samples,
+                ..Default::default()
+            };
+            assert!(matches!(
+                cup_report(&rec, &sim.observed, &prm, Kernels::Cpu, &few),
+                Err(ReconError::Param {
+                    field: "uncertainty samples",
+                    ..
+                })
+            ));
+        }
     }
 
     /// Coincident points count once, and a closed outline's repeated first point is dropped;

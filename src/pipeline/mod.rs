@@ -44,7 +44,9 @@ pub use params::{
 };
 pub use restart::outline_distance_px;
 pub use rim_pairs::RimPairs;
-pub use uncertainty::{cup_report, CupReport, SizeProbability, UncertaintyParams};
+pub use uncertainty::{
+    cup_report, CupReport, SizeProbability, UncertaintyParams, MAX_RESAMPLES, MIN_RESAMPLES,
+};
 
 use crate::contours::ModelContour;
 use crate::correspond::srvf::SrvfError;

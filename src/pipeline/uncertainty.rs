@@ -42,7 +42,49 @@ pub struct UncertaintyParams {
     pub max_iterations: usize,
 }
 
+/// The fewest resamples a cup report takes: one has no spread.
+pub const MIN_RESAMPLES: usize = 2;
+
+/// The most resamples a cup report takes.
+pub const MAX_RESAMPLES: usize = 1000;
+
 impl UncertaintyParams {
+    /// Whether a cup report can run with these: `MIN_RESAMPLES` to `MAX_RESAMPLES` resamples
+    /// (the command line's and Python's range; `cup_report` solved one when asked for none), a
+    /// noise SD (when given) and a model SD finite and >= 0, at least one iteration.
+    pub fn validate(&self) -> Result<(), ReconError> {
+        let bad = |field, value: String, expected| ReconError::Param {
+            field,
+            value: crate::io::shown(&value),
+            expected,
+        };
+        if !(MIN_RESAMPLES..=MAX_RESAMPLES).contains(&self.samples) {
+            return Err(bad(
+                "uncertainty samples",
+                self.samples.to_string(),
+                "2 to 1000 (one resample has no spread)",
+            ));
+        }
+        if let Some(n) = self.noise_px.filter(|n| !(n.is_finite() && *n >= 0.0)) {
+            return Err(bad(
+                "uncertainty noise_px",
+                n.to_string(),
+                "finite and >= 0",
+            ));
+        }
+        if !(self.model_sd_mm.is_finite() && self.model_sd_mm >= 0.0) {
+            return Err(bad(
+                "uncertainty model_sd_mm",
+                self.model_sd_mm.to_string(),
+                "a finite SD >= 0",
+            ));
+        }
+        if self.max_iterations == 0 {
+            return Err(bad("uncertainty max_iterations", "0".into(), "at least 1"));
+        }
+        Ok(())
+    }
+
     /// Gauss-Newton steps a resample's solve takes at most under `prm`: `max_iterations` within
     /// the reconstruction's own limit.
     pub fn resample_steps(&self, prm: &ReconParams) -> usize {
@@ -196,25 +238,12 @@ fn resampled_diameters(
     up: &UncertaintyParams,
     cup: CupEstimator,
 ) -> Result<(Vec<f64>, f64), ReconError> {
-    if let Some(n) = up.noise_px.filter(|n| !(n.is_finite() && *n >= 0.0)) {
-        return Err(ReconError::Param {
-            field: "uncertainty noise_px",
-            value: crate::io::shown(&n.to_string()),
-            expected: "finite and >= 0",
-        });
-    }
+    up.validate()?;
     // The annotation's noise, read from the fit: its outlines' distance from the annotations.
     // (The correspondences' reprojection RMS also holds how they slide along the outline,
     // which depends on where an annotation starts: the example case's 1.7 px become about 5
     // when its annotations start a third of the way round.)
     let noise_px = up.noise_px.unwrap_or(rec.log.outline_px).max(0.5);
-    if up.max_iterations == 0 {
-        return Err(ReconError::Param {
-            field: "uncertainty max_iterations",
-            value: "0".into(),
-            expected: "at least 1",
-        });
-    }
     let mut one_round = ctx.prm.clone();
     one_round.deformation.correspondence_updates = 1;
     let mut lm = ctx.prm.lm.clone();
@@ -232,7 +261,7 @@ fn resampled_diameters(
     })?;
     // Every resample's draws first, in the order they were always drawn (its contour jitter,
     // then the seed of its re-weighting), so that the resamples can be solved side by side.
-    let draws: Vec<(Vec<Vec<Curve>>, u64)> = (0..up.samples.max(1))
+    let draws: Vec<(Vec<Vec<Curve>>, u64)> = (0..up.samples)
         .map(|_| {
             let jittered: Vec<Vec<Curve>> = ctx
                 .observed
@@ -294,13 +323,7 @@ pub fn cup_report(
     up: &UncertaintyParams,
 ) -> Result<CupReport, ReconError> {
     super::check_views(&rec.cameras, observed)?;
-    if !(up.model_sd_mm.is_finite() && up.model_sd_mm >= 0.0) {
-        return Err(ReconError::Param {
-            field: "uncertainty model_sd_mm",
-            value: crate::io::shown(&up.model_sd_mm.to_string()),
-            expected: "a finite SD >= 0",
-        });
-    }
+    up.validate()?;
     // The resamples are solved as the result was: from the outlines entered where `reconstruct`
     // enters them, with the fallback's settings when one gave it.
     let observed = &super::entered(observed)[..];

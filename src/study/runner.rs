@@ -90,6 +90,9 @@ impl StudyConfig {
         if n == 0 || i >= n {
             return Err(bad("shard", format!("{i}/{n}"), "I/N with 0 <= I < N"));
         }
+        if let Some(u) = &self.uncertainty {
+            u.validate()?;
+        }
         // The methods' settings are these with stages turned off: checking these covers them.
         self.params.validate()?;
         Template::cap(&self.template).map_err(crate::pipeline::ReconError::from)?;
@@ -469,6 +472,15 @@ mod tests {
         let mut params = StudyConfig::default();
         params.params.placement.limb_scale_mm = f64::NAN;
         assert_eq!(field(params), "params");
+        // One resample has no spread; the command line and Python take 2 to 1000.
+        let one_resample = StudyConfig {
+            uncertainty: Some(UncertaintyParams {
+                samples: 1,
+                ..Default::default()
+            }),
+            ..Default::default()
+        };
+        assert_eq!(field(one_resample), "params");
         // The runner refuses it too, before any run (no tick).
         let truth = crate::sim::phantom(&Default::default()).mesh;
         let bad = StudyConfig {

@@ -3,6 +3,7 @@
 
 use acetab::engine::gpu::GpuDevice;
 use acetab::engine::BackendChoice;
+use acetab::pipeline::{MAX_RESAMPLES, MIN_RESAMPLES};
 use acetab::study::summarize;
 use std::path::Path;
 
@@ -326,9 +327,9 @@ pub fn methods(s: &str) -> Result<Methods, String> {
 /// `--uncertainty-samples` of a study: 0 (off) or 2 to 1000 (one resample has no spread).
 pub fn study_samples(s: &str) -> Result<u64, String> {
     match s.trim().parse::<u64>() {
-        Ok(n) if n == 0 || (2..=1000).contains(&n) => Ok(n),
+        Ok(n) if n == 0 || (MIN_RESAMPLES as u64..=MAX_RESAMPLES as u64).contains(&n) => Ok(n),
         _ => Err(format!(
-            "{s:?}: expected 0 (off) or 2 to 1000 (one resample has no spread)"
+            "{s:?}: expected 0 (off) or {MIN_RESAMPLES} to {MAX_RESAMPLES} (one resample has no spread)"
         )),
     }
 }

@@ -5,8 +5,8 @@ use acetab::case::{run_case_calibrated, CalibrationChoice};
 use acetab::contours::ContourSource;
 use acetab::correspond::Method;
 use acetab::engine::{BackendChoice, Kernels};
-use acetab::pipeline::UncertaintyParams;
 use acetab::pipeline::{CupParams, ReconParams};
+use acetab::pipeline::{UncertaintyParams, MAX_RESAMPLES, MIN_RESAMPLES};
 use acetab::report::CupCatalogue;
 use std::path::PathBuf;
 
@@ -40,7 +40,7 @@ pub struct ReconstructArgs {
     pub pose_prior: Option<acetab::solve::PoseParams>,
     /// Resamples for the cup size's uncertainty (contour noise + bootstrap weights), 2 to 1000
     /// (one resample has no spread).
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(2..=1000))]
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(MIN_RESAMPLES as u64..=MAX_RESAMPLES as u64))]
     pub uncertainty_samples: u64,
     /// Cup calibration (JSON from `acetab calibrate`: the correction of the fitted cup, its
     /// bias and shrink, and the model-error SD added to the resamples' spread), or "none" (the
