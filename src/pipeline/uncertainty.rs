@@ -22,7 +22,7 @@ use serde::Serialize;
 /// Parameters, with defaults.
 #[derive(Clone, Debug)]
 pub struct UncertaintyParams {
-    /// Resamples (default 16).
+    /// Resamples, `MIN_RESAMPLES` to `MAX_RESAMPLES` (default 16; see `validate`).
     pub samples: usize,
     /// Seed of the resampling (reported).
     pub seed: u64,
