@@ -3,19 +3,16 @@
 //! file, the field and the value.
 
 use super::views_agree::{outline_centre_mismatch, outline_span_mismatch, Views};
-use crate::geom::{
-    convex_hull_area, longest_segment, signed_area, stray_point, widest_extent, winding_number,
-    Curve,
-};
+use crate::geom::{longest_segment, stray_point, widest_extent, Curve};
 use crate::pipeline::{
-    Input, ABSURD, IMAGE_MARGIN, MAX_OUTLINE_POINTS, MIN_OUTLINE_EXTENT_PX, MIN_OUTLINE_POINTS,
-    START_RADIUS_MM,
+    fills_hull, hull_fill, turns_round_centroid, view_directions, Input, ABSURD, IMAGE_MARGIN,
+    MAX_OUTLINE_POINTS, MIN_OUTLINE_EXTENT_PX, MIN_OUTLINE_POINTS, START_RADIUS_MM,
 };
 use crate::template::{Placement, Template};
 use crate::views::{
     spread_too_narrow, Camera, Intrinsics, MAX_VIEWS, MIN_VIEWS, MIN_VIEW_SPREAD_DEG,
 };
-use nalgebra::{Matrix3, Point2, Point3, Rotation3, Unit, Vector2, Vector3};
+use nalgebra::{Matrix3, Point2, Point3, Rotation3, Unit, Vector3};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -677,9 +674,7 @@ impl CaseFile {
                 // A closed outline traced round more than once (two passes of the annotation
                 // joined) goes twice round its own centre; a noisy or notched one, once.
                 let turns = if closed {
-                    let centre =
-                        pts.iter().map(|p| p.coords).sum::<Vector2<f64>>() / distinct as f64;
-                    winding_number(&pts, Point2::from(centre)).abs()
+                    turns_round_centroid(&pts)
                 } else {
                     1
                 };
@@ -712,9 +707,8 @@ impl CaseFile {
                 // nothing, and an outline that crosses itself (parts joined in the wrong order)
                 // little, its loops' areas cancelling.
                 if closed {
-                    let area = signed_area(&pts);
-                    let (inside, hull) = (area.abs(), convex_hull_area(&pts));
-                    if !(hull > 0.0 && inside >= MIN_HULL_FILL * hull) {
+                    let (inside, hull) = hull_fill(&pts);
+                    if !fills_hull(inside, hull) {
                         return Err(field_err(
                             path,
                             cf("points"),
@@ -794,12 +788,7 @@ impl CaseFile {
         }
         // Depth comes from views that look along different directions: views that all look
         // the same way give the same outline, and the cap's distance along the ray is free.
-        let directions: Vec<Vector3<f64>> = case
-            .cameras
-            .iter()
-            .map(|c| c.r.inverse() * Vector3::z())
-            .collect();
-        if let Some(widest) = spread_too_narrow(&directions) {
+        if let Some(widest) = spread_too_narrow(&view_directions(&case.cameras)) {
             return Err(field_err(
                 path,
                 "views[*].r".to_string(),

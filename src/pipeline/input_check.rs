@@ -83,11 +83,7 @@ pub fn check_views(cameras: &[Camera], observed: &[Vec<Curve>]) -> Result<(), Re
     for (i, cam) in cameras.iter().enumerate() {
         check_camera(i, cam)?;
     }
-    let directions: Vec<Vector3<f64>> = cameras
-        .iter()
-        .map(|c| c.r.inverse() * Vector3::z())
-        .collect();
-    if let Some(widest) = spread_too_narrow(&directions) {
+    if let Some(widest) = spread_too_narrow(&view_directions(cameras)) {
         return Err(fault(
             "cameras[*].r".into(),
             format!("{} views, at most {widest:.2} degrees apart", cameras.len()),
@@ -218,10 +214,7 @@ fn check_outline(field: &str, c: &Curve, cam: &Camera) -> Result<(), ReconError>
         ));
     }
     if c.closed {
-        let centre = Point2::from(
-            pts.iter().map(|p| p.coords).sum::<nalgebra::Vector2<f64>>() / pts.len() as f64,
-        );
-        let turns = winding_number(&pts, centre).abs();
+        let turns = turns_round_centroid(&pts);
         if turns > 1 {
             return Err(fault(
                 format!("{field}.points"),
@@ -232,8 +225,8 @@ fn check_outline(field: &str, c: &Curve, cam: &Camera) -> Result<(), ReconError>
                 "a closed outline that goes once round the rim",
             ));
         }
-        let (inside, hull) = (signed_area(&pts).abs(), convex_hull_area(&pts));
-        if !(hull > 0.0 && inside >= MIN_HULL_FILL * hull) {
+        let (inside, hull) = hull_fill(&pts);
+        if !fills_hull(inside, hull) {
             return Err(fault(
                 format!("{field}.points"),
                 format!(
@@ -249,6 +242,36 @@ fn check_outline(field: &str, c: &Curve, cam: &Camera) -> Result<(), ReconError>
         }
     }
     Ok(())
+}
+
+/// How many times a closed outline goes round its points' centroid (a rim once; two passes of
+/// an annotation joined, twice). The case-file reader asks it too.
+pub fn turns_round_centroid(pts: &[Point2<f64>]) -> i64 {
+    if pts.is_empty() {
+        return 0;
+    }
+    let centre = pts.iter().map(|p| p.coords).sum::<nalgebra::Vector2<f64>>() / pts.len() as f64;
+    winding_number(pts, Point2::from(centre)).abs()
+}
+
+/// The area a closed outline encloses and its convex hull's, px^2. The case-file reader asks it
+/// too.
+pub fn hull_fill(pts: &[Point2<f64>]) -> (f64, f64) {
+    (signed_area(pts).abs(), convex_hull_area(pts))
+}
+
+/// Whether an outline enclosing `inside` of its hull's `hull` fills `MIN_HULL_FILL` of it.
+pub fn fills_hull(inside: f64, hull: f64) -> bool {
+    hull > 0.0 && inside >= MIN_HULL_FILL * hull
+}
+
+/// The viewing direction of each camera (its optical axis in the world frame), as
+/// `spread_too_narrow` takes them. The case-file reader asks it too.
+pub fn view_directions(cameras: &[Camera]) -> Vec<Vector3<f64>> {
+    cameras
+        .iter()
+        .map(|c| c.r.inverse() * Vector3::z())
+        .collect()
 }
 
 /// The points with each run of coincident ones counted once (and, on a closed outline, a last
