@@ -2149,9 +2149,9 @@ fn prior_build_makes_a_prior_a_study_leaves_its_subject_out_of_and_bad_input_is_
 
 #[test]
 fn a_study_records_its_correspondence_schedule_and_runs_it() {
-    // --correspondence-updates and --srvf-samples reach the method: the rounds show in
-    // runs.csv and both settings in summary.json; the defaults are recorded the same way, as
-    // are the SRVF alignments' alternations and step neighbourhood.
+    // --correspondence-updates, --settled-round-mm and --srvf-samples reach the method: the
+    // rounds show in runs.csv and the settings in summary.json; the defaults are recorded the
+    // same way, as are the SRVF alignments' alternations and step neighbourhood.
     let dir = tmp("schedule");
     let srvf_rows = |out: &Path| -> Vec<acetab::study::Row> {
         acetab::study::read_csv(&out.join("runs.csv"))
@@ -2169,18 +2169,29 @@ fn a_study_records_its_correspondence_schedule_and_runs_it() {
     let default = dir.join("default");
     let s = phantom_study(&[], &default);
     assert_eq!(s["study"]["correspondence_updates"], 3, "{}", s["study"]);
+    assert_eq!(s["study"]["settled_round_mm"], 1.0);
     assert_eq!(s["study"]["srvf_samples"], 200);
     assert_eq!(s["study"]["srvf_alternations"], 3);
     assert_eq!(s["study"]["srvf_neighbourhood"], 5);
     let five = dir.join("five");
     let s = phantom_study(
-        &["--correspondence-updates", "5", "--srvf-samples", "100"],
+        &[
+            "--correspondence-updates",
+            "5",
+            "--settled-round-mm",
+            "0",
+            "--srvf-samples",
+            "100",
+        ],
         &five,
     );
     assert_eq!(s["study"]["correspondence_updates"], 5, "{}", s["study"]);
+    assert_eq!(s["study"]["settled_round_mm"], 0.0);
     assert_eq!(s["study"]["srvf_samples"], 100);
     let (r3, r5) = (rounds(&default), rounds(&five));
-    assert!(!r3.is_empty() && r3.iter().all(|&r| r == 3), "{r3:?}");
+    // By default the phantom's surface settles in its second round (it moves 1 mm and more
+    // only on the widest acetabula), so stage B ends there; with the rule off every round runs.
+    assert!(!r3.is_empty() && r3.iter().all(|&r| r == 2), "{r3:?}");
     // The companion: the five-round study is told apart from the default by the same column.
     assert!(!r5.is_empty() && r5.iter().all(|&r| r == 5), "{r5:?}");
     // One alternation and the 7-step neighbourhood reach every alignment: recorded, and the

@@ -165,6 +165,15 @@ pub struct DeformationParams {
     /// For SRVF: correspondence computations (default 3; each followed by GN until the
     /// deformation settles, the graph rebuilt on the latest shape).
     pub correspondence_updates: usize,
+    /// For SRVF without pose refinement: stage B ends early after a round, from the second on,
+    /// that moved the surface by less than this RMS over its vertices, mm (default 1.0; 0:
+    /// every round of `correspondence_updates` runs). The paper recomputes the correspondences "1-3 times":
+    /// a surface the second round hardly moved has settled on its pairs, and a third round
+    /// there follows the annotation's noise more than the outline (the widest acetabulum's
+    /// second rounds move 1.5-1.7 mm and keep their third; most others' 0.4-0.9 mm).
+    /// Measured on the 47 acetabula (docs/population.md, "Stage B's rounds ended where they
+    /// settle"; 0.8-1.3 mm read alike).
+    pub settled_round_mm: f64,
     /// For SRVF: each correspondence round's solve stops when an accepted step lowers the
     /// energy by less than this fraction (default 1e-3; `lm.rel_tol`, 1e-5, stays the stop of
     /// every other solve). The 47-mesh sweep's runs end after 112 solver iterations on average
@@ -207,6 +216,7 @@ impl Default for DeformationParams {
         DeformationParams {
             graph: GraphParams::default(),
             correspondence_updates: 3,
+            settled_round_mm: 1.0,
             round_rel_tol: 1e-3,
             icp_iterations: 20,
             icp_tol_mm: 0.02,
@@ -380,6 +390,10 @@ impl ReconParams {
             ("placement.limb_scale_mm", self.placement.limb_scale_mm),
             ("lm.rel_tol", self.lm.rel_tol),
             ("deformation.round_rel_tol", self.deformation.round_rel_tol),
+            (
+                "deformation.settled_round_mm",
+                self.deformation.settled_round_mm,
+            ),
             ("correspond.srvf.anchor", self.correspond.srvf.anchor),
         ];
         for (field, v) in non_negative {

@@ -131,6 +131,11 @@ pub struct SimulateArgs {
     /// (default 3, the paper's 1-3; see docs/population.md on what more rounds do).
     #[arg(long, default_value_t = DeformationParams::default().correspondence_updates, value_parser = count_in(1, 50))]
     pub correspondence_updates: usize,
+    /// SRVF's stage B ends after a round, from the second on, that moved the surface by less
+    /// than this RMS, mm, unless the poses are refined (default 1.0; 0 runs every
+    /// --correspondence-updates round).
+    #[arg(long, default_value_t = DeformationParams::default().settled_round_mm)]
+    pub settled_round_mm: f64,
     /// Arc-length samples per curve of the deformation's SRVF alignments (default 200; stage A
     /// takes at most 100).
     #[arg(long, default_value_t = acetab::correspond::CorrespondParams::default().srvf.samples, value_parser = count_in(acetab::correspond::srvf::MIN_SAMPLES, 2000))]
@@ -220,6 +225,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         rim_pairs,
         coarse_nodes,
         correspondence_updates,
+        settled_round_mm,
         srvf_samples,
         srvf_alternations,
         srvf_neighbourhood,
@@ -337,6 +343,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
             deformation: DeformationParams {
                 coarse_graph_nodes: coarse_nodes,
                 correspondence_updates,
+                settled_round_mm,
                 shape_prior,
                 ..Default::default()
             },
@@ -472,6 +479,7 @@ impl Study<'_> {
             "cup_estimator": cfg.params.cup.estimator.name(),
             "coarse_nodes": cfg.params.deformation.coarse_graph_nodes,
             "correspondence_updates": cfg.params.deformation.correspondence_updates,
+            "settled_round_mm": cfg.params.deformation.settled_round_mm,
             "srvf_samples": cfg.params.correspond.srvf.samples,
             "srvf_alternations": cfg.params.correspond.srvf.max_alternations,
             "srvf_neighbourhood": cfg.params.correspond.srvf.neighbourhood,
