@@ -225,7 +225,8 @@ pub(super) struct Deformation {
     pub(super) state: EdState,
     pub(super) converged: bool,
     /// Stage B stopped before its last round: an ICP iteration moved the surface by less than
-    /// `icp_tol_mm`, or an SRVF round from the second on by less than `settled_round_mm`.
+    /// `icp_tol_mm`, or an SRVF round from the second on by less than `settled_round_mm` (see
+    /// `settles`).
     pub(super) settled: bool,
     pub(super) rounds: usize,
     pub(super) gn_iterations: usize,
@@ -367,8 +368,9 @@ mod tests {
     }
 
     /// SRVF's stage B ends after a round from the second on that moved the surface less than
-    /// `settled_round_mm`, never after the first, not where the poses are refined, and not at all
-    /// at 0; the baselines stop on their own tolerance. Companion: a round that moved more, or the rule turned off, goes on.
+    /// `settled_round_mm`, never after the first, not where the poses are refined, and not at
+    /// all at 0; the baselines stop on their own tolerance. Companion: a round that moved more,
+    /// or the rule turned off, goes on.
     #[test]
     fn srvf_rounds_end_where_the_surface_settled() {
         let mut prm = ReconParams::default();

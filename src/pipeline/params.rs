@@ -167,12 +167,12 @@ pub struct DeformationParams {
     pub correspondence_updates: usize,
     /// For SRVF without pose refinement: stage B ends early after a round, from the second on,
     /// that moved the surface by less than this RMS over its vertices, mm (default 1.0; 0:
-    /// every round of `correspondence_updates` runs). The paper recomputes the correspondences "1-3 times":
-    /// a surface the second round hardly moved has settled on its pairs, and a third round
-    /// there follows the annotation's noise more than the outline (the widest acetabulum's
-    /// second rounds move 1.5-1.7 mm and keep their third; most others' 0.4-0.9 mm).
-    /// Measured on the 47 acetabula (docs/population.md, "Stage B's rounds ended where they
-    /// settle"; 0.8-1.3 mm read alike).
+    /// every round of `correspondence_updates` runs). The paper recomputes the correspondences
+    /// "1-3 times": a surface the second round hardly moved has settled on its pairs, and a
+    /// third round there follows the annotation's noise more than the outline (the widest
+    /// acetabulum's second rounds move 1.5-1.7 mm and keep their third; most others' 0.4-0.9
+    /// mm). Measured on the 47 acetabula (docs/population.md, "Stage B's rounds ended where
+    /// they settle"; 0.8-1.3 mm read alike).
     pub settled_round_mm: f64,
     /// For SRVF: each correspondence round's solve stops when an accepted step lowers the
     /// energy by less than this fraction (default 1e-3; `lm.rel_tol`, 1e-5, stays the stop of
@@ -611,6 +611,10 @@ mod tests {
             (
                 "deformation.round_rel_tol",
                 Box::new(|p| p.deformation.round_rel_tol = f64::NAN),
+            ),
+            (
+                "deformation.settled_round_mm",
+                Box::new(|p| p.deformation.settled_round_mm = -1.0),
             ),
             ("cup.bias_mm", Box::new(|p| p.cup.bias_mm = f64::NAN)),
             ("cup.bias_mm", Box::new(|p| p.cup.bias_mm = 12.0)),
