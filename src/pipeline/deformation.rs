@@ -369,12 +369,13 @@ mod tests {
 
     /// SRVF's stage B ends after a round from the second on that moved the surface less than
     /// `settled_round_mm`, never after the first, not where the poses are refined, and not at
-    /// all at 0; the baselines stop on their own tolerance. Companion: a round that moved more,
+    /// all at 0, the default; the baselines stop on their own tolerance. Companion: a round that moved more,
     /// or the rule turned off, goes on.
     #[test]
     fn srvf_rounds_end_where_the_surface_settled() {
         let mut prm = ReconParams::default();
-        assert_eq!(prm.deformation.settled_round_mm, 1.0);
+        assert!(!settles(&prm, 2, 0.0), "off by default");
+        prm.deformation.settled_round_mm = 1.0;
         assert!(settles(&prm, 2, 0.7));
         assert!(settles(&prm, 3, 0.99));
         assert!(!settles(&prm, 1, 0.01), "the first round always goes on");

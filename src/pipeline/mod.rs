@@ -813,9 +813,8 @@ mod tests {
         assert!(rec.log.outline_px < 3.0, "{}", rec.log.outline_px);
         assert!(!rec.log.pose_corrections.is_empty());
         // The phantom's cup is 1.1-1.5 mm small with exact poses (`acetab demo`); the poses
-        // refined from 9 mm off leave this one 2.46 mm small (2.60 if stage B's rounds ended
-        // where the surface settles, as they do without pose refinement), the refused result
-        // 3.66 mm large.
+        // refined from 9 mm off leave this one 2.46 mm small (2.60 with `settled_round_mm` 1.0
+        // applied to refined poses as well, which it is not), the refused result 3.66 mm large.
         assert!(
             (rec.sphere.diameter() - truth).abs() < 2.5,
             "{} against {truth}",

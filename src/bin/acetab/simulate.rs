@@ -132,8 +132,9 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = DeformationParams::default().correspondence_updates, value_parser = count_in(1, 50))]
     pub correspondence_updates: usize,
     /// SRVF's stage B ends after a round, from the second on, that moved the surface by less
-    /// than this RMS, mm, unless the poses are refined (default 1.0; 0 runs every
-    /// --correspondence-updates round).
+    /// than this RMS, mm, unless the poses are refined (default 0: every
+    /// --correspondence-updates round runs; docs/population.md, "Stage B's rounds ended where
+    /// they settle", measured 1.0).
     #[arg(long, default_value_t = DeformationParams::default().settled_round_mm)]
     pub settled_round_mm: f64,
     /// Arc-length samples per curve of the deformation's SRVF alignments (default 200; stage A
