@@ -300,7 +300,8 @@ impl Deformation {
 /// `settled_round_mm` (the first round starts from stage A's rigid cap and always moves it),
 /// where the views' poses are not refined: with pose refinement each round refines the views
 /// too, and ending it early left them less refined (the phantom, 3 seeds x levels 1 and 3,
-/// poses refined, exact or one view 3 mm off: the cup 0.02-0.40 mm farther off in 11 of 12 runs).
+/// poses refined, exact or one view 3 mm off: the cup 0.02-0.40 mm farther off in 11 of 12
+/// runs at 1.0 mm).
 fn settles(prm: &ReconParams, rounds: usize, moved: f64) -> bool {
     match prm.method {
         Method::Srvf => {
@@ -369,8 +370,8 @@ mod tests {
 
     /// SRVF's stage B ends after a round from the second on that moved the surface less than
     /// `settled_round_mm`, never after the first, not where the poses are refined, and not at
-    /// all at 0, the default; the baselines stop on their own tolerance. Companion: a round that moved more,
-    /// or the rule turned off, goes on.
+    /// all at 0, the default; the baselines stop on their own tolerance. Companion: a round
+    /// that moved more, or the rule turned off, goes on.
     #[test]
     fn srvf_rounds_end_where_the_surface_settled() {
         let mut prm = ReconParams::default();
