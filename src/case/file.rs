@@ -5,12 +5,12 @@
 use super::views_agree::{outline_centre_mismatch, outline_span_mismatch, Views};
 use crate::geom::{longest_segment, stray_point, widest_extent, Curve};
 use crate::pipeline::{
-    fills_hull, hull_fill, turns_round_centroid, view_directions, Input, ABSURD, IMAGE_MARGIN,
-    MAX_OUTLINE_POINTS, MIN_OUTLINE_EXTENT_PX, MIN_OUTLINE_POINTS, START_RADIUS_MM,
+    fills_hull, hull_fill, turns_round_centroid, Input, ABSURD, IMAGE_MARGIN, MAX_OUTLINE_POINTS,
+    MIN_OUTLINE_EXTENT_PX, MIN_OUTLINE_POINTS, START_RADIUS_MM,
 };
 use crate::template::{Placement, Template};
 use crate::views::{
-    spread_too_narrow, Camera, Intrinsics, MAX_VIEWS, MIN_VIEWS, MIN_VIEW_SPREAD_DEG,
+    cameras_too_narrow, Camera, Intrinsics, MAX_VIEWS, MIN_VIEWS, MIN_VIEW_SPREAD_DEG,
 };
 use nalgebra::{Matrix3, Point2, Point3, Rotation3, Unit, Vector3};
 use serde::{Deserialize, Serialize};
@@ -788,7 +788,7 @@ impl CaseFile {
         }
         // Depth comes from views that look along different directions: views that all look
         // the same way give the same outline, and the cap's distance along the ray is free.
-        if let Some(widest) = spread_too_narrow(&view_directions(&case.cameras)) {
+        if let Some(widest) = cameras_too_narrow(&case.cameras) {
             return Err(field_err(
                 path,
                 "views[*].r".to_string(),

@@ -7,8 +7,8 @@
 use super::{Input, ReconError};
 use crate::geom::{convex_hull_area, signed_area, winding_number, Curve};
 use crate::template::Placement;
-use crate::views::{spread_too_narrow, Camera, MAX_VIEWS, MIN_VIEWS, MIN_VIEW_SPREAD_DEG};
-use nalgebra::{Matrix3, Point2, Vector3};
+use crate::views::{cameras_too_narrow, Camera, MAX_VIEWS, MIN_VIEWS, MIN_VIEW_SPREAD_DEG};
+use nalgebra::{Matrix3, Point2};
 
 /// A closed outline encloses at least this share of its convex hull. The outlines simulated from
 /// the 47 shared acetabula and 31 more mixed from the pelvis atlas (three views, 2 px noise, five
@@ -83,7 +83,7 @@ pub fn check_views(cameras: &[Camera], observed: &[Vec<Curve>]) -> Result<(), Re
     for (i, cam) in cameras.iter().enumerate() {
         check_camera(i, cam)?;
     }
-    if let Some(widest) = spread_too_narrow(&view_directions(cameras)) {
+    if let Some(widest) = cameras_too_narrow(cameras) {
         return Err(fault(
             "cameras[*].r".into(),
             format!("{} views, at most {widest:.2} degrees apart", cameras.len()),
@@ -263,15 +263,6 @@ pub fn hull_fill(pts: &[Point2<f64>]) -> (f64, f64) {
 /// Whether an outline enclosing `inside` of its hull's `hull` fills `MIN_HULL_FILL` of it.
 pub fn fills_hull(inside: f64, hull: f64) -> bool {
     hull > 0.0 && inside >= MIN_HULL_FILL * hull
-}
-
-/// The viewing direction of each camera (its optical axis in the world frame), as
-/// `spread_too_narrow` takes them. The case-file reader asks it too.
-pub fn view_directions(cameras: &[Camera]) -> Vec<Vector3<f64>> {
-    cameras
-        .iter()
-        .map(|c| c.r.inverse() * Vector3::z())
-        .collect()
 }
 
 /// The points with each run of coincident ones counted once (and, on a closed outline, a last
@@ -477,7 +468,9 @@ mod tests {
             ),
             (
                 "init.axis",
-                Box::new(|s| s.init.axis = Unit::new_unchecked(Vector3::new(f64::NAN, 0.0, 0.0))),
+                Box::new(|s| {
+                    s.init.axis = Unit::new_unchecked(nalgebra::Vector3::new(f64::NAN, 0.0, 0.0))
+                }),
             ),
         ];
         for (field, edit) in &cases {

@@ -93,6 +93,11 @@ impl Camera {
         Point3::from(-(self.r.inverse() * self.t))
     }
 
+    /// The direction the view looks along in the world (its optical axis).
+    pub fn view_direction(&self) -> Vector3<f64> {
+        self.r.inverse() * Vector3::z()
+    }
+
     /// The outline of a sphere (centre, radius, mm) in this view, `n` points around it: the
     /// projection of the circle where the rays from the source graze the sphere. Empty when the
     /// source is inside the sphere or a point cannot be projected.

@@ -30,6 +30,12 @@ pub fn spread_too_narrow(directions: &[Vector3<f64>]) -> Option<f64> {
     (widest < MIN_VIEW_SPREAD_DEG - 1e-6).then_some(widest)
 }
 
+/// `spread_too_narrow` of the views' directions (`Camera::view_direction`).
+pub fn cameras_too_narrow(cameras: &[Camera]) -> Option<f64> {
+    let directions: Vec<Vector3<f64>> = cameras.iter().map(Camera::view_direction).collect();
+    spread_too_narrow(&directions)
+}
+
 /// The largest angle, degrees, between any two of `directions` (0 for fewer than two).
 fn widest_spread_deg(directions: &[Vector3<f64>]) -> f64 {
     directions
