@@ -3,10 +3,12 @@
 //! file, the field and the value.
 
 use super::views_agree::{outline_centre_mismatch, outline_span_mismatch, Views};
-use crate::geom::{longest_segment, stray_point, widest_extent, Curve};
+use crate::geom::{
+    hull_fill, longest_segment, stray_point, turns_round_centroid, widest_extent, Curve,
+};
 use crate::pipeline::{
-    fills_hull, hull_fill, turns_round_centroid, Input, ABSURD, IMAGE_MARGIN, MAX_OUTLINE_POINTS,
-    MIN_OUTLINE_EXTENT_PX, MIN_OUTLINE_POINTS, START_RADIUS_MM,
+    fills_hull, Input, ABSURD, IMAGE_MARGIN, MAX_OUTLINE_POINTS, MIN_OUTLINE_EXTENT_PX,
+    MIN_OUTLINE_POINTS, START_RADIUS_MM,
 };
 use crate::template::{Placement, Template};
 use crate::views::{

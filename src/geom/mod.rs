@@ -14,9 +14,9 @@ mod stray;
 pub use knn::Knn3;
 pub use mesh::{Mesh, MeshError};
 pub use polyline::{
-    convex_hull_area, distance_to_polyline, fixed_start, longest_segment, polyline_length,
-    resample_closed, resample_open, signed_area, widest_extent, winding_number, ClosedPolyline,
-    Curve,
+    convex_hull_area, distance_to_polyline, fixed_start, hull_fill, longest_segment,
+    polyline_length, resample_closed, resample_open, signed_area, turns_round_centroid,
+    widest_extent, winding_number, ClosedPolyline, Curve,
 };
 pub use pool::{par_map, pool_map};
 pub use segments::Segments;

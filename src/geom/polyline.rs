@@ -236,6 +236,22 @@ pub fn convex_hull_area(p: &[Point2<f64>]) -> f64 {
     signed_area(&hull).abs()
 }
 
+/// How many times a closed outline goes round its points' centroid, either way: a rim once, two
+/// passes of an annotation joined twice; 0 for no points.
+pub fn turns_round_centroid(pts: &[Point2<f64>]) -> i64 {
+    if pts.is_empty() {
+        return 0;
+    }
+    let centre = pts.iter().map(|p| p.coords).sum::<nalgebra::Vector2<f64>>() / pts.len() as f64;
+    winding_number(pts, Point2::from(centre)).abs()
+}
+
+/// The area a closed outline encloses and its convex hull's, px^2: nearly equal for a rim, the
+/// first far smaller for points on a line or an outline that crosses itself.
+pub fn hull_fill(pts: &[Point2<f64>]) -> (f64, f64) {
+    (signed_area(pts).abs(), convex_hull_area(pts))
+}
+
 /// The widest extent of the points `p`: the largest of their widths across 72 directions 2.5
 /// degrees apart (the diameter of their convex hull to within 0.1 %), in one pass per direction;
 /// 0 for fewer than two points.
@@ -425,6 +441,37 @@ mod tests {
             .collect();
         assert_eq!(convex_hull_area(&line), 0.0);
         assert_eq!(convex_hull_area(&l[..2]), 0.0);
+    }
+
+    /// A rim traced once goes once round its centroid, either way, and encloses nearly all of
+    /// its hull. Companions: the same rim traced twice goes twice round; a figure eight (two
+    /// loops that cancel) encloses almost none of its hull; no points, no turns.
+    #[test]
+    fn a_rim_goes_once_round_and_fills_its_hull() {
+        let rim = |turns: f64, n: usize| -> Vec<Point2<f64>> {
+            (0..n)
+                .map(|i| {
+                    let t = turns * std::f64::consts::TAU * i as f64 / n as f64;
+                    Point2::new(200.0 + 40.0 * t.cos(), 150.0 + 30.0 * t.sin())
+                })
+                .collect()
+        };
+        let once = rim(1.0, 90);
+        assert_eq!(turns_round_centroid(&once), 1);
+        let backwards: Vec<Point2<f64>> = once.iter().rev().copied().collect();
+        assert_eq!(turns_round_centroid(&backwards), 1);
+        let (inside, hull) = hull_fill(&once);
+        assert!(inside > 0.99 * hull && inside <= hull, "{inside} of {hull}");
+        assert_eq!(turns_round_centroid(&rim(2.0, 180)), 2);
+        let eight: Vec<Point2<f64>> = (0..120)
+            .map(|i| {
+                let t = std::f64::consts::TAU * i as f64 / 120.0;
+                Point2::new(40.0 * t.sin(), 20.0 * (2.0 * t).sin())
+            })
+            .collect();
+        let (inside, hull) = hull_fill(&eight);
+        assert!(hull > 1000.0 && inside < 0.01 * hull, "{inside} of {hull}");
+        assert_eq!(turns_round_centroid(&[]), 0);
     }
 
     /// A circle's widest extent is its diameter, a rectangle's its diagonal (within 0.1 %).

@@ -5,7 +5,7 @@
 //! stage error, a panic, or a number (docs/population.md, "The library's own input, checked").
 
 use super::{Input, ReconError};
-use crate::geom::{convex_hull_area, signed_area, winding_number, Curve};
+use crate::geom::{hull_fill, turns_round_centroid, Curve};
 use crate::template::Placement;
 use crate::views::{cameras_too_narrow, Camera, MAX_VIEWS, MIN_VIEWS, MIN_VIEW_SPREAD_DEG};
 use nalgebra::{Matrix3, Point2};
@@ -242,22 +242,6 @@ fn check_outline(field: &str, c: &Curve, cam: &Camera) -> Result<(), ReconError>
         }
     }
     Ok(())
-}
-
-/// How many times a closed outline goes round its points' centroid (a rim once; two passes of
-/// an annotation joined, twice). The case-file reader asks it too.
-pub fn turns_round_centroid(pts: &[Point2<f64>]) -> i64 {
-    if pts.is_empty() {
-        return 0;
-    }
-    let centre = pts.iter().map(|p| p.coords).sum::<nalgebra::Vector2<f64>>() / pts.len() as f64;
-    winding_number(pts, Point2::from(centre)).abs()
-}
-
-/// The area a closed outline encloses and its convex hull's, px^2. The case-file reader asks it
-/// too.
-pub fn hull_fill(pts: &[Point2<f64>]) -> (f64, f64) {
-    (signed_area(pts).abs(), convex_hull_area(pts))
 }
 
 /// Whether an outline enclosing `inside` of its hull's `hull` fills `MIN_HULL_FILL` of it.

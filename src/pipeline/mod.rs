@@ -34,8 +34,8 @@ pub use guards::{
     VIEW_NOTE_MIN_PX, VIEW_NOTE_RATIO,
 };
 pub use input_check::{
-    check_input, check_views, fills_hull, hull_fill, turns_round_centroid, ABSURD, IMAGE_MARGIN,
-    MAX_OUTLINE_POINTS, MIN_HULL_FILL, MIN_OUTLINE_EXTENT_PX, MIN_OUTLINE_POINTS, START_RADIUS_MM,
+    check_input, check_views, fills_hull, ABSURD, IMAGE_MARGIN, MAX_OUTLINE_POINTS, MIN_HULL_FILL,
+    MIN_OUTLINE_EXTENT_PX, MIN_OUTLINE_POINTS, START_RADIUS_MM,
 };
 pub use log::{OrientationTrial, RestartCause, SolveLog};
 pub use params::{
