@@ -758,7 +758,7 @@ pub fn merge_meta(dirs: &[PathBuf]) -> Result<serde_json::Value, StudyError> {
         let Some(study) = study_settings(&path)? else {
             continue;
         };
-        match shard_of(&path) {
+        match shard_of(&path)? {
             Some((i, n)) => shards.push((path.clone(), i, n)),
             // A merged folder (or one from before shards were recorded) holds shards of its
             // own: the set cannot be checked.
@@ -786,11 +786,34 @@ pub fn merge_meta(dirs: &[PathBuf]) -> Result<serde_json::Value, StudyError> {
     Ok(serde_json::Value::Object(meta))
 }
 
-/// The shard "I/N" a summary.json's study names, if it names one (and the file can be read).
-fn shard_of(path: &Path) -> Option<(usize, usize)> {
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).ok()?).ok()?;
-    let (i, n) = v.pointer("/study/shard")?.as_str()?.split_once('/')?;
-    Some((i.trim().parse().ok()?, n.trim().parse().ok()?))
+/// The shard "I/N" a summary.json's study names, if it names one (a merged folder names none);
+/// a `shard` that is not "I/N" with 0 <= I < N is an error naming the file and the value.
+fn shard_of(path: &Path) -> Result<Option<(usize, usize)>, StudyError> {
+    let text = std::fs::read_to_string(path).map_err(|source| StudyError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| StudyError::Parse {
+        path: path.to_path_buf(),
+        line: 1,
+        reason: format!("not JSON: {e}"),
+    })?;
+    let Some(shard) = v.pointer("/study/shard") else {
+        return Ok(None);
+    };
+    let parsed = shard.as_str().and_then(|s| {
+        let (i, n) = s.split_once('/')?;
+        let (i, n): (usize, usize) = (i.trim().parse().ok()?, n.trim().parse().ok()?);
+        (i < n).then_some((i, n))
+    });
+    match parsed {
+        Some(p) => Ok(Some(p)),
+        None => Err(StudyError::Parse {
+            path: path.to_path_buf(),
+            line: 1,
+            reason: format!("study.shard is {shard}: expected \"I/N\" with 0 <= I < N"),
+        }),
+    }
 }
 
 /// Shards named by the summaries (path, I, N) must share N and be the whole set 0..N: shards of
@@ -1015,6 +1038,17 @@ mod tests {
         // The companion: a shard of another study (seed 2) is refused, naming the field.
         let e = merge_meta(&[a, c]).unwrap_err().to_string();
         assert!(e.contains("\"seed\" is 2") && e.contains("has 1"), "{e}");
+        // A shard that is not "I/N" with I < N is refused, naming the file and the value, not
+        // taken for a merged folder (which would skip the set's check).
+        for (name, shard) in [("odd1", "2/2"), ("odd2", "half"), ("odd3", "1/0")] {
+            let d = write(name, 1, shard);
+            let e = merge_meta(&[d.clone()]).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("study.shard is \"{shard}\""))
+                    && e.contains(&d.join("summary.json").display().to_string()),
+                "{e}"
+            );
+        }
         std::fs::write(plain.join("summary.json"), "{").unwrap();
         assert!(merge_meta(&[plain])
             .unwrap_err()
