@@ -226,6 +226,17 @@ impl PriorFile {
             ));
         }
         for (i, m) in f.meshes.iter().enumerate() {
+            // A mesh without a name cannot be told apart, one without a subject never leaves
+            // with its subject (`--prior-leave-out` would keep it in its own prior).
+            for (key, value) in [("name", &m.name), ("subject", &m.subject)] {
+                if value.trim().is_empty() {
+                    return Err(field(
+                        format!("meshes[{i}].{key}"),
+                        format!("{value:?}"),
+                        format!("a mesh's {key}, not empty"),
+                    ));
+                }
+            }
             // One mesh twice would weigh twice in the mean and the modes (`prior build`
             // refuses two meshes of one name).
             if let Some(first) = f.meshes[..i].iter().position(|o| o.name == m.name) {
@@ -420,6 +431,19 @@ mod tests {
                 && e.contains("meshes[0] has it too"),
             "{e}"
         );
+        // A mesh with no name, or no subject to leave out with, is refused naming the field.
+        for blank in ["name", "subject"] {
+            let mut g = f.clone();
+            match blank {
+                "name" => g.meshes[2].name = " ".into(),
+                _ => g.meshes[2].subject = String::new(),
+            }
+            let e = PriorFile::parse(&g.to_json(), p).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("meshes[2].{blank}")) && e.contains("not empty"),
+                "{e}"
+            );
+        }
         let mut g = f.clone();
         g.modes = 12;
         let e = PriorFile::parse(&g.to_json(), p).unwrap_err().to_string();
