@@ -750,15 +750,15 @@ pub fn summarize(rows: &[Row]) -> Vec<Summary> {
 /// one study (so merged folders can be merged again). The result lists the folders under
 /// `merged`.
 pub fn merge_meta(dirs: &[PathBuf]) -> Result<serde_json::Value, StudyError> {
-    let mut common: Option<(PathBuf, serde_json::Map<String, serde_json::Value>)> = None;
+    let mut common: Option<(PathBuf, Settings)> = None;
     let mut shards: Vec<(PathBuf, usize, usize)> = Vec::new();
     let mut all_sharded = true;
     for d in dirs {
         let path = d.join("summary.json");
-        let Some(study) = study_settings(&path)? else {
+        let Some((study, shard)) = study_settings(&path)? else {
             continue;
         };
-        match shard_of(&path)? {
+        match shard_of(&path, shard.as_ref())? {
             Some((i, n)) => shards.push((path.clone(), i, n)),
             // A merged folder (or one from before shards were recorded) holds shards of its
             // own: the set cannot be checked.
@@ -786,19 +786,14 @@ pub fn merge_meta(dirs: &[PathBuf]) -> Result<serde_json::Value, StudyError> {
     Ok(serde_json::Value::Object(meta))
 }
 
-/// The shard "I/N" a summary.json's study names, if it names one (a merged folder names none);
-/// a `shard` that is not "I/N" with 0 <= I < N is an error naming the file and the value.
-fn shard_of(path: &Path) -> Result<Option<(usize, usize)>, StudyError> {
-    let text = std::fs::read_to_string(path).map_err(|source| StudyError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| StudyError::Parse {
-        path: path.to_path_buf(),
-        line: 1,
-        reason: format!("not JSON: {e}"),
-    })?;
-    let Some(shard) = v.pointer("/study/shard") else {
+/// The shard "I/N" a summary.json's study names (`shard`, its value in the file at `path`), if
+/// it names one (a merged folder names none); one that is not "I/N" with 0 <= I < N is an error
+/// naming the file and the value.
+fn shard_of(
+    path: &Path,
+    shard: Option<&serde_json::Value>,
+) -> Result<Option<(usize, usize)>, StudyError> {
+    let Some(shard) = shard else {
         return Ok(None);
     };
     let parsed = shard.as_str().and_then(|s| {
@@ -852,11 +847,14 @@ fn check_shard_set(shards: &[(PathBuf, usize, usize)]) -> Result<(), StudyError>
     })
 }
 
-/// The `study` object of a summary.json without the fields that differ between shards; None
-/// when the file does not exist.
+/// The settings of one study, as a summary.json's `study` object holds them.
+type Settings = serde_json::Map<String, serde_json::Value>;
+
+/// The `study` object of a summary.json without the fields that differ between shards, and its
+/// `shard` if it names one; None when the file does not exist.
 fn study_settings(
     path: &Path,
-) -> Result<Option<serde_json::Map<String, serde_json::Value>>, StudyError> {
+) -> Result<Option<(Settings, Option<serde_json::Value>)>, StudyError> {
     let text = match std::fs::read_to_string(path) {
         Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
@@ -878,20 +876,18 @@ fn study_settings(
         return Err(bad("no \"study\" object".into()));
     };
     let mut study = study.clone();
+    let shard = study.remove("shard");
     // What differs between shards of one study: the shard, its time, its command line and
     // engine counts.
-    for k in ["shard", "seconds", "merged", "provenance", "engine"] {
+    for k in ["seconds", "merged", "provenance", "engine"] {
         study.remove(k);
     }
-    Ok(Some(study))
+    Ok(Some((study, shard)))
 }
 
 /// The first field (in name order) whose value differs between `a` and `b`, with both values
 /// as JSON text ("missing" where absent).
-fn first_difference(
-    a: &serde_json::Map<String, serde_json::Value>,
-    b: &serde_json::Map<String, serde_json::Value>,
-) -> Option<(String, String, String)> {
+fn first_difference(a: &Settings, b: &Settings) -> Option<(String, String, String)> {
     let show =
         |x: Option<&serde_json::Value>| x.map_or_else(|| "missing".into(), |v| v.to_string());
     let keys: std::collections::BTreeSet<&String> = a.keys().chain(b.keys()).collect();
