@@ -39,6 +39,17 @@ pub fn moved(mesh: &Mesh, v: &Vector3<f64>) -> Mesh {
     mesh.with_vertices(mesh.vertices.iter().map(|p| p + v).collect())
 }
 
+/// The surface of `rec` as the method fitted it: moved back by the calibration's depth offset
+/// (`SolveLog::depth_moved_mm` along `SolveLog::depth_axis`), or as it is when none moved it.
+pub fn fit_of(rec: &crate::pipeline::Reconstruction) -> Mesh {
+    match rec.log.depth_axis {
+        Some(a) if rec.log.depth_moved_mm != 0.0 => {
+            moved(&rec.mesh, &(-Vector3::from(a) * rec.log.depth_moved_mm))
+        }
+        _ => rec.mesh.clone(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

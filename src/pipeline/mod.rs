@@ -231,12 +231,19 @@ pub fn reconstruct(
     };
     // The fallbacks change no placement setting, so they share the limb sphere too.
     let limb = LimbOnce::new(input, prm);
+    let ctx = Ctx {
+        cams: input.cameras,
+        observed: input.observed,
+        prm,
+        kernels,
+    };
     if prm.guards.is_none() {
-        return restarting(input, prm, kernels, &limb).map(|(rec, _)| rec);
+        let (rec, _) = restarting(input, prm, kernels, &limb)?;
+        return calibrated(&ctx, rec);
     }
     // `restarting` judged its result by the guards already.
     let (failure, outline_px_per_view) = match restarting(input, prm, kernels, &limb) {
-        Ok((rec, None)) => return Ok(rec),
+        Ok((rec, None)) => return calibrated(&ctx, rec),
         Ok((rec, Some(f))) => (f, rec.log.outline_px_per_view),
         Err(ReconError::NonFiniteVertex { vertex }) => {
             (GuardFailure::NonFiniteVertex { vertex }, Vec::new())
@@ -251,7 +258,7 @@ pub fn reconstruct(
         if let Ok((mut rec, None)) = restarting(input, &p, kernels, &limb) {
             rec.log.fallback = Some(fb.name());
             rec.log.guard = Some(failure);
-            return Ok(rec);
+            return calibrated(&ctx, rec);
         }
     }
     Err(ReconError::Guard(Refusal {
@@ -593,6 +600,30 @@ fn deform(
     Ok(run)
 }
 
+/// The calibration's depth offset (`CupParams::depth_mm`) applied to a result the restarts and
+/// guards have judged: the surface and its spheres moved that far along its depth axis (a fit
+/// to moved points is the moved fit), its final contours drawn again. It comes after the
+/// judging so that a learned correction for what no outline shows is not read as a fit that
+/// missed its outlines: the log's outline distances stay the fit's, which the restarts, the
+/// guards and the resamples' contour noise go by.
+fn calibrated(ctx: &Ctx, mut rec: Reconstruction) -> Result<Reconstruction, ReconError> {
+    let depth = ctx.prm.cup.depth_mm;
+    let Some(a) = rec.log.depth_axis.map(nalgebra::Vector3::from) else {
+        return Ok(rec);
+    };
+    if depth == 0.0 {
+        return Ok(rec);
+    }
+    let v = a * depth;
+    rec.log.depth_moved_mm = depth;
+    rec.mesh = depth::moved(&rec.mesh, &v);
+    rec.sphere = rec.sphere.moved(&v);
+    rec.fitted_sphere = rec.fitted_sphere.moved(&v);
+    rec.surface_sphere = rec.surface_sphere.moved(&v);
+    rec.final_contours = ctx.contours(&rec.mesh, &rec.cameras)?;
+    Ok(rec)
+}
+
 /// The result: the cup sphere fitted to the observed part, the contours before and after, and
 /// the log.
 fn finish(
@@ -622,15 +653,6 @@ fn finish(
     let spheres = cup_spheres(&mesh, &obs, &ctx.prm.cup, log.prior_region(ctx.prm))?;
     let axis = depth_axis(&mesh, &spheres.surface.center_point(), &poses.cams_now);
     log.depth_axis = axis.map(|a| [a.x, a.y, a.z]);
-    // The offset moves the surface and its spheres alike (a fit to moved points is the moved fit).
-    let (mesh, spheres) = match axis {
-        Some(a) if ctx.prm.cup.depth_mm != 0.0 => {
-            log.depth_moved_mm = ctx.prm.cup.depth_mm;
-            let v = a * ctx.prm.cup.depth_mm;
-            (depth::moved(&mesh, &v), spheres.moved(&v))
-        }
-        _ => (mesh, spheres),
-    };
     let (sphere, fitted_sphere, surface_sphere) = (spheres.cup, spheres.fitted, spheres.surface);
     let cup = ctx.prm.cup.catalogue.nearest(sphere.diameter());
     let initial = input.init.place(input.template.mesh());
@@ -778,6 +800,49 @@ mod tests {
         let shift = moved.sphere.center_point() - own.sphere.center_point();
         assert!((shift - 0.8 * a).norm() < 1e-4, "{shift:?}");
         assert_eq!(moved.cup, own.cup);
+        // The restarts and guards judged the fit before the move: the log's outline distances
+        // are the fit's. Companion: the moved result's own outlines, drawn again, lie farther
+        // from the annotations than the fit's.
+        assert_eq!(moved.log.outline_px, own.log.outline_px);
+        assert_eq!(moved.log.outline_px_per_view, own.log.outline_px_per_view);
+        let input = sim.input(&template);
+        let observed = entered(input.observed);
+        let (_, drawn) = restart::outline_distances_px(&moved.final_contours, &observed);
+        assert!(
+            drawn > own.log.outline_px + 0.05,
+            "{drawn} {}",
+            own.log.outline_px
+        );
+        // The resamples start from the fit too: the moved result's are the unmoved one's.
+        // Companion: the moved surface taken for a fit (no record of the move) resamples
+        // otherwise.
+        let up = UncertaintyParams {
+            samples: 4,
+            ..Default::default()
+        };
+        let report = |rec: &Reconstruction| {
+            cup_report(
+                rec,
+                &sim.observed,
+                &ReconParams::default(),
+                Kernels::Cpu,
+                &up,
+            )
+            .unwrap()
+            .resampled_mm
+        };
+        let (from_fit, from_moved) = (report(&own), report(&moved));
+        for (a, b) in from_fit.iter().zip(&from_moved) {
+            assert!((a - b).abs() < 1e-6, "{from_fit:?} {from_moved:?}");
+        }
+        let mut unrecorded = moved.clone();
+        unrecorded.log.depth_moved_mm = 0.0;
+        let apart = from_fit
+            .iter()
+            .zip(&report(&unrecorded))
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(apart > 1e-3, "{apart} {from_fit:?}");
         // Companion: an offset too large for a correction is refused before any work, named.
         let mut prm = ReconParams::default();
         prm.cup.depth_mm = 9.0;

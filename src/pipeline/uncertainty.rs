@@ -248,11 +248,14 @@ fn resampled_diameters(
     one_round.deformation.correspondence_updates = 1;
     let mut lm = ctx.prm.lm.clone();
     lm.max_iterations = up.resample_steps(ctx.prm);
-    // What every resample pairs, deforms and starts from, once: the result's model contours,
-    // its deformation graph, the sphere and the symbolic factorisation.
-    let model = ctx.contours(&rec.mesh, ctx.cams)?;
-    let graph = DeformationGraph::new(&rec.mesh, &ctx.prm.deformation.graph);
-    let start = EdState::for_resamples(ctx, &graph, &rec.mesh, &model)?;
+    // What every resample pairs, deforms and starts from, once: the fit's model contours, its
+    // deformation graph, the sphere and the symbolic factorisation. The fit is the result
+    // before a calibration's depth offset moved it (`pipeline::calibrated`): a learned
+    // correction for what no outline shows is not a start the outlines should pull back.
+    let fit = super::depth::fit_of(rec);
+    let model = ctx.contours(&fit, ctx.cams)?;
+    let graph = DeformationGraph::new(&fit, &ctx.prm.deformation.graph);
+    let start = EdState::for_resamples(ctx, &graph, &fit, &model)?;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(up.seed);
     let normal = Normal::new(0.0, noise_px).map_err(|_| ReconError::Param {
         field: "uncertainty noise_px",
@@ -297,7 +300,7 @@ fn resampled_diameters(
         };
         let (mesh, obs) = resolve_from(
             &resample,
-            (&rec.mesh, &model, &graph),
+            (&fit, &model, &graph),
             &mut reweight,
             start.share()?,
             &lm,
