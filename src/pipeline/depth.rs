@@ -39,14 +39,20 @@ pub fn moved(mesh: &Mesh, v: &Vector3<f64>) -> Mesh {
     mesh.with_vertices(mesh.vertices.iter().map(|p| p + v).collect())
 }
 
-/// The surface of `rec` as the method fitted it: moved back by the calibration's depth offset
-/// (`SolveLog::depth_moved_mm` along `SolveLog::depth_axis`), or as it is when none moved it.
-pub fn fit_of(rec: &crate::pipeline::Reconstruction) -> Mesh {
+/// What takes `rec` back to where the method fitted it: minus the calibration's depth offset
+/// (`SolveLog::depth_moved_mm` along `SolveLog::depth_axis`), zero when none moved it.
+pub fn back_to_fit(rec: &crate::pipeline::Reconstruction) -> Vector3<f64> {
     match rec.log.depth_axis {
-        Some(a) if rec.log.depth_moved_mm != 0.0 => {
-            moved(&rec.mesh, &(-Vector3::from(a) * rec.log.depth_moved_mm))
-        }
-        _ => rec.mesh.clone(),
+        Some(a) if rec.log.depth_moved_mm != 0.0 => -Vector3::from(a) * rec.log.depth_moved_mm,
+        _ => Vector3::zeros(),
+    }
+}
+
+/// The surface of `rec` as the method fitted it (`back_to_fit`).
+pub fn fit_of(rec: &crate::pipeline::Reconstruction) -> Mesh {
+    match back_to_fit(rec) {
+        v if v == Vector3::zeros() => rec.mesh.clone(),
+        v => moved(&rec.mesh, &v),
     }
 }
 

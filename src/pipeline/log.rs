@@ -21,13 +21,15 @@ pub struct SolveLog {
     pub reprojection_rms_px: f64,
     /// Correspondences of the last round.
     pub correspondences: usize,
-    /// Per view, the result's model outline against the observed one: RMS distance, pixels,
-    /// both ways for a closed outline (`restart::outline_distance_px` of that view alone). A
-    /// view far worse than the others has a wrong pose or annotation (`view_note`).
+    /// Per view, the fit's model outline against the observed one: RMS distance, pixels, both
+    /// ways for a closed outline (`restart::outline_distance_px` of that view alone), measured
+    /// before a calibration's depth offset moves the result (`depth_moved_mm`). A view far
+    /// worse than the others has a wrong pose or annotation (`view_note`).
     pub outline_px_per_view: Vec<f64>,
-    /// The same over all views at once (`restart::outline_distance_px`): how far the result's
-    /// outlines are from the annotations, whatever point each annotation starts at. The
-    /// uncertainty's contour noise (`UncertaintyParams::noise_px`, when not given).
+    /// The same over all views at once (`restart::outline_distance_px`): how far the fit's
+    /// outlines are from the annotations, whatever point each annotation starts at. What the
+    /// restarts and the outline guard judge, and the uncertainty's contour noise
+    /// (`UncertaintyParams::noise_px`, when not given).
     pub outline_px: f64,
     /// Per view, the size of the pose correction found (degrees, mm); empty without refinement.
     pub pose_corrections: Vec<[f64; 2]>,

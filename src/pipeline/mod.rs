@@ -820,7 +820,7 @@ mod tests {
             samples: 4,
             ..Default::default()
         };
-        let report = |rec: &Reconstruction| {
+        let full = |rec: &Reconstruction| {
             cup_report(
                 rec,
                 &sim.observed,
@@ -829,8 +829,24 @@ mod tests {
                 &up,
             )
             .unwrap()
-            .resampled_mm
         };
+        let report = |rec: &Reconstruction| full(rec).resampled_mm;
+        // The rim's orientation is read on the fit's sphere as well. Companion: read on the
+        // moved sphere it turns.
+        let (o_fit, o_moved) = (full(&own).orientation, full(&moved).orientation);
+        let (o_fit, o_moved) = (o_fit.unwrap(), o_moved.unwrap());
+        assert!((o_fit.inclination_deg - o_moved.inclination_deg).abs() < 1e-6);
+        assert!((o_fit.anteversion_deg - o_moved.anteversion_deg).abs() < 1e-6);
+        let observed_all = entered(&sim.observed);
+        let on_moved =
+            crate::solve::rim_orientation(&moved.cameras, &observed_all, &moved.fitted_sphere)
+                .unwrap();
+        assert!(
+            (on_moved.inclination_deg - o_fit.inclination_deg).abs()
+                + (on_moved.anteversion_deg - o_fit.anteversion_deg).abs()
+                > 0.05,
+            "{on_moved:?} {o_fit:?}"
+        );
         let (from_fit, from_moved) = (report(&own), report(&moved));
         for (a, b) in from_fit.iter().zip(&from_moved) {
             assert!((a - b).abs() < 1e-6, "{from_fit:?} {from_moved:?}");

@@ -351,8 +351,11 @@ pub fn cup_report(
     let diameter = rec.sphere.diameter();
     let chosen = prm.cup.catalogue.nearest(diameter).catalogue_mm;
     let probabilities = size_probabilities(&prm.cup.catalogue.sizes_mm, chosen, &diam, model);
+    // The rim is read where the outlines were met, on the fit's sphere (before a calibration's
+    // depth offset moved it): its axis and its offset from the centre hold for the moved cup.
+    let fit_sphere = rec.fitted_sphere.moved(&super::depth::back_to_fit(rec));
     let (orientation, orientation_note) =
-        match crate::solve::rim_orientation(&rec.cameras, observed, &rec.fitted_sphere) {
+        match crate::solve::rim_orientation(&rec.cameras, observed, &fit_sphere) {
             Ok(o) => (Some(o), None),
             Err(e) => (None, Some(e.to_string())),
         };
