@@ -28,17 +28,6 @@ pub struct CupSpheres {
     pub surface: Sphere,
 }
 
-impl CupSpheres {
-    /// All three moved by `v`, as the surface they were fitted to (a depth offset).
-    pub fn moved(&self, v: &nalgebra::Vector3<f64>) -> CupSpheres {
-        CupSpheres {
-            cup: self.cup.moved(v),
-            fitted: self.fitted.moved(v),
-            surface: self.surface.moved(v),
-        }
-    }
-}
-
 /// The population prior and the centre its directions are taken from (the sphere prior's), for
 /// `CupEstimator::PriorRegion`.
 pub type PriorRegion<'a> = (&'a ShapePrior, Point3<f64>);

@@ -837,10 +837,8 @@ mod tests {
         let (o_fit, o_moved) = (o_fit.unwrap(), o_moved.unwrap());
         assert!((o_fit.inclination_deg - o_moved.inclination_deg).abs() < 1e-6);
         assert!((o_fit.anteversion_deg - o_moved.anteversion_deg).abs() < 1e-6);
-        let observed_all = entered(&sim.observed);
         let on_moved =
-            crate::solve::rim_orientation(&moved.cameras, &observed_all, &moved.fitted_sphere)
-                .unwrap();
+            crate::solve::rim_orientation(&moved.cameras, &observed, &moved.fitted_sphere).unwrap();
         assert!(
             (on_moved.inclination_deg - o_fit.inclination_deg).abs()
                 + (on_moved.anteversion_deg - o_fit.anteversion_deg).abs()
