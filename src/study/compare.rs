@@ -6,7 +6,7 @@
 //! fifth of the shared acetabula (docs/population.md).
 
 use super::method::StudyMethod;
-use super::table::Row;
+use super::Row;
 use serde::Serialize;
 
 /// The tolerance the method is held to: its MAE at most this times the better baseline's.

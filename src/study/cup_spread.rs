@@ -5,7 +5,7 @@
 //! A sweep writes it into population.json (`cup_spread`) and prints it.
 
 use super::method::StudyMethod;
-use super::table::{methods_in, per_mesh, Row};
+use super::runs_csv::{methods_in, per_mesh, Row};
 use serde::Serialize;
 
 /// One method's cup error over a population, mm (NaN, written null, where too few runs or

@@ -7,7 +7,7 @@
 //! calibration's depth offset moves them back (`CupParams::depth_mm`; the mean of runs.csv's
 //! `depth_offset_mm`, also kept here, is what it learns).
 
-use super::table::{methods_in, per_mesh, Row};
+use super::runs_csv::{methods_in, per_mesh, Row};
 use super::StudyMethod;
 use serde::Serialize;
 

@@ -6,23 +6,26 @@
 pub mod bench;
 pub mod compare;
 pub mod cup_spread;
+mod error;
 pub mod frame_shift;
+mod merge;
 mod method;
 mod outputs;
 pub mod population;
 pub mod pose;
 mod runner;
-mod table;
+mod runs_csv;
+mod summary;
 mod task;
 pub mod view_plan;
 
+pub use error::StudyError;
+pub use merge::{check_complete, merge_dirs, merge_meta};
 pub use method::StudyMethod;
 pub use outputs::{write_examples, write_tables};
 pub use runner::{
     run_one, run_study, run_study_and_truth, tasks, ExampleRun, StudyConfig, TruthSpheres,
 };
-pub use table::{
-    check_complete, merge_dirs, merge_meta, read_csv, summarize, write_csv, Row, StudyError,
-    Summary,
-};
+pub use runs_csv::{read_csv, write_csv, Row};
+pub use summary::{summarize, Summary};
 pub use task::{run_seed, Task};

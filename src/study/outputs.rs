@@ -5,7 +5,7 @@
 use super::compare::{compare, TOLERANCE};
 use super::population::mesh_name;
 use super::runner::ExampleRun;
-use super::table::{summarize, write_csv, Row, StudyError};
+use super::{summarize, write_csv, Row, StudyError};
 use crate::geom::Mesh;
 use crate::io::write_atomic;
 #[cfg(feature = "plots")]

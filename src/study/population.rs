@@ -8,7 +8,7 @@
 
 use super::compare::{compare, Comparison, TOLERANCE};
 use super::method::StudyMethod;
-use super::table::{Row, StudyError};
+use super::{Row, StudyError};
 use crate::io::write_atomic;
 use crate::report::CupCatalogue;
 use serde::Serialize;

@@ -1,8 +1,8 @@
 //! Running the study's runs, in parallel, in a fixed order.
 
 use super::method::StudyMethod;
-use super::table::Row;
 use super::task::{run_seed, Task};
+use super::Row;
 use crate::engine::Kernels;
 use crate::geom::pool_map;
 use crate::geom::Mesh;

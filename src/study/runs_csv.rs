@@ -1,12 +1,13 @@
-//! The study's tables: one row per run (runs.csv), the per-method-and-level summary
-//! (summary.json), and merging shards.
+//! One row per run: runs.csv, written and read (files from before the later columns read too,
+//! a value no run can have is refused).
 
+use super::error::StudyError;
 use super::method::StudyMethod;
 use super::task::Task;
 use crate::io::write_atomic;
 use serde::Serialize;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// One run's result, one line of runs.csv (csv + serde; numbers at fixed precision, 6 decimals
 /// and 4 for seconds). Metrics are NaN for a run that failed (`error` says why).
@@ -337,128 +338,6 @@ impl Row {
     }
 }
 
-/// Problems with study files.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum StudyError {
-    /// A study file cannot be read.
-    #[error("{path}: cannot read: {source}")]
-    Read {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        source: std::io::Error,
-    },
-    /// A study file cannot be written.
-    #[error("{path}: cannot write: {source}")]
-    Write {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        source: std::io::Error,
-    },
-    /// A runs.csv line that is not a run.
-    #[error("{path}: line {line}: {reason}")]
-    Parse {
-        /// The file.
-        path: PathBuf,
-        /// The line (1 is the header).
-        line: usize,
-        /// What is wrong.
-        reason: String,
-    },
-    /// Two shards of different studies.
-    #[error("{path}: study field {field:?} is {value}, but {first} has {expected}: not shards of one study")]
-    Mismatch {
-        /// The shard.
-        path: PathBuf,
-        /// The study setting that differs.
-        field: String,
-        /// Its value there.
-        value: String,
-        /// The first shard.
-        first: PathBuf,
-        /// Its value in the first shard.
-        expected: String,
-    },
-    /// The same run in two shards.
-    #[error("run {method} level {level} run {run} appears in more than one shard ({path})")]
-    Duplicate {
-        /// The run's method.
-        method: String,
-        /// Its level.
-        level: u32,
-        /// Its number.
-        run: usize,
-        /// The second shard.
-        path: PathBuf,
-    },
-    /// The shards given are not the whole set their summary.json files name.
-    #[error("shards {missing} of {count} are missing (the folders given hold {present}); merge every shard of the study")]
-    ShardGap {
-        /// The missing shard indices, as "I/N" joined by commas.
-        missing: String,
-        /// The shard count N.
-        count: usize,
-        /// The shards present.
-        present: String,
-    },
-    /// The shards hold fewer runs than their study's settings make (a shard whose runs were
-    /// lost or cut short).
-    #[error("the shards hold {held} of the study's {expected} runs (levels x runs x methods in summary.json); missing: {first}; run the shards again")]
-    Incomplete {
-        /// Runs the shards hold.
-        held: usize,
-        /// Runs the study makes.
-        expected: usize,
-        /// The first missing runs, named.
-        first: String,
-    },
-}
-
-/// Every run the study of merged settings `meta` (summary.json's `study`, as `merge_meta` gives
-/// it) makes, levels x runs x methods, must be among `rows`; a study whose settings do not say
-/// (an older summary.json) is not checked.
-pub fn check_complete(rows: &[Row], meta: &serde_json::Value) -> Result<(), StudyError> {
-    let (Some(levels), Some(runs), Some(methods)) = (
-        meta.get("levels").and_then(|v| v.as_array()),
-        meta.get("runs").and_then(|v| v.as_u64()),
-        meta.get("methods").and_then(|v| v.as_array()),
-    ) else {
-        return Ok(());
-    };
-    let held: std::collections::BTreeSet<(StudyMethod, u32, usize)> =
-        rows.iter().map(|r| r.key()).collect();
-    let mut missing = Vec::new();
-    let mut expected = 0;
-    for m in methods
-        .iter()
-        .filter_map(|m| m.as_str().and_then(StudyMethod::from_name))
-    {
-        for l in levels.iter().filter_map(|l| l.as_u64()) {
-            for r in 0..runs as usize {
-                expected += 1;
-                if !held.contains(&(m, l as u32, r)) {
-                    missing.push(format!("{} level {l} run {r}", m.name()));
-                }
-            }
-        }
-    }
-    if missing.is_empty() {
-        return Ok(());
-    }
-    let more = missing.len().saturating_sub(3);
-    let mut first = missing[..missing.len().min(3)].join(", ");
-    if more > 0 {
-        first += &format!(" and {more} more");
-    }
-    Err(StudyError::Incomplete {
-        held: expected - missing.len(),
-        expected,
-        first,
-    })
-}
-
 fn six<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
     s.collect_str(&format_args!("{v:.6}"))
 }
@@ -607,453 +486,33 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
     Ok(rows)
 }
 
-/// Per method and level.
-#[derive(Clone, Debug, Serialize, PartialEq)]
-pub struct Summary {
-    /// The method.
-    pub method: StudyMethod,
-    /// The start's noise level.
-    pub level: u32,
-    /// Runs.
-    pub runs: usize,
-    /// Runs whose last solve converged.
-    pub converged: usize,
-    /// Runs that failed.
-    pub failed: usize,
-    /// Runs whose result came from a fallback.
-    pub fallbacks: usize,
-    /// Runs that restarted, from tilted starts or the limb sphere (`Row::restart` not empty).
-    pub restarted: usize,
-    /// Restarted runs whose result came from another start than the given one (a tilted start
-    /// or the limb sphere).
-    pub restart_tilted: usize,
-    /// Restarted runs by why (`Row::restart_cause`: "outlines", "folded", "guard-" and the
-    /// guard); runs read from a runs.csv written before the cause was recorded are not counted.
-    pub restart_causes: BTreeMap<String, usize>,
-    /// Runs that fell back, by the guard the method's own result failed (`Row::fallback_guard`).
-    pub fallback_guards: BTreeMap<String, usize>,
-    /// Mean MAE, mm.
-    pub mae_mean: f64,
-    /// SD of the MAE (dividing by n), mm.
-    pub mae_sd: f64,
-    /// Mean cup error, mm.
-    pub cup_error_mean: f64,
-    /// SD of the cup error, mm.
-    pub cup_error_sd: f64,
-    /// Runs with |cup diameter - truth| <= 1 mm.
-    pub cup_within_1mm: usize,
-    /// The same for the whole-surface sphere fit and for the limb sphere (None, null in JSON,
-    /// when no run had a limb sphere: the paper's protocol and pose refinement skip stage 0).
-    pub surface_fit_within_1mm: usize,
-    /// See `surface_fit_within_1mm`.
-    pub limb_within_1mm: Option<usize>,
-    /// Runs with a cup SD (`Row::cup_sd_mm`), and of those, the share whose cup error is
-    /// within it (68 % for a Gaussian that means what it says); None without resamples.
-    pub cup_sd_runs: usize,
-    /// See `cup_sd_runs`.
-    pub cup_sd_coverage: Option<f64>,
-    /// Mean Brier score of the size probabilities over those runs; None without resamples.
-    pub brier_mean: Option<f64>,
-    /// Median seconds per run.
-    pub median_seconds: f64,
-}
-
-/// Mean and SD of the runs themselves (the SD divides by n).
-fn mean_sd(v: &[f64]) -> (f64, f64) {
-    crate::geom::mean_sd(v, false)
-}
-
-/// Runs whose `diameter` is within 1 mm of the truth's.
-fn within(rows: &[&Row], diameter: impl Fn(&Row) -> f64) -> usize {
-    rows.iter()
-        .filter(|r| (diameter(r) - r.gt_cup_diameter_mm).abs() <= 1.0)
-        .count()
-}
-
-/// How often each non-empty name occurs.
-fn counts<'a>(names: impl Iterator<Item = &'a str>) -> BTreeMap<String, usize> {
-    let mut out = BTreeMap::new();
-    for n in names.filter(|n| !n.is_empty()) {
-        *out.entry(n.to_string()).or_insert(0) += 1;
-    }
-    out
-}
-
-/// Summaries in canonical order. Failed runs count in `runs` and `failed`, not in the means.
-pub fn summarize(rows: &[Row]) -> Vec<Summary> {
-    let mut keys: Vec<(StudyMethod, u32)> = rows.iter().map(|r| (r.method, r.level)).collect();
-    keys.sort();
-    keys.dedup();
-    keys.into_iter()
-        .map(|(method, level)| {
-            let g: Vec<&Row> = rows
-                .iter()
-                .filter(|r| r.method == method && r.level == level)
-                .collect();
-            let ok: Vec<&Row> = g
-                .iter()
-                .copied()
-                .filter(|r| r.error.is_empty() && r.mae_mm.is_finite())
-                .collect();
-            let (mae_mean, mae_sd) = mean_sd(&ok.iter().map(|r| r.mae_mm).collect::<Vec<_>>());
-            let ce: Vec<f64> = ok.iter().map(|r| r.cup_error_mm()).collect();
-            let (cup_error_mean, cup_error_sd) = mean_sd(&ce);
-            let with_sd: Vec<&Row> = ok
-                .iter()
-                .copied()
-                .filter(|r| r.cup_sd_mm.is_finite() && r.brier.is_finite())
-                .collect();
-            let mut secs: Vec<f64> = g.iter().map(|r| r.seconds).collect();
-            secs.sort_by(f64::total_cmp);
-            Summary {
-                method,
-                level,
-                runs: g.len(),
-                converged: g.iter().filter(|r| r.converged).count(),
-                failed: g.len() - ok.len(),
-                fallbacks: g.iter().filter(|r| !r.fallback.is_empty()).count(),
-                restarted: g.iter().filter(|r| !r.restart.is_empty()).count(),
-                restart_tilted: g
-                    .iter()
-                    .filter(|r| !r.restart.is_empty() && r.restart != "given")
-                    .count(),
-                restart_causes: counts(g.iter().map(|r| r.restart_cause.as_str())),
-                fallback_guards: counts(g.iter().map(|r| r.fallback_guard.as_str())),
-                mae_mean,
-                mae_sd,
-                cup_error_mean,
-                cup_error_sd,
-                cup_within_1mm: ce.iter().filter(|e| e.abs() <= 1.0).count(),
-                surface_fit_within_1mm: within(&ok, |r| r.surface_fit_diameter_mm),
-                limb_within_1mm: ok
-                    .iter()
-                    .any(|r| r.limb_diameter_mm.is_finite())
-                    .then(|| within(&ok, |r| r.limb_diameter_mm)),
-                median_seconds: secs.get(secs.len() / 2).copied().unwrap_or(f64::NAN),
-                cup_sd_runs: with_sd.len(),
-                cup_sd_coverage: (!with_sd.is_empty()).then(|| {
-                    with_sd
-                        .iter()
-                        .filter(|r| r.cup_error_mm().abs() <= r.cup_sd_mm)
-                        .count() as f64
-                        / with_sd.len() as f64
-                }),
-                brier_mean: (!with_sd.is_empty())
-                    .then(|| with_sd.iter().map(|r| r.brier).sum::<f64>() / with_sd.len() as f64),
-            }
-        })
-        .collect()
-}
-
-/// The study settings shards share, from their summary.json files (folders without one are
-/// skipped): every field but `shard`, `seconds` and `merged` must agree, or the shards are not of
-/// one study (so merged folders can be merged again). The result lists the folders under
-/// `merged`.
-pub fn merge_meta(dirs: &[PathBuf]) -> Result<serde_json::Value, StudyError> {
-    let mut common: Option<(PathBuf, Settings)> = None;
-    let mut shards: Vec<(PathBuf, usize, usize)> = Vec::new();
-    let mut all_sharded = true;
-    for d in dirs {
-        let path = d.join("summary.json");
-        let Some((study, shard)) = study_settings(&path)? else {
-            continue;
-        };
-        match shard_of(&path, shard.as_ref())? {
-            Some((i, n)) => shards.push((path.clone(), i, n)),
-            // A merged folder (or one from before shards were recorded) holds shards of its
-            // own: the set cannot be checked.
-            None => all_sharded = false,
-        }
-        let Some((first, c)) = &common else {
-            common = Some((path, study));
-            continue;
-        };
-        if let Some((field, expected, value)) = first_difference(c, &study) {
-            return Err(StudyError::Mismatch {
-                path,
-                field,
-                value,
-                first: first.clone(),
-                expected,
-            });
-        }
-    }
-    if all_sharded {
-        check_shard_set(&shards)?;
-    }
-    let mut meta = common.map(|(_, c)| c).unwrap_or_default();
-    meta.insert("merged".into(), serde_json::json!(dirs));
-    Ok(serde_json::Value::Object(meta))
-}
-
-/// The shard "I/N" a summary.json's study names (`shard`, its value in the file at `path`), if
-/// it names one (a merged folder names none); one that is not "I/N" with 0 <= I < N is an error
-/// naming the file and the value.
-fn shard_of(
-    path: &Path,
-    shard: Option<&serde_json::Value>,
-) -> Result<Option<(usize, usize)>, StudyError> {
-    let Some(shard) = shard else {
-        return Ok(None);
+/// A converged run of `method` at `level`, number `run`, with MAE `mae` and a cup 0.5 mm over
+/// its truth's: the tests' row.
+#[cfg(test)]
+pub(super) fn test_row(method: StudyMethod, level: u32, run: usize, mae: f64) -> Row {
+    let t = Task {
+        method,
+        level,
+        run,
+        seed: 9,
     };
-    let parsed = shard.as_str().and_then(|s| {
-        let (i, n) = s.split_once('/')?;
-        let (i, n): (usize, usize) = (i.trim().parse().ok()?, n.trim().parse().ok()?);
-        (i < n).then_some((i, n))
-    });
-    match parsed {
-        Some(p) => Ok(Some(p)),
-        None => Err(StudyError::Parse {
-            path: path.to_path_buf(),
-            line: 1,
-            reason: format!("study.shard is {shard}: expected \"I/N\" with 0 <= I < N"),
-        }),
+    Row {
+        mae_mm: mae,
+        cup_diameter_mm: 50.5,
+        gt_cup_diameter_mm: 50.0,
+        converged: true,
+        error: String::new(),
+        ..Row::failed(&t, "")
     }
-}
-
-/// Shards named by the summaries (path, I, N) must share N and be the whole set 0..N: shards of
-/// different counts, or a merge with a gap, are refused.
-fn check_shard_set(shards: &[(PathBuf, usize, usize)]) -> Result<(), StudyError> {
-    let Some((first, i0, count)) = shards.first() else {
-        return Ok(());
-    };
-    if let Some((path, i, n)) = shards.iter().find(|s| s.2 != *count) {
-        return Err(StudyError::Mismatch {
-            path: path.clone(),
-            field: "shard".into(),
-            value: format!("\"{i}/{n}\""),
-            first: first.clone(),
-            expected: format!("\"{i0}/{count}\""),
-        });
-    }
-    let mut present: Vec<usize> = shards.iter().map(|s| s.1).collect();
-    present.sort_unstable();
-    present.dedup();
-    let missing: Vec<String> = (0..*count)
-        .filter(|i| present.binary_search(i).is_err())
-        .map(|i| format!("{i}/{count}"))
-        .collect();
-    if missing.is_empty() {
-        return Ok(());
-    }
-    Err(StudyError::ShardGap {
-        missing: missing.join(", "),
-        count: *count,
-        present: present
-            .iter()
-            .map(|i| format!("{i}/{count}"))
-            .collect::<Vec<_>>()
-            .join(", "),
-    })
-}
-
-/// The settings of one study, as a summary.json's `study` object holds them.
-type Settings = serde_json::Map<String, serde_json::Value>;
-
-/// The `study` object of a summary.json without the fields that differ between shards, and its
-/// `shard` if it names one; None when the file does not exist.
-fn study_settings(
-    path: &Path,
-) -> Result<Option<(Settings, Option<serde_json::Value>)>, StudyError> {
-    let text = match std::fs::read_to_string(path) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(source) => {
-            return Err(StudyError::Read {
-                path: path.to_path_buf(),
-                source,
-            })
-        }
-    };
-    let bad = |reason: String| StudyError::Parse {
-        path: path.to_path_buf(),
-        line: 1,
-        reason,
-    };
-    let v: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
-    let Some(serde_json::Value::Object(study)) = v.get("study") else {
-        return Err(bad("no \"study\" object".into()));
-    };
-    let mut study = study.clone();
-    let shard = study.remove("shard");
-    // What differs between shards of one study: the shard, its time, its command line and
-    // engine counts.
-    for k in ["seconds", "merged", "provenance", "engine"] {
-        study.remove(k);
-    }
-    Ok(Some((study, shard)))
-}
-
-/// The first field (in name order) whose value differs between `a` and `b`, with both values
-/// as JSON text ("missing" where absent).
-fn first_difference(a: &Settings, b: &Settings) -> Option<(String, String, String)> {
-    let show =
-        |x: Option<&serde_json::Value>| x.map_or_else(|| "missing".into(), |v| v.to_string());
-    let keys: std::collections::BTreeSet<&String> = a.keys().chain(b.keys()).collect();
-    keys.into_iter()
-        .find(|k| a.get(*k) != b.get(*k))
-        .map(|k| (k.clone(), show(a.get(k)), show(b.get(k))))
-}
-
-/// Join the runs.csv of several shard folders, in canonical order; a run present twice is an error.
-pub fn merge_dirs(dirs: &[PathBuf]) -> Result<Vec<Row>, StudyError> {
-    let mut rows: Vec<(Row, PathBuf)> = Vec::new();
-    for d in dirs {
-        let p = d.join("runs.csv");
-        for r in read_csv(&p)? {
-            rows.push((r, p.clone()));
-        }
-    }
-    rows.sort_by_key(|a| a.0.key());
-    for w in rows.windows(2) {
-        if w[0].0.key() == w[1].0.key() {
-            let r = &w[1].0;
-            return Err(StudyError::Duplicate {
-                method: r.method.name().into(),
-                level: r.level,
-                run: r.run,
-                path: w[1].1.clone(),
-            });
-        }
-    }
-    Ok(rows.into_iter().map(|(r, _)| r).collect())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn row(method: StudyMethod, level: u32, run: usize, mae: f64) -> Row {
-        let t = Task {
-            method,
-            level,
-            run,
-            seed: 9,
-        };
-        Row {
-            mae_mm: mae,
-            cup_diameter_mm: 50.5,
-            gt_cup_diameter_mm: 50.0,
-            converged: true,
-            error: String::new(),
-            ..Row::failed(&t, "")
-        }
-    }
+    use test_row as row;
 
     #[test]
-    fn summary_counts_restarts_by_cause_and_fallbacks_by_guard() {
-        let mut rows: Vec<Row> = (0..4).map(|k| row(StudyMethod::Srvf, 1, k, 0.8)).collect();
-        for (r, cause) in rows.iter_mut().zip(["folded", "guard-rough", "folded"]) {
-            r.restart = "+u".into();
-            r.restart_cause = cause.into();
-        }
-        rows[3].fallback = "icp-normvec".into();
-        rows[3].fallback_guard = "rough".into();
-        let s = &summarize(&rows)[0];
-        let map = |v: &[(&str, usize)]| -> BTreeMap<String, usize> {
-            v.iter().map(|&(k, n)| (k.to_string(), n)).collect()
-        };
-        assert_eq!(s.restart_causes, map(&[("folded", 2), ("guard-rough", 1)]));
-        assert_eq!(s.fallback_guards, map(&[("rough", 1)]));
-        // Companion: a run with another cause is counted under it, not under the first's.
-        rows[2].restart_cause = "outlines".into();
-        let s = &summarize(&rows)[0];
-        assert_ne!(s.restart_causes, map(&[("folded", 2), ("guard-rough", 1)]));
-        assert_eq!(s.restart_causes["outlines"], 1);
-    }
-
-    #[test]
-    fn summary_counts_the_runs_within_their_cup_sd_and_averages_brier() {
-        // Cup errors +0.5 mm each (`row`); SDs 0.6, 0.4, 1.0 and one run without resamples.
-        let mut rows: Vec<Row> = (0..4).map(|k| row(StudyMethod::Srvf, 1, k, 0.8)).collect();
-        for (r, (sd, b)) in rows.iter_mut().zip([(0.6, 0.2), (0.4, 1.0), (1.0, 0.3)]) {
-            r.cup_sd_mm = sd;
-            r.brier = b;
-        }
-        let s = &summarize(&rows)[0];
-        assert_eq!(s.cup_sd_runs, 3);
-        assert!((s.cup_sd_coverage.unwrap() - 2.0 / 3.0).abs() < 1e-12);
-        assert!((s.brier_mean.unwrap() - 0.5).abs() < 1e-12);
-        // Companion: the same runs with every SD halved are counted as the misses they are.
-        for r in rows.iter_mut().take(3) {
-            r.cup_sd_mm *= 0.5;
-        }
-        let s = &summarize(&rows)[0];
-        assert!((s.cup_sd_coverage.unwrap() - 1.0 / 3.0).abs() < 1e-12);
-        // Without resamples there is nothing to cover.
-        let plain = vec![row(StudyMethod::Srvf, 1, 0, 0.8)];
-        let s = &summarize(&plain)[0];
-        assert_eq!(
-            (s.cup_sd_runs, s.cup_sd_coverage, s.brier_mean),
-            (0, None, None)
-        );
-    }
-
-    #[test]
-    fn merge_meta_keeps_the_shared_settings_and_rejects_another_study() {
-        let tmp = tempfile::tempdir().unwrap();
-        let dir = tmp.path();
-        let write = |name: &str, seed: u64, shard: &str| {
-            let d = dir.join(name);
-            std::fs::create_dir_all(&d).unwrap();
-            let v = serde_json::json!({"study": {"gt": "phantom", "seed": seed, "shard": shard,
-                "seconds": 1.5, "w_reg": 10.0}, "summary": []});
-            std::fs::write(d.join("summary.json"), v.to_string()).unwrap();
-            d
-        };
-        let (a, b, c) = (
-            write("a", 1, "0/2"),
-            write("b", 1, "1/2"),
-            write("c", 2, "1/2"),
-        );
-        let plain = dir.join("plain");
-        std::fs::create_dir_all(&plain).unwrap();
-        let m = merge_meta(&[a.clone(), b.clone(), plain.clone()]).unwrap();
-        assert_eq!(m["seed"], 1);
-        assert_eq!(m["w_reg"], 10.0);
-        assert!(m.get("shard").is_none() && m.get("seconds").is_none());
-        assert_eq!(m["merged"].as_array().unwrap().len(), 3);
-        // A merged folder (its own `merged` list, no `shard`) merges with a shard of its study.
-        let joined = dir.join("joined");
-        std::fs::create_dir_all(&joined).unwrap();
-        let v = serde_json::json!({"study": m.clone(), "summary": []});
-        std::fs::write(joined.join("summary.json"), v.to_string()).unwrap();
-        assert_eq!(merge_meta(&[joined, a.clone()]).unwrap()["seed"], 1);
-        // A shard set with a gap is refused, naming what is missing; one shard of a study made
-        // in one shard is whole.
-        let e = merge_meta(std::slice::from_ref(&b))
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("shards 0/2 of 2 are missing") && e.contains("hold 1/2"),
-            "{e}"
-        );
-        let whole = write("whole", 1, "0/1");
-        assert!(merge_meta(&[whole]).is_ok());
-        // The companion: a shard of another study (seed 2) is refused, naming the field.
-        let e = merge_meta(&[a, c]).unwrap_err().to_string();
-        assert!(e.contains("\"seed\" is 2") && e.contains("has 1"), "{e}");
-        // A shard that is not "I/N" with I < N is refused, naming the file and the value, not
-        // taken for a merged folder (which would skip the set's check).
-        for (name, shard) in [("odd1", "2/2"), ("odd2", "half"), ("odd3", "1/0")] {
-            let d = write(name, 1, shard);
-            let e = merge_meta(&[d.clone()]).unwrap_err().to_string();
-            assert!(
-                e.contains(&format!("study.shard is \"{shard}\""))
-                    && e.contains(&d.join("summary.json").display().to_string()),
-                "{e}"
-            );
-        }
-        std::fs::write(plain.join("summary.json"), "{").unwrap();
-        assert!(merge_meta(&[plain])
-            .unwrap_err()
-            .to_string()
-            .contains("not JSON"));
-    }
-
-    #[test]
-    fn csv_round_trips_and_merge_rejects_duplicates() {
+    fn csv_round_trips_and_older_files_read() {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path();
         let (a, b) = (dir.join("a"), dir.join("b"));
@@ -1079,19 +538,6 @@ mod tests {
         let back = read_csv(&a.join("runs.csv")).unwrap();
         assert_eq!(format!("{:?}", back[0]), format!("{:?}", r1[0]));
         assert!(back[1].mae_mm.is_nan() && back[1].error == "solver: boom, twice");
-        let merged = merge_dirs(&[b.clone(), a.clone()]).unwrap();
-        assert_eq!(
-            merged.iter().map(|r| r.key()).collect::<Vec<_>>(),
-            vec![
-                (StudyMethod::Srvf, 1, 0),
-                (StudyMethod::Srvf, 1, 1),
-                (StudyMethod::Icp, 1, 0)
-            ]
-        );
-        assert!(matches!(
-            merge_dirs(&[a.clone(), a.clone()]),
-            Err(StudyError::Duplicate { .. })
-        ));
         let good = std::fs::read_to_string(a.join("runs.csv")).unwrap();
         for (from, to, column) in [
             ("\nsrvf,", "\nsfrv,", "method"),
@@ -1110,7 +556,7 @@ mod tests {
         assert_eq!(read_csv(&b.join("runs.csv")).unwrap().len(), 2);
         std::fs::write(b.join("runs.csv"), "nonsense\n").unwrap();
         assert!(matches!(
-            merge_dirs(std::slice::from_ref(&b)),
+            read_csv(&b.join("runs.csv")),
             Err(StudyError::Parse { line: 1, .. })
         ));
         let drop_last = |text: &str, k: usize| -> String {
@@ -1272,58 +718,5 @@ mod tests {
         rows.push(row(StudyMethod::Icp, 3, 0, 0.75));
         write_csv(&rows, &path).unwrap();
         assert_eq!(read_csv(&path).unwrap().len(), 4);
-    }
-
-    /// A merge whose shards hold every run of their study passes; one that lacks runs (a shard
-    /// cut short: its runs.csv only a header) is refused, naming the first missing ones; an
-    /// older summary.json without the settings is not checked.
-    #[test]
-    fn a_merge_missing_runs_of_its_study_is_refused() {
-        let meta = serde_json::json!({"levels": [1, 3], "runs": 2, "methods": ["srvf", "icp"]});
-        let all: Vec<Row> = [StudyMethod::Srvf, StudyMethod::Icp]
-            .into_iter()
-            .flat_map(|m| {
-                [1, 3]
-                    .into_iter()
-                    .flat_map(move |l| (0..2).map(move |r| row(m, l, r, 0.5)))
-            })
-            .collect();
-        assert_eq!(all.len(), 8);
-        assert!(check_complete(&all, &meta).is_ok());
-        let cut: Vec<Row> = all.iter().filter(|r| r.run == 0).cloned().collect();
-        let e = check_complete(&cut, &meta).unwrap_err().to_string();
-        assert!(
-            e.contains("4 of the study's 8 runs")
-                && e.contains("srvf level 1 run 1")
-                && e.contains("1 more"),
-            "{e}"
-        );
-        assert!(check_complete(&cut, &serde_json::json!({"seed": 3})).is_ok());
-    }
-
-    #[test]
-    fn summary_counts_and_means() {
-        let mut rows = vec![
-            row(StudyMethod::Srvf, 2, 0, 0.4),
-            row(StudyMethod::Srvf, 2, 1, 0.6),
-            row(StudyMethod::Srvf, 2, 2, 9.0),
-        ];
-        rows[2].error = "failed".into();
-        rows[2].converged = false;
-        rows[1].cup_diameter_mm = 52.0;
-        rows[0].limb_diameter_mm = 50.9;
-        rows[1].limb_diameter_mm = 51.1;
-        let s = summarize(&rows);
-        assert_eq!(s.len(), 1);
-        assert_eq!((s[0].runs, s[0].converged, s[0].failed), (3, 2, 1));
-        assert!((s[0].mae_mean - 0.5).abs() < 1e-12 && (s[0].mae_sd - 0.1).abs() < 1e-12);
-        assert_eq!(s[0].cup_within_1mm, 1);
-        assert_eq!(
-            (s[0].limb_within_1mm, s[0].surface_fit_within_1mm),
-            (Some(1), 0)
-        );
-        rows[0].limb_diameter_mm = f64::NAN;
-        rows[1].limb_diameter_mm = f64::NAN;
-        assert_eq!(summarize(&rows)[0].limb_within_1mm, None);
     }
 }
