@@ -1169,6 +1169,45 @@ fn write_runs(dir: &Path, cups: &[(f64, f64)], sd: f64) {
     acetab::study::write_csv(&rows, &dir.join("runs.csv")).unwrap();
 }
 
+/// `acetab calibrate` learns the result's depth offset from runs.csv's `depth_offset_mm` (the
+/// runs' mean, one source of truths here) along with the cup; `--no-depth` writes 0 there and
+/// the same cup correction (the companion: the default's offset is not 0).
+#[test]
+fn calibrate_learns_the_depth_offset_unless_told_not_to() {
+    let dir = tmp("calibrate-depth");
+    let pop = dir.join("pop");
+    for (name, depth) in [("s1_lhip", 0.5), ("s2_rhip", 1.5)] {
+        let d = pop.join(name);
+        study_of(&d, 30, |k| 0.02 * k as f64);
+        let mut rows = acetab::study::read_csv(&d.join("runs.csv")).unwrap();
+        for r in &mut rows {
+            r.depth_offset_mm = depth;
+        }
+        acetab::study::write_csv(&rows, &d.join("runs.csv")).unwrap();
+    }
+    let learn = |extra: &[&str], out: &Path| {
+        let o = bin()
+            .args(["calibrate", "--study"])
+            .arg(&pop)
+            .args(["--shrink"])
+            .args(extra)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        acetab::pipeline::CupCalibration::read(out).unwrap()
+    };
+    let with = learn(&[], &dir.join("with.json"));
+    assert!((with.depth_mm - 1.0).abs() < 1e-9, "{with:?}");
+    let without = learn(&["--no-depth"], &dir.join("without.json"));
+    assert_eq!(without.depth_mm, 0.0);
+    assert_eq!(
+        (without.bias_mm, without.shrink, without.model_sd_mm),
+        (with.bias_mm, with.shrink, with.model_sd_mm)
+    );
+}
+
 #[test]
 fn calibrate_learns_the_model_sd_leaves_a_subject_out_and_names_bad_input() {
     let dir = tmp("calibrate");

@@ -29,6 +29,13 @@ pub struct CalibrateArgs {
     /// against the spread of acetabula (the realistic protocol), not on ideal X-rays.
     #[arg(long)]
     pub shrink: bool,
+    /// Learn no depth offset (depth_mm 0): the result stays where the method puts it along the
+    /// views. For training studies whose sources of truths want offsets so far apart that the
+    /// one learned with each weighing the same moves one population's results farther off
+    /// (docs/population.md, "The realistic Judet and prior-region calibrations with a depth
+    /// offset").
+    #[arg(long)]
+    pub no_depth: bool,
     /// A note on what the studies were (protocol, data, commit), kept in the file's
     /// `learned_from`.
     #[arg(long)]
@@ -348,13 +355,16 @@ pub fn learn(
 
 pub fn run(args: CalibrateArgs) -> Result<(), String> {
     crate::common::check_out_file(&args.out)?;
-    let cal = learn(
+    let mut cal = learn(
         &args.study,
         &args.leave_out,
         args.method,
         what(args.no_bias, args.shrink),
         args.note.as_deref(),
     )?;
+    if args.no_depth {
+        cal.depth_mm = 0.0;
+    }
     crate::common::write_out_file(&args.out, cal.to_json().as_bytes())?;
     let shrink = if cal.shrink > 0.0 {
         format!(
