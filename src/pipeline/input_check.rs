@@ -2,10 +2,11 @@
 //! it is read (`CaseFile::validate`, with the file's field names); a host that embeds the
 //! library builds its `Camera`s, `Curve`s and `Placement` itself, and without these checks a
 //! camera with a zero focal length, an empty outline or a NaN radius came back as a misleading
-//! stage error, a panic, or a number (docs/population.md, "The library's own input, checked").
+//! stage error, a panic, or a number; an outline with a stray point (a slip of the mouse) is
+//! refused as a case file's is (docs/population.md, "The library's own input, checked").
 
 use super::{Input, ReconError};
-use crate::geom::{hull_fill, turns_round_centroid, Curve};
+use crate::geom::{hull_fill, stray_point, turns_round_centroid, Curve};
 use crate::template::Placement;
 use crate::views::{cameras_too_narrow, Camera, MAX_VIEWS, MIN_VIEWS, MIN_VIEW_SPREAD_DEG};
 use nalgebra::{Matrix3, Point2};
@@ -211,6 +212,24 @@ fn check_outline(field: &str, c: &Curve, cam: &Camera) -> Result<(), ReconError>
             format!("{field}.points"),
             format!("extent {extent:.3} px"),
             format!("an outline at least {MIN_OUTLINE_EXTENT_PX} pixels across"),
+        ));
+    }
+    // A slip of the mouse: one point far off a curve whose neighbours lie close together, a
+    // spike the resampling and the SRVF weigh as much as the rim (`geom::stray_point`).
+    if let Some(st) = stray_point(&pts, c.closed) {
+        let stray = pts[st.index];
+        let k = c
+            .points
+            .iter()
+            .position(|p| *p == stray)
+            .unwrap_or(st.index);
+        return Err(fault(
+            format!("{field}.points[{k}]"),
+            format!("[{}, {}]", stray.x, stray.y),
+            format!(
+                "no stray point: this one lies {:.0} px from both its neighbours, which lie {:.0}                  px apart (the outline's points are {:.0} px apart at the median); remove or                  correct it",
+                st.off_px, st.neighbours_px, st.spacing_px
+            ),
         ));
     }
     if c.closed {
@@ -441,6 +460,13 @@ mod tests {
                         .iter()
                         .flat_map(|p| std::iter::repeat_n(*p, n))
                         .collect();
+                }),
+            ),
+            (
+                "observed[0][0].points[10]",
+                Box::new(|s| {
+                    // A slip of the mouse: one point 80 px off the rim.
+                    s.observed[0][0].points[10].x += 80.0
                 }),
             ),
             ("init.radius", Box::new(|s| s.init.radius = -s.init.radius)),
