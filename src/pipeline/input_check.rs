@@ -227,7 +227,9 @@ fn check_outline(field: &str, c: &Curve, cam: &Camera) -> Result<(), ReconError>
             format!("{field}.points[{k}]"),
             format!("[{}, {}]", stray.x, stray.y),
             format!(
-                "no stray point: this one lies {:.0} px from both its neighbours, which lie {:.0}                  px apart (the outline's points are {:.0} px apart at the median); remove or                  correct it",
+                "no stray point: this one lies {:.0} px from both its neighbours, which lie {:.0} \
+                 px apart (the outline's points are {:.0} px apart at the median); remove or \
+                 correct it",
                 st.off_px, st.neighbours_px, st.spacing_px
             ),
         ));
