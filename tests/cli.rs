@@ -1206,6 +1206,51 @@ fn calibrate_learns_the_depth_offset_unless_told_not_to() {
         (without.bias_mm, without.shrink, without.model_sd_mm),
         (with.bias_mm, with.shrink, with.model_sd_mm)
     );
+    // Leave-one-subject-out through simulate: a mesh of subject s1 is calibrated from s2's
+    // runs alone (offset 1.5 mm), and with --calibrate-no-depth from the same runs without it.
+    let mesh = dir.join("s1_lhip.obj");
+    acetab::io::write_obj(&phantom(&PhantomParams::default()).mesh, &mesh).unwrap();
+    let loso = |extra: &[&str], out: &str| -> serde_json::Value {
+        let o = bin()
+            .args(["simulate", "--gt"])
+            .arg(&mesh)
+            .args(ONE_RUN.split(' '))
+            .args(["--calibrate-shrink", "--calibrate-loso"])
+            .arg(&pop)
+            .args(extra)
+            .arg("--out")
+            .arg(dir.join(out))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let text = std::fs::read_to_string(dir.join(out).join("summary.json")).unwrap();
+        serde_json::from_str(&text).unwrap()
+    };
+    let learned = loso(&[], "loso");
+    assert!((learned["study"]["cup_depth_mm"].as_f64().unwrap() - 1.5).abs() < 1e-9);
+    let none = loso(&["--calibrate-no-depth"], "loso-no-depth");
+    assert_eq!(none["study"]["cup_depth_mm"], 0.0, "{none}");
+    assert_eq!(
+        none["study"]["cup_bias_mm"],
+        learned["study"]["cup_bias_mm"]
+    );
+    assert!(none["study"]["calibration"]
+        .as_str()
+        .is_some_and(|c| c.contains("without subject s1 (no depth offset)")));
+    // --calibrate-no-depth without --calibrate-loso is refused.
+    let o = bin()
+        .args([
+            "simulate",
+            "--gt",
+            "phantom",
+            "--calibrate-no-depth",
+            "--out",
+        ])
+        .arg(dir.join("alone"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!dir.join("alone").exists());
 }
 
 #[test]

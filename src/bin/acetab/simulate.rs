@@ -174,6 +174,11 @@ pub struct SimulateArgs {
     /// calibrate --shrink` does).
     #[arg(long, requires = "calibrate_loso")]
     pub calibrate_shrink: bool,
+    /// With --calibrate-loso: learn each mesh's calibration without a depth offset (as `acetab
+    /// calibrate --no-depth` does): the results stay where the method puts them along the
+    /// views.
+    #[arg(long, requires = "calibrate_loso")]
+    pub calibrate_no_depth: bool,
     /// Population shape prior for the walls no outline watches: "none" (the bare sphere
     /// prior), "default" (the shipped prior, priors/default.json) or a file from `acetab prior
     /// build`.
@@ -234,6 +239,7 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         calibration,
         calibrate_loso,
         calibrate_shrink,
+        calibrate_no_depth,
         prior,
         cup_estimator,
         prior_leave_out,
@@ -408,7 +414,11 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         calibration,
         adapter: dev.as_ref().map(|d| d.describe()),
         adapter_json: dev.as_ref().map(|d| d.adapter_json()),
-        loso: calibrate_loso.map(|d| (d, crate::calibrate::what(false, calibrate_shrink))),
+        loso: calibrate_loso.map(|train| Loso {
+            train,
+            what: crate::calibrate::what(false, calibrate_shrink),
+            depth: !calibrate_no_depth,
+        }),
         prior: PriorChoice {
             arg: prior,
             leave_out: prior_leave_out,
@@ -449,7 +459,7 @@ struct Study<'a> {
     adapter_json: Option<serde_json::Value>,
     /// `--calibrate-loso`: the studies each mesh's calibration is learned from, and what is
     /// learned.
-    loso: Option<(PathBuf, acetab::pipeline::Learn)>,
+    loso: Option<Loso>,
     /// The prior asked for.
     prior: PriorChoice,
     runs: usize,
@@ -457,6 +467,14 @@ struct Study<'a> {
     shard: (usize, usize),
     kernels: Kernels<'a>,
     batcher: Option<&'a GpuBatcher<'a>>,
+}
+
+/// `--calibrate-loso` and its companions: the studies each mesh's calibration is learned from
+/// (less the mesh's subject), what of the cup is learned, and whether the depth offset is.
+struct Loso {
+    train: PathBuf,
+    what: acetab::pipeline::Learn,
+    depth: bool,
 }
 
 impl Study<'_> {
@@ -527,9 +545,9 @@ impl Study<'_> {
         // Leave-one-subject-out: this mesh's calibration, learned without its subject.
         let mut own = cfg.clone();
         let mut calibration = calibration.clone();
-        if let Some((train, what)) = loso {
+        if let Some(Loso { train, what, depth }) = loso {
             let subject = crate::calibrate::subject_of(Path::new(gt));
-            let cal = crate::calibrate::learn(
+            let mut cal = crate::calibrate::learn(
                 std::slice::from_ref(train),
                 std::slice::from_ref(&subject),
                 acetab::study::StudyMethod::Srvf,
@@ -537,6 +555,9 @@ impl Study<'_> {
                 None,
             )
             .map_err(|e| format!("--calibrate-loso: {e}"))?;
+            if !depth {
+                cal.depth_mm = 0.0;
+            }
             let used = own.params.cup.estimator;
             if cal.cup_estimator() != Some(used) {
                 return Err(format!(
@@ -550,8 +571,9 @@ impl Study<'_> {
             if let Some(up) = own.uncertainty.as_mut() {
                 up.model_sd_mm = cal.model_sd_mm;
             }
+            let no_depth = if *depth { "" } else { " (no depth offset)" };
             calibration = format!(
-                "leave-one-subject-out: {} without subject {subject}: {}",
+                "leave-one-subject-out: {} without subject {subject}{no_depth}: {}",
                 train.display(),
                 cal.learned_from
             );
