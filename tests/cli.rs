@@ -1253,6 +1253,61 @@ fn calibrate_learns_the_depth_offset_unless_told_not_to() {
     assert!(!dir.join("alone").exists());
 }
 
+/// A run whose resampling failed (cup SD NaN, the result kept) in a study that resampled is
+/// not learned from; in a study that resampled none (every SD NaN) each run counts with a
+/// resampled SD of 0. Companion: the same run with its SD counts, and moves the bias.
+#[test]
+fn calibrate_skips_a_run_whose_resampling_failed() {
+    let dir = tmp("calibrate-nan-sd");
+    let learn = |pop: &Path| {
+        let out = pop.with_extension("json");
+        let o = bin()
+            .args(["calibrate", "--study"])
+            .arg(pop)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        acetab::pipeline::CupCalibration::read(&out).unwrap()
+    };
+    // 30 runs 0.02 k mm too large; run 0 instead 6 mm, with its SD as given.
+    let study = |name: &str, sd0: f64, sd: f64| {
+        let pop = dir.join(name);
+        let d = pop.join("s1_lhip");
+        study_of(&d, 30, |k| 0.02 * k as f64);
+        let mut rows = acetab::study::read_csv(&d.join("runs.csv")).unwrap();
+        for r in &mut rows {
+            r.cup_sd_mm = sd;
+        }
+        rows[0].cup_diameter_mm = 56.0;
+        rows[0].cup_sd_mm = sd0;
+        acetab::study::write_csv(&rows, &d.join("runs.csv")).unwrap();
+        learn(&pop)
+    };
+    let skipped = study("failed", f64::NAN, 0.2);
+    assert!(
+        skipped.learned_from.starts_with("29 srvf runs"),
+        "{skipped:?}"
+    );
+    assert!((skipped.bias_mm - 0.30).abs() < 1e-9, "{skipped:?}");
+    let counted = study("counted", 0.2, 0.2);
+    assert!(
+        counted.learned_from.starts_with("30 srvf runs"),
+        "{counted:?}"
+    );
+    assert!(
+        (counted.bias_mm - (8.7 + 6.0) / 30.0).abs() < 1e-9,
+        "{counted:?}"
+    );
+    let unresampled = study("unresampled", f64::NAN, f64::NAN);
+    assert!(
+        unresampled.learned_from.starts_with("30 srvf runs"),
+        "{unresampled:?}"
+    );
+    assert_eq!(unresampled.bias_mm, counted.bias_mm);
+}
+
 #[test]
 fn calibrate_learns_the_model_sd_leaves_a_subject_out_and_names_bad_input() {
     let dir = tmp("calibrate");

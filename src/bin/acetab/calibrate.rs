@@ -316,14 +316,19 @@ pub fn learn(
             }
         };
         let rows = read_csv(&d.join("runs.csv")).map_err(|e| e.to_string())?;
+        let ran = |r: &&acetab::study::Row| r.method == method && r.error.is_empty();
+        // A study that resampled its cups: a run among its runs whose resampling failed (its
+        // SD NaN, its result kept) says nothing of the cup's spread and is skipped.
+        let resampled = rows.iter().filter(ran).any(|r| r.cup_sd_mm.is_finite());
         for r in rows
             .iter()
-            .filter(|r| r.method == method && r.error.is_empty())
+            .filter(ran)
+            .filter(|r| !(resampled && r.cup_sd_mm.is_nan()))
         {
             // The resampled SD alone: the study's SD without the model error it already held
-            // (NaN, no resampling, gives 0, as in `acetab plan-views`: the model SD learned
-            // then holds the whole spread); the estimator's own diameter, without the
-            // correction the study made.
+            // (NaN in every run, no resampling, gives 0, as in `acetab plan-views`: the model
+            // SD learned then holds the whole spread); the estimator's own diameter, without
+            // the correction the study made.
             let resample = (r.cup_sd_mm * r.cup_sd_mm - model * model).max(0.0).sqrt();
             let (fitted_mm, resample_sd_mm) = applied.undo(r.cup_diameter_mm, resample);
             runs.push(TrainingRun {
