@@ -21,7 +21,8 @@ pub struct PlanRun {
     pub fitted_mm: Option<f64>,
     /// The truth's cup, mm.
     pub truth_mm: f64,
-    /// The cup's resampled SD without any model error (0 when the study did not resample).
+    /// The cup's resampled SD without any model error (0 when the study did not resample; NaN
+    /// where it did and this run's resampling failed: the run then has no SD).
     pub resample_sd_mm: f64,
     /// The surface's mean absolute error, mm (of a run with a result).
     pub mae_mm: f64,
@@ -193,10 +194,11 @@ pub fn plan_rows(
                 r.fitted_mm.map(|f| (*r, f, x.cup.corrected(f), sd))
             })
             .collect();
-        // Whether each is within its SD; the coverage only where every one has its SD.
-        let covered: Option<Vec<bool>> = ok
+        // Whether each is within its SD, over the runs that have one (none where the sweeps
+        // did not resample; a run whose resampling failed has none).
+        let covered: Vec<bool> = ok
             .iter()
-            .map(|(r, _, c, sd)| sd.map(|s| (c - r.truth_mm).abs() <= s))
+            .filter_map(|(r, _, c, sd)| sd.map(|s| (c - r.truth_mm).abs() <= s))
             .collect();
         let n = sel.len() as f64;
         let k = ok.len().max(1) as f64;
@@ -219,9 +221,8 @@ pub fn plan_rows(
             within_one_size: share(&|(r, _, c, _)| {
                 (size(*c) - size(r.truth_mm)).abs() <= step + 1e-9
             }),
-            sd_coverage: covered
-                .filter(|v| !v.is_empty())
-                .map(|v| v.iter().filter(|&&b| b).count() as f64 / v.len() as f64),
+            sd_coverage: (!covered.is_empty())
+                .then(|| covered.iter().filter(|&&b| b).count() as f64 / covered.len() as f64),
         }
     };
     let mut out = Vec::new();
@@ -340,6 +341,25 @@ mod tests {
         )
         .unwrap();
         assert!((fixes[0].cup.bias_mm - in_sample.bias_mm).abs() > 0.5);
+    }
+
+    #[test]
+    fn a_run_whose_resampling_failed_is_left_out_of_the_sd_and_its_coverage() {
+        // Every run resampled (SD 0.3 mm), one of s0's 5 mm off; its resampling failed (NaN):
+        // the SDs learned and the coverage are those of the runs without it.
+        let mut runs = population(6, &|_| 0.0);
+        for r in &mut runs {
+            r.resample_sd_mm = 0.3;
+        }
+        runs[0].fitted_mm = runs[0].fitted_mm.map(|f| f + 5.0);
+        let coverage = |runs: &[PlanRun]| all(&rows_of(runs, Learn::SdOnly).unwrap()).sd_coverage;
+        let mut failed = runs.clone();
+        failed[0].resample_sd_mm = f64::NAN;
+        let without = coverage(&runs[1..]);
+        assert!(without.is_some());
+        assert_eq!(coverage(&failed), without);
+        // Companion: the same run with its SD is learned from and counted.
+        assert_ne!(coverage(&runs), without);
     }
 
     #[test]
