@@ -1,12 +1,11 @@
 //! The case's views checked against one another once they are read, each failure named by its
 //! field for the case file's error: one acetabulum spans about as much in every view
-//! (`outline_span_mismatch`) and lies where every view's outline points
-//! (`outline_centre_mismatch`, on `agreement::centre_miss`).
+//! (`outline_span_mismatch`, on `views::span_miss`) and lies where every view's outline points
+//! (`outline_centre_mismatch`, on `views::centre_miss`).
 
-use super::agreement::{centre_miss, CentreMiss};
-use crate::geom::{widest_extent, Curve};
-use crate::views::Camera;
-use std::cmp::Ordering;
+use crate::geom::Curve;
+use crate::views::MAX_OUTLINE_SPAN_RATIO;
+use crate::views::{centre_miss, span_miss, Camera, CentreMiss, SpanMiss};
 
 /// Where the views disagree, as the case's error names it (`file::field_err`).
 pub(super) struct Disagreement {
@@ -24,91 +23,21 @@ pub(super) struct Views<'a> {
     pub(super) px_per_mm: &'a [f64],
 }
 
-/// One acetabulum is seen in every view, so its closed outlines span about as much at the object
-/// in each: a view's widest closed outline may span from half to twice the median of the other
-/// views' (in mm at the template's centre). The outlines simulated from the 78 acetabula of
-/// docs/population.md (levels 1 and 5, five draws each) span at least 0.75 of the widest view's
-/// with the default views (0 and +-20 degrees about z), 0.71 with inlet and outlet views (x
-/// +-30), and 0.56 with views 45-60 degrees apart: a bound for outlines at a wrong scale (a
-/// tiny one, one in millimetres instead of pixels) and a view's k off by a factor, not for
-/// small disagreements (the outline guard is for those).
-pub const MAX_OUTLINE_SPAN_RATIO: f64 = 2.0;
-
-/// The view whose outline spans least like the others' (`MAX_OUTLINE_SPAN_RATIO`), as an error
-/// naming it, if any. Each view is measured by its widest closed outline; a view with open ones
-/// only, by its widest arc, which is a lower bound of the rim's span: it counts among the others,
-/// and is itself refused only for spanning too much.
+/// The view whose outline spans least like the others' (`views::span_miss`), as an error naming
+/// it, if any.
 pub(super) fn outline_span_mismatch(case: &Views) -> Option<Disagreement> {
-    /// A view's widest outline: where it is, its span in px and in mm at the object.
-    struct Span {
-        view: usize,
-        contour: usize,
-        px: f64,
-        mm: f64,
-        closed: bool,
-    }
-    // Each view's widest outline, closed ones first.
-    let spans: Vec<Span> = case
-        .observed
-        .iter()
-        .zip(case.px_per_mm)
-        .enumerate()
-        .filter_map(|(view, (curves, &px_per_mm))| {
-            curves
-                .iter()
-                .enumerate()
-                .map(|(contour, c)| {
-                    let px = widest_extent(&c.points);
-                    Span {
-                        view,
-                        contour,
-                        px,
-                        mm: px / px_per_mm,
-                        closed: c.closed,
-                    }
-                })
-                .max_by(|a, b| {
-                    (a.closed, a.mm)
-                        .partial_cmp(&(b.closed, b.mm))
-                        .unwrap_or(Ordering::Equal)
-                })
-        })
-        .collect();
-    if spans.len() < 2 {
-        return None;
-    }
-    // (how far off, as |ln ratio|, the others' median) of view k when it is off.
-    let off = |k: usize| {
-        let mut others: Vec<f64> = spans
-            .iter()
-            .enumerate()
-            .filter(|&(j, _)| j != k)
-            .map(|(_, s)| s.mm)
-            .collect();
-        others.sort_by(f64::total_cmp);
-        let m = others.len();
-        let median = 0.5 * (others[(m - 1) / 2] + others[m / 2]);
-        let r = spans[k].mm / median;
-        let too_small = spans[k].closed && r < 1.0 / MAX_OUTLINE_SPAN_RATIO;
-        (too_small || r > MAX_OUTLINE_SPAN_RATIO || !r.is_finite())
-            .then_some((r.ln().abs(), median))
-    };
-    // The view farthest off (the first of equals; a NaN distance never displaces one).
-    let (k, (_, median)) = (0..spans.len())
-        .filter_map(|k| off(k).map(|o| (k, o)))
-        .reduce(|best, x| if x.1 .0 > best.1 .0 { x } else { best })?;
-    let Span {
+    let SpanMiss {
         view,
         contour,
         px,
         mm,
-        ..
-    } = spans[k];
+        median_mm,
+    } = span_miss(case.observed, case.px_per_mm)?;
     Some(disagreement(
         format!("views[{view}].contours[{contour}].points"),
         format!(
             "an outline of view {} spanning {mm:.1} mm at the object ({px:.0} px), against \
-             {median:.1} mm in the other views",
+             {median_mm:.1} mm in the other views",
             case.names[view]
         ),
         format!(
@@ -169,5 +98,85 @@ fn disagreement(
         field: field.into(),
         value: value.into(),
         reason: reason.into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::sim::{phantom, simulate_case, NoiseLevel, PhantomParams, SimCase, XrayGeometry};
+    use crate::views::{centre_miss, centre_spread, CentreMiss, MAX_CENTRE_MISS};
+
+    fn phantom_case(seed: u64) -> SimCase {
+        let truth = phantom(&PhantomParams::default()).mesh;
+        let level = NoiseLevel::level(3).unwrap();
+        simulate_case(&truth, &XrayGeometry::default(), 2.0, &level, seed).unwrap()
+    }
+
+    #[test]
+    fn the_views_of_a_simulated_case_point_at_one_place() {
+        for seed in 1..4 {
+            let case = phantom_case(seed);
+            let spread = centre_spread(&case.cameras, &case.observed).unwrap();
+            assert!(spread < 0.1, "seed {seed}: {spread}");
+            assert_eq!(centre_miss(&case.cameras, &case.observed), None);
+        }
+    }
+
+    #[test]
+    fn a_view_whose_principal_point_is_off_is_the_one_named() {
+        for view in 0..3 {
+            let mut case = phantom_case(2);
+            case.cameras[view].k.cy -= 1024.0;
+            match centre_miss(&case.cameras, &case.observed) {
+                Some(CentreMiss::View {
+                    view: named,
+                    miss_mm,
+                    others_mm,
+                    span_mm,
+                }) => {
+                    assert_eq!(named, view);
+                    assert!(miss_mm > 2.0 * span_mm, "{miss_mm} {span_mm}");
+                    assert!(others_mm < 0.1 * span_mm, "{others_mm} {span_mm}");
+                }
+                other => panic!("view {view}: {other:?}"),
+            }
+        }
+        // Off across the views' common axis instead, the view cannot be told from the others
+        // (any two rays meet), and all are refused together.
+        let mut case = phantom_case(2);
+        case.cameras[1].k.cx -= 1024.0;
+        assert!(
+            matches!(
+                centre_miss(&case.cameras, &case.observed),
+                Some(CentreMiss::Views { .. })
+            ),
+            "{:?}",
+            centre_miss(&case.cameras, &case.observed)
+        );
+        // The companion: a principal point 20 px off (about 3 mm at the object, a pose error
+        // the pose refinement can take) is not refused here.
+        let mut case = phantom_case(2);
+        case.cameras[1].k.cy -= 20.0;
+        assert_eq!(centre_miss(&case.cameras, &case.observed), None);
+    }
+
+    #[test]
+    fn two_views_that_point_apart_are_refused_together() {
+        let mut case = phantom_case(2);
+        case.cameras.truncate(2);
+        case.observed.truncate(2);
+        case.cameras[1].k.cy += 1024.0;
+        assert!(
+            matches!(
+                centre_miss(&case.cameras, &case.observed),
+                Some(CentreMiss::Views { miss_mm, span_mm }) if miss_mm > MAX_CENTRE_MISS * span_mm
+            ),
+            "{:?}",
+            centre_miss(&case.cameras, &case.observed)
+        );
+        // The companion: the same two views as simulated agree.
+        let case = phantom_case(2);
+        let (cams, observed) = (&case.cameras[..2], &case.observed[..2]);
+        assert_eq!(centre_miss(cams, observed), None);
     }
 }

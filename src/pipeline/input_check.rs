@@ -2,13 +2,17 @@
 //! it is read (`CaseFile::validate`, with the file's field names); a host that embeds the
 //! library builds its `Camera`s, `Curve`s and `Placement` itself, and without these checks a
 //! camera with a zero focal length, an empty outline or a NaN radius came back as a misleading
-//! stage error, a panic, or a number; an outline with a stray point (a slip of the mouse) is
-//! refused as a case file's is (docs/population.md, "The library's own input, checked").
+//! stage error, a panic, or a number; an outline with a stray point (a slip of the mouse), and
+//! views whose outlines span unlike one another or point at no one place, are refused as a
+//! case file's are (docs/population.md, "The library's own input, checked").
 
 use super::{Input, ReconError};
 use crate::geom::{hull_fill, stray_point, turns_round_centroid, Curve};
 use crate::template::Placement;
-use crate::views::{cameras_too_narrow, Camera, MAX_VIEWS, MIN_VIEWS, MIN_VIEW_SPREAD_DEG};
+use crate::views::{cameras_too_narrow, centre_miss, span_miss, Camera, CentreMiss};
+use crate::views::{
+    MAX_CENTRE_MISS, MAX_OUTLINE_SPAN_RATIO, MAX_VIEWS, MIN_VIEWS, MIN_VIEW_SPREAD_DEG,
+};
 use nalgebra::{Matrix3, Point2};
 
 /// A closed outline encloses at least this share of its convex hull. The outlines simulated from
@@ -63,7 +67,78 @@ fn fault(field: String, value: impl std::fmt::Display, expected: impl Into<Strin
 /// `observed[0][0].points[17]`, `init.radius`) with its value and what it must be.
 pub fn check_input(input: &Input) -> Result<(), ReconError> {
     check_views(input.cameras, input.observed)?;
-    check_start(input.init, input.cameras)
+    check_start(input.init, input.cameras)?;
+    check_spans(input.cameras, input.observed, input.init)
+}
+
+/// One acetabulum spans about as much in every view (`views::span_miss`, each view's scale
+/// taken at the start's centre, as a case file's is).
+fn check_spans(
+    cameras: &[Camera],
+    observed: &[Vec<Curve>],
+    init: &Placement,
+) -> Result<(), ReconError> {
+    let px_per_mm: Vec<f64> = cameras
+        .iter()
+        .map(|c| c.pixels_per_mm_at(&init.center))
+        .collect();
+    let Some(m) = span_miss(observed, &px_per_mm) else {
+        return Ok(());
+    };
+    Err(fault(
+        format!("observed[{}][{}].points", m.view, m.contour),
+        format!(
+            "an outline spanning {:.1} mm at the start's centre ({:.0} px), against {:.1} mm in \
+             the other views",
+            m.mm, m.px, m.median_mm
+        ),
+        format!(
+            "one acetabulum spans about as much in every view (from 1/{MAX_OUTLINE_SPAN_RATIO:.0} \
+             to {MAX_OUTLINE_SPAN_RATIO:.0} times the others'): is this outline in another \
+             view's pixels, at another scale, or is cameras[{}].k or t wrong?",
+            m.view
+        ),
+    ))
+}
+
+/// One acetabulum lies where every view's outline points (`views::centre_miss`).
+fn check_centres(cameras: &[Camera], observed: &[Vec<Curve>]) -> Result<(), ReconError> {
+    let reason = format!(
+        "one acetabulum lies where every view's outline points (each view's ray through its \
+         outline's centre passes within {MAX_CENTRE_MISS} of the acetabulum's span of where the \
+         others meet)"
+    );
+    match centre_miss(cameras, observed) {
+        None => Ok(()),
+        Some(CentreMiss::View {
+            view,
+            miss_mm,
+            others_mm,
+            span_mm,
+        }) => Err(fault(
+            format!("observed[{view}]"),
+            format!(
+                "an outline whose centre's ray passes {miss_mm:.0} mm from where the other views' \
+                 outlines point (they agree within {others_mm:.0} mm; the acetabulum spans \
+                 {span_mm:.0} mm)"
+            ),
+            format!(
+                "{reason}: are cameras[{view}].k (cx, cy), r or t wrong, or is this outline \
+                 another image's?"
+            ),
+        )),
+        Some(CentreMiss::Views { miss_mm, span_mm }) => Err(fault(
+            "observed[*]".into(),
+            format!(
+                "outlines whose centres' rays pass up to {miss_mm:.0} mm from where they meet \
+                 (the acetabulum spans {span_mm:.0} mm)"
+            ),
+            format!(
+                "{reason}: the cameras' poses (r, t), principal points (cx, cy) or the outlines \
+                 do not belong to one acetabulum"
+            ),
+        )),
+    }
 }
 
 /// The views and their outlines alone (`cup_report` has no start to check).
@@ -97,7 +172,7 @@ pub fn check_views(cameras: &[Camera], observed: &[Vec<Curve>]) -> Result<(), Re
     for (i, (curves, cam)) in observed.iter().zip(cameras).enumerate() {
         check_outlines(i, curves, cam)?;
     }
-    Ok(())
+    check_centres(cameras, observed)
 }
 
 fn check_camera(i: usize, cam: &Camera) -> Result<(), ReconError> {
@@ -469,6 +544,37 @@ mod tests {
                 Box::new(|s| {
                     // A slip of the mouse: one point 80 px off the rim.
                     s.observed[0][0].points[10].x += 80.0
+                }),
+            ),
+            (
+                "observed[1][0].points",
+                Box::new(|s| {
+                    // An outline three times as wide as the others (another scale).
+                    let c = &mut s.observed[1][0];
+                    let n = c.points.len() as f64;
+                    let m = c
+                        .points
+                        .iter()
+                        .fold(Point2::origin(), |m, p| m + p.coords / n);
+                    for p in &mut c.points {
+                        *p = m + (*p - m) * 3.0;
+                    }
+                }),
+            ),
+            (
+                "observed[1]",
+                Box::new(|s| {
+                    // View 1's principal point off by half the image: its outline's ray
+                    // passes far from where the others meet.
+                    s.cameras[1].k.cy -= 1024.0
+                }),
+            ),
+            (
+                "observed[*]",
+                Box::new(|s| {
+                    // Off across the views' common axis: any two rays meet, and no one view
+                    // can be named.
+                    s.cameras[1].k.cx -= 1024.0
                 }),
             ),
             ("init.radius", Box::new(|s| s.init.radius = -s.init.radius)),

@@ -1,8 +1,11 @@
 //! Stage 2: X-ray views, each a pinhole camera p ~ K (R P + t).
 
+mod agreement;
 mod camera;
 mod turn;
 
+pub use agreement::{centre_miss, centre_spread, span_miss, CentreMiss, SpanMiss};
+pub use agreement::{MAX_CENTRE_MISS, MAX_OUTLINE_SPAN_RATIO};
 pub use camera::{Camera, Intrinsics, ProjectionError};
 pub use turn::{view_set_mismatch_deg, BodyAxis, ViewRotation, MAX_PAIRED_VIEWS};
 
