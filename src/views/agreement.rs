@@ -3,7 +3,7 @@
 //! (`centre_miss`). Case files (`case::CaseFile`) and a host's input (`pipeline::check_input`)
 //! are held to both, each naming its own fields.
 //!
-//! Where the outlines point: Each view's outline centre (the length-weighted centroid of its
+//! Where the outlines point: each view's outline centre (the length-weighted centroid of its
 //! annotated points) defines a ray from its source; for views whose poses and intrinsics belong
 //! together these rays nearly meet, at the acetabulum. A view whose principal point, pose or
 //! annotation belongs elsewhere sends its ray far past the point where the others meet, and no
