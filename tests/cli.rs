@@ -1237,6 +1237,41 @@ fn calibrate_learns_the_depth_offset_unless_told_not_to() {
     assert!(none["study"]["calibration"]
         .as_str()
         .is_some_and(|c| c.contains("without subject s1 (no depth offset)")));
+    // A sweep (a folder of meshes) records what its leave-one-subject-out calibrations learn:
+    // resumed with --calibrate-no-depth it is refused, and resumed as it was it skips the mesh.
+    let meshes = dir.join("meshes");
+    std::fs::create_dir_all(&meshes).unwrap();
+    std::fs::copy(&mesh, meshes.join("s1_lhip.obj")).unwrap();
+    let sweep = |extra: &[&str]| {
+        bin()
+            .args(["simulate", "--gt"])
+            .arg(&meshes)
+            .args(ONE_RUN.split(' '))
+            .args(["--calibrate-shrink", "--calibrate-loso"])
+            .arg(&pop)
+            .args(extra)
+            .arg("--out")
+            .arg(dir.join("sweep"))
+            .output()
+            .unwrap()
+    };
+    let first = sweep(&[]);
+    assert!(
+        first.status.success(),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    let mixed = sweep(&["--calibrate-no-depth"]);
+    assert!(!mixed.status.success());
+    let err = String::from_utf8_lossy(&mixed.stderr);
+    assert!(err.contains("study.calibrate_loso is"), "{err}");
+    let again = sweep(&[]);
+    assert!(
+        again.status.success(),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    assert!(String::from_utf8_lossy(&again.stderr).contains("done before, skipped"));
     // --calibrate-no-depth without --calibrate-loso is refused.
     let o = bin()
         .args([

@@ -510,8 +510,26 @@ impl Study<'_> {
         .unwrap_or_default();
         // The cup's calibration and the prior are shared too, unless each mesh learns its own
         // without its subject.
-        if self.loso.is_none() {
-            m.insert("calibration".into(), self.calibration.clone().into());
+        // With --calibrate-loso the studies learned from and what is learned are shared, so a
+        // sweep resumed or merged with other ones is refused.
+        match &self.loso {
+            None => {
+                m.insert("calibration".into(), self.calibration.clone().into());
+            }
+            Some(l) => {
+                let train = std::fs::canonicalize(&l.train)
+                    .unwrap_or_else(|_| l.train.clone())
+                    .display()
+                    .to_string();
+                m.insert(
+                    "calibrate_loso".into(),
+                    serde_json::json!({
+                        "study": train,
+                        "learn": format!("{:?}", l.what),
+                        "depth": l.depth,
+                    }),
+                );
+            }
         }
         if !self.prior.leave_out {
             m.insert("prior".into(), self.prior.from.clone().into());
