@@ -1210,10 +1210,11 @@ fn calibrate_learns_the_depth_offset_unless_told_not_to() {
     // runs alone (offset 1.5 mm), and with --calibrate-no-depth from the same runs without it.
     let mesh = dir.join("s1_lhip.obj");
     acetab::io::write_obj(&phantom(&PhantomParams::default()).mesh, &mesh).unwrap();
-    let loso = |extra: &[&str], out: &str| -> serde_json::Value {
-        let o = bin()
+    // `acetab simulate` on `gt` calibrated leave-one-subject-out from `pop`, with `extra`.
+    let run_loso = |gt: &Path, extra: &[&str], out: &str| {
+        bin()
             .args(["simulate", "--gt"])
-            .arg(&mesh)
+            .arg(gt)
             .args(ONE_RUN.split(' '))
             .args(["--calibrate-shrink", "--calibrate-loso"])
             .arg(&pop)
@@ -1221,7 +1222,10 @@ fn calibrate_learns_the_depth_offset_unless_told_not_to() {
             .arg("--out")
             .arg(dir.join(out))
             .output()
-            .unwrap();
+            .unwrap()
+    };
+    let loso = |extra: &[&str], out: &str| -> serde_json::Value {
+        let o = run_loso(&mesh, extra, out);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let text = std::fs::read_to_string(dir.join(out).join("summary.json")).unwrap();
         serde_json::from_str(&text).unwrap()
@@ -1242,19 +1246,7 @@ fn calibrate_learns_the_depth_offset_unless_told_not_to() {
     let meshes = dir.join("meshes");
     std::fs::create_dir_all(&meshes).unwrap();
     std::fs::copy(&mesh, meshes.join("s1_lhip.obj")).unwrap();
-    let sweep = |extra: &[&str]| {
-        bin()
-            .args(["simulate", "--gt"])
-            .arg(&meshes)
-            .args(ONE_RUN.split(' '))
-            .args(["--calibrate-shrink", "--calibrate-loso"])
-            .arg(&pop)
-            .args(extra)
-            .arg("--out")
-            .arg(dir.join("sweep"))
-            .output()
-            .unwrap()
-    };
+    let sweep = |extra: &[&str]| run_loso(&meshes, extra, "sweep");
     let first = sweep(&[]);
     assert!(
         first.status.success(),

@@ -113,6 +113,25 @@ impl Applied {
     }
 }
 
+/// A run's resampled SD alone: its study's SD (`cup_sd_mm`) without the model error the study
+/// already held in it. NaN in a study that resampled none gives 0 (the model SD learned then
+/// holds the whole spread); NaN in one that did (`resampled`: the run's resampling failed, its
+/// result kept) stays NaN, a run with no SD. What `calibrate` and `plan-views` read alike.
+pub(crate) fn resampled_sd(cup_sd_mm: f64, model_sd_mm: f64, resampled: bool) -> f64 {
+    if resampled && cup_sd_mm.is_nan() {
+        return f64::NAN;
+    }
+    (cup_sd_mm * cup_sd_mm - model_sd_mm * model_sd_mm)
+        .max(0.0)
+        .sqrt()
+}
+
+/// Whether a study resampled its `method` runs' cups: some run with a result has a finite SD.
+pub(crate) fn resampled_cups(rows: &[acetab::study::Row], method: StudyMethod) -> bool {
+    rows.iter()
+        .any(|r| r.method == method && r.error.is_empty() && r.cup_sd_mm.is_finite())
+}
+
 pub(crate) fn applied_in(dir: &Path) -> Result<Applied, String> {
     let mut a = Applied {
         model_sd: 0.0,
@@ -316,20 +335,17 @@ pub fn learn(
             }
         };
         let rows = read_csv(&d.join("runs.csv")).map_err(|e| e.to_string())?;
-        let ran = |r: &&acetab::study::Row| r.method == method && r.error.is_empty();
-        // A study that resampled its cups: a run among its runs whose resampling failed (its
-        // SD NaN, its result kept) says nothing of the cup's spread and is skipped.
-        let resampled = rows.iter().filter(ran).any(|r| r.cup_sd_mm.is_finite());
+        // In a study that resampled its cups, a run whose resampling failed (its SD NaN, its
+        // result kept) says nothing of the cup's spread and is skipped.
+        let resampled = resampled_cups(&rows, method);
         for r in rows
             .iter()
-            .filter(ran)
+            .filter(|r| r.method == method && r.error.is_empty())
             .filter(|r| !(resampled && r.cup_sd_mm.is_nan()))
         {
-            // The resampled SD alone: the study's SD without the model error it already held
-            // (NaN in every run, no resampling, gives 0, as in `acetab plan-views`: the model
-            // SD learned then holds the whole spread); the estimator's own diameter, without
-            // the correction the study made.
-            let resample = (r.cup_sd_mm * r.cup_sd_mm - model * model).max(0.0).sqrt();
+            // The resampled SD alone (`resampled_sd`), and the estimator's own diameter,
+            // without the correction the study made.
+            let resample = resampled_sd(r.cup_sd_mm, model, resampled);
             let (fitted_mm, resample_sd_mm) = applied.undo(r.cup_diameter_mm, resample);
             runs.push(TrainingRun {
                 fitted_mm,

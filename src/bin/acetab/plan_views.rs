@@ -4,7 +4,8 @@
 //! source of truths, the surface's MAE, the fitted cup's error, and the cup corrected by what
 //! the set's other subjects' runs teach (leave-one-subject-out).
 
-use crate::calibrate::{applied_in, hold_protocol, study_dirs, subject_of};
+use crate::calibrate::{applied_in, hold_protocol, resampled_cups, resampled_sd};
+use crate::calibrate::{study_dirs, subject_of};
 use crate::common::{check_out, io_msg};
 use acetab::io::fill_dir_atomically;
 use acetab::pipeline::{CupEstimator, Learn};
@@ -113,11 +114,7 @@ fn read_sweep(
                 .unwrap_or_default(),
         );
         let rows = read_csv(&d.join("runs.csv")).map_err(|e| e.to_string())?;
-        // Whether the study resampled its cups: then a run whose resampling failed (SD NaN,
-        // result kept) has no SD, as `acetab calibrate` reads it.
-        let resampled = rows
-            .iter()
-            .any(|r| r.method == method && r.error.is_empty() && r.cup_sd_mm.is_finite());
+        let resampled = resampled_cups(&rows, method);
         for r in rows.iter().filter(|r| r.method == method) {
             if !(r.gt_cup_diameter_mm.is_finite() && r.gt_cup_diameter_mm > 0.0) {
                 return Err(format!(
@@ -130,16 +127,9 @@ fn read_sweep(
                 ));
             }
             let ok = r.error.is_empty() && r.cup_diameter_mm.is_finite();
-            // The resampled SD alone (NaN in a study that resampled none gives 0, NaN in one
-            // that did stays NaN), and the estimator's own diameter, without the correction
-            // the study made.
-            let resample = if resampled && r.cup_sd_mm.is_nan() {
-                f64::NAN
-            } else {
-                (r.cup_sd_mm * r.cup_sd_mm - applied.model_sd * applied.model_sd)
-                    .max(0.0)
-                    .sqrt()
-            };
+            // The resampled SD alone (`resampled_sd`), and the estimator's own diameter,
+            // without the correction the study made.
+            let resample = resampled_sd(r.cup_sd_mm, applied.model_sd, resampled);
             let (fitted, resample_sd_mm) = applied.undo(r.cup_diameter_mm, resample);
             runs.push(PlanRun {
                 source,
