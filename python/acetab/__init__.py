@@ -198,12 +198,16 @@ def _contours(view: Any, name: str) -> List[Dict[str, Any]]:
     out = []
     for i, c in enumerate(view):
         where = f"{name}[{i}]"
+        entry: Dict[str, Any] = {}
         if isinstance(c, Mapping):
             closed = bool(c.get("closed", True))
             pts = c["points"]
+            if "clicked" in c:
+                entry["clicked"] = bool(c["clicked"])
         else:
             closed, pts = True, c
-        out.append({"points": _float_list(pts, (None, 2), where), "closed": closed})
+        entry.update({"points": _float_list(pts, (None, 2), where), "closed": closed})
+        out.append(entry)
     return out
 
 
@@ -218,7 +222,8 @@ def reconstruct(
     ``cameras``: one mapping per view with ``k`` ((4,) fx, fy, cx, cy in pixels, or a (3, 3)
     K), ``r`` ((3, 3) world-to-camera rotation), ``t`` ((3,) mm), ``width`` and ``height``
     (pixels), optionally ``name``. ``contours``: per view, an (N, 2) array of pixel points (a
-    closed rim), a mapping ``{"points": (N, 2), "closed": bool}``, or a list of those.
+    closed rim), a mapping ``{"points": (N, 2), "closed": bool}`` (with ``"clicked": True``
+    where the points are clicks on the rim, as in a case file), or a list of those.
     ``template``: ``{"center": (3,), "radius": mm, "axis": (3,)}``, the start placement.
     Options as for ``reconstruct_case``.
 

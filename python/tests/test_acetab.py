@@ -102,6 +102,31 @@ def test_reconstruct_from_arrays_matches_the_case_file():
     assert r2["cup"]["diameter_mm"] == r["cup"]["diameter_mm"]
 
 
+def test_clicks_reach_the_engine_as_in_a_case_file(tmp_path):
+    """Ten clicks a view given as arrays with ``"clicked": True`` give the cup of the same case
+    file with ``"clicked": true``; the companion: without the flag the cup differs."""
+    cameras, contours, template = case_arrays(CASE)
+    case = json.loads(CASE.read_text())
+    for view, cs in zip(case["views"], contours):
+        view.pop("image", None)
+        pts = cs[0]["points"]
+        keep = [round(i * (len(pts) - 1) / 9) if not cs[0]["closed"] else i * len(pts) // 10
+                for i in range(10)]
+        cs[0]["points"] = pts[keep]
+        cs[0]["clicked"] = True
+        view["contours"][0]["points"] = pts[keep].tolist()
+        view["contours"][0]["clicked"] = True
+    path = tmp_path / "clicks.json"
+    path.write_text(json.dumps(case))
+    ref = acetab.reconstruct_case(path, uncertainty_samples=2)
+    r = acetab.reconstruct(cameras, contours, template, uncertainty_samples=2)
+    assert r["cup"]["diameter_mm"] == ref["cup"]["diameter_mm"]
+    for cs in contours:
+        cs[0]["clicked"] = False
+    plain = acetab.reconstruct(cameras, contours, template, uncertainty_samples=2)
+    assert plain["cup"]["diameter_mm"] != r["cup"]["diameter_mm"]
+
+
 def test_a_wrong_focal_length_moves_the_cup():
     cameras, contours, template = case_arrays(CASE)
     ref = acetab.reconstruct(cameras, contours, template, uncertainty_samples=2)

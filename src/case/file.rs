@@ -63,6 +63,11 @@ pub struct ContourFile {
     /// closed, open (a part left out) or partial (an arc of a closed rim).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub kind: Option<ContourKind>,
+    /// The points are clicks on the rim rather than a traced line (default false): the method
+    /// meets the curve through them (`Curve::clicked`), not the straight steps between them,
+    /// which cut inside a round rim and make the cup small the farther apart the clicks are.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clicked: Option<bool>,
 }
 
 /// One view.
@@ -743,9 +748,13 @@ impl CaseFile {
                         ));
                     }
                 }
-                curves.push(Curve {
+                let curve = Curve {
                     points: pts,
                     closed,
+                };
+                curves.push(match c.clicked {
+                    Some(true) => curve.clicked(),
+                    _ => curve,
                 });
             }
             // One acetabulum's rim a view: one closed outline, or open arcs of it. A second
@@ -843,6 +852,7 @@ impl CaseFile {
                             points: cv.points.iter().map(|p| [p.x, p.y]).collect(),
                             closed: Some(cv.closed),
                             kind: None,
+                            clicked: None,
                         })
                         .collect(),
                 })

@@ -10,6 +10,7 @@ mod segments;
 mod sphere;
 mod stats;
 mod stray;
+mod through;
 
 pub use knn::Knn3;
 pub use mesh::{Mesh, MeshError};
@@ -23,3 +24,4 @@ pub use segments::Segments;
 pub use sphere::{fit_sphere, fit_sphere_robust, Sphere, SphereFitError};
 pub use stats::{centroid, mean, mean_sd, opening_axis, quantile_sorted};
 pub use stray::{stray_point, StrayPoint};
+pub use through::{MAX_ARC_TURN_DEG, THROUGH_STEP_PX};

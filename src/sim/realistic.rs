@@ -8,6 +8,7 @@
 use super::simulate::{gaussian, observed_alpha, perturb, NoiseLevel, SimCase, SimError, SimSetup};
 use crate::contours::model_contour;
 use crate::geom::{Curve, Mesh};
+use crate::template::Placement;
 use crate::views::Camera;
 use nalgebra::{Point2, Vector2};
 use rand::SeedableRng;
@@ -57,7 +58,10 @@ pub struct RealisticErrors {
     pub jitter_px: f64,
     /// Distance between the annotator's clicks along the outline, px: the kept outline is
     /// replaced by points this far apart (a polygon, as a rim clicked point by point), before
-    /// the drift and jitter. 0 (the default) keeps the outline's own points, a few px apart.
+    /// the drift and jitter; the method gets them as clicks (the curve through them,
+    /// `Curve::clicked`, as from a case file's `"clicked": true`) unless `raster_px` reads them
+    /// off a mask. 0 (the default) keeps the outline's own points, a few px apart, as a traced
+    /// line.
     pub click_px: f64,
     /// The annotation as a segmentation mask's boundary gives it: the traced line (after the
     /// drift and jitter) read off a grid of this pitch, px, as the chain of cells it passes
@@ -185,6 +189,24 @@ impl SimSetup {
         level: &NoiseLevel,
         seed: u64,
     ) -> Result<SimCase, SimError> {
+        let (observed, init) = self.realistic_annotations(truth, errors, level, seed)?;
+        let observed = observed
+            .into_iter()
+            .map(|view| view.into_iter().map(|c| handed_on(c, errors)).collect())
+            .collect();
+        Ok(self.case_of(observed, init, seed))
+    }
+
+    /// The draws of `realistic_case`: each view's annotation as the annotator gave it (with
+    /// `click_px`, the clicks themselves, before the curve through them that the case carries),
+    /// and the perturbed start.
+    pub fn realistic_annotations(
+        &self,
+        truth: &Mesh,
+        errors: &RealisticErrors,
+        level: &NoiseLevel,
+        seed: u64,
+    ) -> Result<(Vec<Vec<Curve>>, Placement), SimError> {
         errors.validate()?;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let init = perturb(&self.placement, level, &mut rng)?;
@@ -226,7 +248,18 @@ impl SimSetup {
                 })?;
             observed.push(vec![curve]);
         }
-        Ok(self.case_of(observed, init, seed))
+        Ok((observed, init))
+    }
+}
+
+/// An annotation as the method gets it: clicks (`click_px`, not read off a mask) as the curve
+/// through them (`Curve::clicked`), as a case file's `"clicked": true` gives them; a traced line
+/// or a mask's boundary as it is.
+fn handed_on(curve: Curve, e: &RealisticErrors) -> Curve {
+    if e.click_px > 0.0 && e.raster_px == 0.0 {
+        curve.clicked()
+    } else {
+        curve
     }
 }
 
@@ -551,8 +584,10 @@ mod tests {
     }
 
     /// Clicks 20 px apart: each annotation is a polygon of about its length / 20 points, 20 px
-    /// apart give or take the drift and jitter, over the same arc; the default keeps the
-    /// outline's own points, a few px apart (the companion: clicks not applied are told apart).
+    /// apart give or take the drift and jitter, over the same arc, and the method gets the curve
+    /// through them; the default keeps the outline's own points, a few px apart, and hands them
+    /// on as they are (the companions: clicks not applied are told apart, and a traced line is
+    /// not taken for clicks).
     #[test]
     fn clicks_make_the_annotation_a_polygon_of_points_that_far_apart() {
         let (truth, s) = setup();
@@ -568,9 +603,14 @@ mod tests {
             d[d.len() / 2]
         };
         let a = s.realistic_case(&truth, &dense, &level, 5).unwrap();
-        let b = s.realistic_case(&truth, &clicks, &level, 5).unwrap();
+        let (given, _) = s.realistic_annotations(&truth, &clicks, &level, 5).unwrap();
+        let handed = s.realistic_case(&truth, &clicks, &level, 5).unwrap();
+        let (traced, _) = s.realistic_annotations(&truth, &dense, &level, 5).unwrap();
         for v in 0..s.cameras.len() {
-            let (da, db) = (&a.observed[v][0], &b.observed[v][0]);
+            let (da, db) = (&a.observed[v][0], &given[v][0]);
+            assert_eq!(handed.observed[v][0], db.clicked());
+            assert!(handed.observed[v][0].points.len() > db.points.len());
+            assert_eq!(*da, traced[v][0]);
             assert!(!db.closed);
             let length = crate::geom::polyline_length(&db.points, false);
             assert!(
