@@ -198,15 +198,14 @@ def _contours(view: Any, name: str) -> List[Dict[str, Any]]:
     out = []
     for i, c in enumerate(view):
         where = f"{name}[{i}]"
-        entry: Dict[str, Any] = {}
         if isinstance(c, Mapping):
             closed = bool(c.get("closed", True))
             pts = c["points"]
-            if "clicked" in c:
-                entry["clicked"] = bool(c["clicked"])
         else:
             closed, pts = True, c
-        entry.update({"points": _float_list(pts, (None, 2), where), "closed": closed})
+        entry = {"points": _float_list(pts, (None, 2), where), "closed": closed}
+        if isinstance(c, Mapping) and "clicked" in c:
+            entry["clicked"] = bool(c["clicked"])
         out.append(entry)
     return out
 

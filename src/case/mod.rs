@@ -1,6 +1,6 @@
 //! Case files: a patient's views and annotated rims read from JSON (`file`), checked against one
-//! another (`views_agree`, on `views::span_miss` and `views::centre_miss`), and the whole run of one case, from the file to the
-//! written report (`run`).
+//! another (`views_agree`, on `views::span_miss` and `views::centre_miss`), and the whole run of
+//! one case, from the file to the written report (`run`).
 
 mod calibration;
 mod file;

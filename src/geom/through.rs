@@ -53,18 +53,13 @@ fn arc_point(phi: f64, t: f64) -> (f64, f64) {
 }
 
 impl Curve {
-    /// A rim given as clicks on it: the curve through them (`through_points`).
-    pub fn clicked(&self) -> Curve {
-        self.through_points()
-    }
-
-    /// The curve through this one's points: every step longer than `THROUGH_STEP_PX` gets
-    /// points on its blended arc (see the module) about that far apart between its ends, so
-    /// that the curve's points lie evenly along it, as a traced line's do (the outlines' limb
+    /// A rim given as clicks on it, as the curve through them: every step longer than
+    /// `THROUGH_STEP_PX` gets points on its blended arc (see the module) about that far apart
+    /// between its ends, so that the curve's points lie evenly along it, as a traced line's do (the outlines' limb
     /// sphere is fitted to the points one by one: points only where the steps bend would weigh
     /// those stretches more); every given point is kept. An open curve's end steps take the one
     /// circle they have. A curve of fewer than three points is returned as it is.
-    pub fn through_points(&self) -> Curve {
+    pub fn clicked(&self) -> Curve {
         let p = &self.points;
         let n = p.len();
         if n < 3 {
@@ -156,7 +151,7 @@ mod tests {
             points: pts.clone(),
             closed: true,
         };
-        let through = given.through_points();
+        let through = given.clicked();
         assert!(
             off_circle(&through, 150.0) < 0.01,
             "{}",
@@ -195,7 +190,7 @@ mod tests {
             points: pts.clone(),
             closed: false,
         };
-        let through = given.through_points();
+        let through = given.clicked();
         assert!(!through.closed);
         assert_eq!(through.points.first(), pts.first());
         assert_eq!(through.points.last(), pts.last());
@@ -217,7 +212,7 @@ mod tests {
             points: clicks(330, 150.0, 0.0),
             closed: true,
         };
-        assert_eq!(dense.through_points(), dense);
+        assert_eq!(dense.clicked(), dense);
         let side = |a: [f64; 2], b: [f64; 2]| {
             (0..3).map(move |i| {
                 let t = i as f64 / 3.0;
@@ -229,7 +224,7 @@ mod tests {
             points: (0..4).flat_map(|i| side(c[i], c[(i + 1) % 4])).collect(),
             closed: true,
         };
-        let through = square.through_points();
+        let through = square.clicked();
         for k in 0..4 {
             let (s1, s2) = (square.points[3 * k + 1], square.points[3 * k + 2]);
             let i = through.points.iter().position(|p| *p == s1).unwrap();
@@ -250,7 +245,7 @@ mod tests {
             points: clicks(6, 100.0, 0.2),
             closed: true,
         };
-        let rounded = hexagon.through_points();
+        let rounded = hexagon.clicked();
         let bulge = rounded
             .points
             .iter()
@@ -279,28 +274,28 @@ mod tests {
             points: pts,
             closed: true,
         };
-        let t = c.through_points();
+        let t = c.clicked();
         assert!(t.points.iter().all(|p| p.x.is_finite() && p.y.is_finite()));
         assert!(t.points.len() > c.points.len());
         let two = Curve {
             points: clicks(2, 150.0, 0.0),
             closed: false,
         };
-        assert_eq!(two.through_points(), two);
+        assert_eq!(two.clicked(), two);
         // A host's curve in other units: steps of 1e12 get at most MAX_STEP_POINTS points each;
         // a point that is not finite leaves its steps as they are.
         let huge = Curve {
             points: clicks(8, 1e12, 0.0),
             closed: true,
         };
-        assert!(huge.through_points().points.len() <= 8 * MAX_STEP_POINTS);
+        assert!(huge.clicked().points.len() <= 8 * MAX_STEP_POINTS);
         let mut nan = clicks(8, 150.0, 0.0);
         nan[4] = Point2::new(f64::NAN, 0.0);
         let t = Curve {
             points: nan,
             closed: true,
         }
-        .through_points();
+        .clicked();
         assert_eq!(t.points.iter().filter(|p| p.x.is_nan()).count(), 1);
     }
 }
