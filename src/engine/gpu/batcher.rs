@@ -93,12 +93,15 @@ impl<T, R> Lane<T, R> {
         gate: &Gate,
         run: impl Fn(Vec<(u64, T)>) -> Vec<(u64, R)>,
     ) -> R {
-        let _waiting = Waiting::on(gate);
         let start = Instant::now();
         let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
         let id = s.next;
         s.next += 1;
         s.pending.push((id, input));
+        // Counted as waiting only once its request is queued: counted before, a run polling this
+        // lane could find every run waiting and send the queue without this request (two
+        // dispatches for one step; seen on a loaded machine).
+        let _waiting = Waiting::on(gate);
         self.cv.notify_all();
         loop {
             if let Some(r) = s.done.remove(&id) {
