@@ -31,6 +31,12 @@ pub struct SolveLog {
     /// restarts and the outline guard judge, and the uncertainty's contour noise
     /// (`UncertaintyParams::noise_px`, when not given).
     pub outline_px: f64,
+    /// Per view, the share of the fit's model outline that runs along the annotation
+    /// (`guards::annotated_shares`), before a depth offset moves the result: 1 where the
+    /// annotation goes all the way round, less where it leaves part of the rim open.
+    pub annotated_share_per_view: Vec<f64>,
+    /// The largest of them: what the open-rims guard judges (`GuardParams::min_annotated_share`).
+    pub annotated_share: f64,
     /// Per view, the size of the pose correction found (degrees, mm); empty without refinement.
     pub pose_corrections: Vec<[f64; 2]>,
     /// The sphere fitted to the outlines' limbs (centre x, y, z and radius, mm), when used.

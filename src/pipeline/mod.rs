@@ -30,8 +30,8 @@ pub use cup::{
 pub use depth::{depth_axis, FACING_RAMP};
 pub use fallback::{params_used, Fallback, FALLBACKS};
 pub use guards::{
-    first_failure, folded_share, odd_view, view_label, GuardFailure, GuardParams, Judged, Refusal,
-    VIEW_NOTE_MIN_PX, VIEW_NOTE_RATIO,
+    annotated_shares, first_failure, folded_share, odd_view, view_label, GuardFailure, GuardParams,
+    Judged, Refusal, ALONG_PX, VIEW_NOTE_MIN_PX, VIEW_NOTE_RATIO,
 };
 pub use input_check::{
     check_input, check_views, fills_hull, ABSURD, IMAGE_MARGIN, MAX_OUTLINE_POINTS, MIN_HULL_FILL,
@@ -288,6 +288,7 @@ pub(super) fn guard_failure(g: &GuardParams, rec: &Reconstruction) -> Option<Gua
             limb: rec.log.limb_sphere,
             rms_px: rec.log.reprojection_rms_px,
             outline_px: rec.log.outline_px,
+            annotated_share: rec.log.annotated_share,
         },
     )
 }
@@ -659,6 +660,12 @@ fn finish(
     let final_contours = ctx.contours(&mesh, &poses.cams_now)?;
     (log.outline_px_per_view, log.outline_px) =
         restart::outline_distances_px(&final_contours, ctx.observed);
+    log.annotated_share_per_view = guards::annotated_shares(&final_contours, ctx.observed);
+    log.annotated_share = log
+        .annotated_share_per_view
+        .iter()
+        .copied()
+        .fold(0.0, f64::max);
     Ok(Reconstruction {
         initial_contours: ctx.contours(&initial, ctx.cams)?,
         final_contours,
@@ -1058,6 +1065,40 @@ mod tests {
             ..RimPairs::default()
         };
         assert!(run(Method::Srvf, Some(idle)) == run(Method::Srvf, None));
+    }
+
+    #[test]
+    fn rims_left_open_in_every_view_are_refused_and_rims_nearly_whole_run() {
+        let (_, sim) = crate::sim::phantom_case(1, 3).unwrap();
+        let template = Template::standard();
+        // Each view's rim annotated over the first `keep` of its points only.
+        let open = |keep: f64| {
+            let mut s = sim.clone();
+            for view in s.observed.iter_mut() {
+                let c = &mut view[0];
+                c.points.truncate((c.points.len() as f64 * keep) as usize);
+                c.closed = false;
+            }
+            reconstruct(&s.input(&template), &ReconParams::default(), Kernels::Cpu)
+        };
+        match open(0.3) {
+            Err(ReconError::Guard(Refusal {
+                failure: GuardFailure::OpenRims { share, min },
+                ..
+            })) => assert!(share < min && min == 0.45, "{share}"),
+            other => panic!(
+                "expected the open rims refused, got {:?}",
+                other.map(|r| (r.log.annotated_share_per_view, r.log.fallback, r.log.guard))
+            ),
+        }
+        // The companion: rims annotated over 85 % of their points pass as the method asked.
+        let most = open(0.85).expect("rims nearly whole run");
+        assert_eq!((most.log.fallback, most.log.guard), (None, None));
+        assert!(
+            most.log.annotated_share > 0.7,
+            "{:?}",
+            most.log.annotated_share_per_view
+        );
     }
 
     #[test]

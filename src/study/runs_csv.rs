@@ -118,8 +118,8 @@ pub struct Row {
     pub restart_cause: String,
     /// The guard the method's own result failed when a fallback gave the result
     /// (`pipeline::GuardFailure::name`: "cup", "folded", "rough", "limb-sphere",
-    /// "non-finite-vertex", "non-finite-pose", "reprojection", "outlines"); empty when no
-    /// fallback was taken.
+    /// "non-finite-vertex", "non-finite-pose", "reprojection", "outlines", "open-rims"); empty
+    /// when no fallback was taken.
     #[serde(default)]
     pub fallback_guard: String,
     /// The translation whose length is `frame_shift_mm`, along x (body axes: left-right), mm:
