@@ -40,14 +40,18 @@ impl Fallback {
     /// graph, which cannot make views whose poses disagree agree); for a crumpled surface
     /// (`GuardFailure::Rough`, its outlines met) not the poses at all: refining them bends the
     /// views to annotations given to the wrong view (the phantom with two views' annotations
-    /// swapped: the refinement turned a third view by 6 degrees and passed); else `FALLBACKS`'
-    /// order, the poses last.
+    /// swapped: the refinement turned a third view by 6 degrees and passed); for rims left open
+    /// (`GuardFailure::OpenRims`) none: the annotations' gaps are the cause, which no other
+    /// correspondences, graph or poses fill, and results the fallbacks bent past the guard were
+    /// still off (docs/population.md, "Rims annotated over less of their length"); else
+    /// `FALLBACKS`' order, the poses last.
     pub fn order(failure: &GuardFailure) -> Vec<Fallback> {
         let mut order = FALLBACKS.to_vec();
         match failure {
             // RefinePoses is FALLBACKS' last.
             GuardFailure::Outlines { .. } => order.rotate_right(1),
             GuardFailure::Rough { .. } => order.retain(|&f| f != Fallback::RefinePoses),
+            GuardFailure::OpenRims { .. } => order.clear(),
             _ => {}
         }
         order

@@ -52,7 +52,8 @@ pub struct GuardParams {
     /// more with whole outlines; 0.50-0.80 with a quarter of each left out (the realistic
     /// protocol's share), and 0.50-0.77 under the whole realistic protocol; 0.41-0.66 with 40 %
     /// left out and 0.30-0.55 with half, where 155 of 282 cups are more than 5 mm off. Below it
-    /// the annotations leave the cup's size open.
+    /// the annotations leave the cup's size open, and the run fails without restarts or
+    /// fallbacks (`Fallback::order`), which bent such results past it still off.
     pub min_annotated_share: f64,
 }
 

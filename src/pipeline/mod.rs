@@ -947,6 +947,12 @@ mod tests {
             max_mm: 3.5
         })
         .contains(&Fallback::RefinePoses));
+        // Rims left open: no fallback (the annotation's gaps are the cause, which none fills).
+        assert!(Fallback::order(&GuardFailure::OpenRims {
+            share: 0.3,
+            min: 0.45
+        })
+        .is_empty());
     }
 
     /// Where an annotator started each outline, and which way round it was traced, makes no

@@ -20,7 +20,8 @@ use nalgebra::{Rotation3, Unit, Vector3};
 /// left several noise SDs away), or one folded over at its rim; from a start tilted away from
 /// that turn stage A settles elsewhere. The score needs no truth and does not depend on which
 /// correspondences each result kept. A first result a guard refuses restarts
-/// too, and a result the guards pass outranks one they refuse. A restart that fails is skipped.
+/// too (but for rims left open, `GuardFailure::OpenRims`), and a result the guards pass
+/// outranks one they refuse. A restart that fails is skipped.
 /// Where the given start fails outright, the method starts again on the limb sphere
 /// (`limb_started`), and that start stands in for the given one (its tilts are tried when its
 /// result leaves the outlines); when it fails too, the given start's error is returned.
@@ -73,13 +74,15 @@ pub(super) fn restarting(
     });
     let trigger = prm.placement.restart_trigger_px(prm.pose.is_some());
     // The first cause that holds; the fold is measured only when nothing else restarts it.
-    let cause = if let Some(failure) = &best_score.0 {
-        Some(RestartCause::Guard(failure.clone()))
-    } else if best_score.1 > trigger {
-        Some(RestartCause::Outlines)
-    } else {
-        let folded = folded_share(&first.mesh, &first.sphere);
-        (folded > prm.placement.restart_above_folded).then_some(RestartCause::Folded(folded))
+    // Rims left open restart nothing: the gaps are the annotation's, whatever the start.
+    let cause = match &best_score.0 {
+        Some(GuardFailure::OpenRims { .. }) => None,
+        Some(failure) => Some(RestartCause::Guard(failure.clone())),
+        None if best_score.1 > trigger => Some(RestartCause::Outlines),
+        None => {
+            let folded = folded_share(&first.mesh, &first.sphere);
+            (folded > prm.placement.restart_above_folded).then_some(RestartCause::Folded(folded))
+        }
     };
     if cause.is_none() {
         let mut first = first;
