@@ -297,20 +297,24 @@ pub const ALONG_PX: f64 = 4.0;
 
 /// Per view, the share of the length of the model outline (`model_contours`, one closed
 /// outline a view, as a result's `final_contours`) whose segments' midpoints lie within
-/// `ALONG_PX` of the view's annotation (`observed`; open arcs as they are, a closed outline
-/// closed): 1 where the annotation goes all the way round, less where it leaves part of the
-/// rim open and the outline runs on there; 0 for a view without a model outline.
+/// `ALONG_PX` of the view's open arcs (`observed`): less than 1 where they leave part of the rim
+/// open and the outline runs on there. 1 for a view annotated all the way round (a closed
+/// outline: how near the result lies to it is the outline guard's to judge, so noisier
+/// annotations on larger images are not read as open); 0 for a view without a model outline.
 pub fn annotated_shares(model_contours: &[ModelContour], observed: &[Vec<Curve>]) -> Vec<f64> {
     observed
         .iter()
         .enumerate()
         .map(|(view, curves)| {
+            if curves.iter().any(|c| c.closed) {
+                return 1.0;
+            }
             let Some(model) = model_contours.get(view).filter(|m| m.points.len() >= 2) else {
                 return 0.0;
             };
             let near: Vec<Segments> = curves
                 .iter()
-                .map(|c| Segments::new(&c.points, c.closed))
+                .map(|c| Segments::new(&c.points, false))
                 .collect();
             let p = &model.points;
             let (mut all, mut along) = (0.0, 0.0);
@@ -628,9 +632,10 @@ mod tests {
     }
 
     /// A circle's outline (radius 100 px, 200 points) against annotations of it: whole and
-    /// closed (1), an arc over 60 % of it (0.6, and a little more: a model point within
-    /// `ALONG_PX` of an arc's end counts), and an outline 10 px off (0). Companion: the share
-    /// does not read the arc's 60 % as the whole.
+    /// closed (1, even 10 px off: that is the outline guard's), an arc over 60 % of it (0.6, and
+    /// a little more: a model point within `ALONG_PX` of an arc's end counts), and an arc all
+    /// the way round but 10 px off (0). Companion: the share does not read the arc's 60 % as
+    /// the whole.
     #[test]
     fn the_annotated_share_is_the_outline_length_along_the_annotation() {
         let circle = |r: f64, n: usize, from: f64, share: f64| -> Vec<Point2<f64>> {
@@ -650,7 +655,8 @@ mod tests {
         assert!((share(&curve(circle(101.0, 73, 0.3, 1.0), true)) - 1.0).abs() < 1e-9);
         let arc = circle(101.0, 60, 1.0, 0.6 * 60.0 / 59.0);
         assert!((share(&curve(arc.clone(), false)) - 0.6).abs() < 0.02);
-        assert!(share(&curve(circle(110.0, 73, 0.3, 1.0), true)) < 1e-9);
+        assert_eq!(share(&curve(circle(110.0, 73, 0.3, 1.0), true)), 1.0);
+        assert!(share(&curve(circle(110.0, 73, 0.3, 1.0), false)) < 1e-9);
         // Two arcs of one rim count together; a view without a model outline counts 0.
         let two = vec![vec![
             Curve {
