@@ -138,14 +138,8 @@ fn a_rim_clicked_far_apart_gives_the_cup_through_its_clicks() {
     let truth = phantom(&PhantomParams::default()).mesh;
     let setup = SimSetup::new(&truth, &XrayGeometry::default()).unwrap();
     let errors = RealisticErrors {
-        pose_deg: 0.0,
-        pose_mm: 0.0,
-        magnification: 0.0,
-        left_out: 0.0,
-        drift_px: 0.0,
-        jitter_px: 2.0,
         click_px: 80.0,
-        ..Default::default()
+        ..RealisticErrors::jitter_only(2.0)
     };
     let level = NoiseLevel::level(1).unwrap();
     let template = Template::standard();

@@ -55,9 +55,9 @@ fn arc_point(phi: f64, t: f64) -> (f64, f64) {
 impl Curve {
     /// A rim given as clicks on it, as the curve through them: every step longer than
     /// `THROUGH_STEP_PX` gets points on its blended arc (see the module) about that far apart
-    /// between its ends, so that the curve's points lie evenly along it, as a traced line's do (the outlines' limb
-    /// sphere is fitted to the points one by one: points only where the steps bend would weigh
-    /// those stretches more); every given point is kept. An open curve's end steps take the one
+    /// between its ends, so that the curve's points lie evenly along it, as a traced line's do
+    /// (the outlines' limb sphere is fitted to the points one by one: points only where the
+    /// steps bend would weigh those stretches more); every given point is kept. An open curve's end steps take the one
     /// circle they have. A curve of fewer than three points is returned as it is.
     pub fn clicked(&self) -> Curve {
         let p = &self.points;
@@ -68,10 +68,10 @@ impl Curve {
         let steps = if self.closed { n } else { n - 1 };
         // A neighbour of a step: round a closed curve, none past an open one's ends.
         let at = |i: isize| -> Option<Point2<f64>> {
-            match i {
-                _ if self.closed => Some(p[i.rem_euclid(n as isize) as usize]),
-                _ if i < 0 || i as usize >= n => None,
-                _ => Some(p[i as usize]),
+            if self.closed {
+                Some(p[i.rem_euclid(n as isize) as usize])
+            } else {
+                usize::try_from(i).ok().and_then(|i| p.get(i).copied())
             }
         };
         let mut points = Vec::with_capacity(n);

@@ -96,6 +96,20 @@ pub const MAX_POSE_MM: f64 = 100.0;
 pub const MAX_NOISE_PX: f64 = 100.0;
 
 impl RealisticErrors {
+    /// Every error but the point jitter set to zero: the nominal poses and scale, whole
+    /// outlines, no drift, `jitter_px` of jitter (0 gives the ideal outline itself).
+    pub fn jitter_only(jitter_px: f64) -> Self {
+        RealisticErrors {
+            pose_deg: 0.0,
+            pose_mm: 0.0,
+            magnification: 0.0,
+            left_out: 0.0,
+            drift_px: 0.0,
+            jitter_px,
+            ..RealisticErrors::default()
+        }
+    }
+
     /// The first setting no draw can be made with: SDs that are not finite and >= 0, or beyond
     /// what could still be one view's error (`MAX_POSE_DEG`, `MAX_POSE_MM`, `MAX_NOISE_PX`: a
     /// pose SD of 1e300 degrees ran every run into "cannot be projected" without naming the
@@ -552,17 +566,7 @@ mod tests {
         let other = s.realistic_case(&truth, &e, &level, 12).unwrap();
         assert_ne!(case.observed[1][0].points, other.observed[1][0].points);
         // No errors and nothing left out: the ideal outline, closed and exact.
-        let none = RealisticErrors {
-            pose_deg: 0.0,
-            pose_mm: 0.0,
-            magnification: 0.0,
-            left_out: 0.0,
-            drift_px: 0.0,
-            drift_length_px: 20.0,
-            jitter_px: 0.0,
-            click_px: 0.0,
-            raster_px: 0.0,
-        };
+        let none = RealisticErrors::jitter_only(0.0);
         let exact = s.realistic_case(&truth, &none, &level, 11).unwrap();
         for v in 0..s.cameras.len() {
             assert!(exact.observed[v][0].closed);
@@ -671,15 +675,7 @@ mod tests {
     fn a_mask_boundary_is_a_staircase_of_grid_cells_along_the_outline() {
         let (truth, s) = setup();
         let level = NoiseLevel::level(1).unwrap();
-        let exact = RealisticErrors {
-            pose_deg: 0.0,
-            pose_mm: 0.0,
-            magnification: 0.0,
-            left_out: 0.0,
-            drift_px: 0.0,
-            jitter_px: 0.0,
-            ..RealisticErrors::default()
-        };
+        let exact = RealisticErrors::jitter_only(0.0);
         let on_grid = |p: &Point2<f64>, pitch: f64| {
             (p.x / pitch).fract() == 0.0 && (p.y / pitch).fract() == 0.0
         };

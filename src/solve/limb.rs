@@ -414,14 +414,8 @@ mod tests {
         // the lower minimum near it).
         use crate::sim::RealisticErrors;
         let clicked = RealisticErrors {
-            pose_deg: 0.0,
-            pose_mm: 0.0,
-            magnification: 0.0,
-            left_out: 0.0,
-            drift_px: 0.0,
-            jitter_px: 2.0,
             click_px: 10.0,
-            ..Default::default()
+            ..RealisticErrors::jitter_only(2.0)
         };
         let Some(case) = shared_case("pelvis-atlas/acetabula/a08_lhip.stl", &clicked, 3, 0) else {
             return;
