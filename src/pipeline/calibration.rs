@@ -446,10 +446,19 @@ impl CupCalibration {
     }
 
     /// The first number a calibration cannot be used with (field, value, what it must be): a
-    /// bias beyond +-10 mm, a model SD outside 0-20 mm, a coverage that is not a share.
+    /// bias beyond +-10 mm, a model SD outside 0-20 mm, a coverage that is not a share, fewer
+    /// training runs than any calibration is learned from (`learn` refuses them: a file that
+    /// says so was not learned).
     fn unusable(&self) -> Option<(&'static str, f64, &'static str)> {
         if let Some(bad) = self.correcting(CupParams::default()).invalid_correction() {
             return Some(bad);
+        }
+        if self.runs < MIN_TRAINING_RUNS {
+            return Some((
+                "runs",
+                self.runs as f64,
+                "at least 20 training runs (the fewest a calibration is learned from)",
+            ));
         }
         if !(self.model_sd_mm.is_finite() && (0.0..=20.0).contains(&self.model_sd_mm)) {
             return Some(("model_sd_mm", self.model_sd_mm, "finite, 0 to 20 mm"));
@@ -920,6 +929,21 @@ mod tests {
                 .unwrap_err()
                 .to_string();
             assert!(e.contains(field) && e.contains("c.json"), "{e}");
+        }
+        // A file that says it was learned from fewer runs than any calibration is: refused,
+        // named; the fewest are read.
+        for (runs, good) in [
+            (0, false),
+            (MIN_TRAINING_RUNS - 1, false),
+            (MIN_TRAINING_RUNS, true),
+        ] {
+            let mut v: serde_json::Value = serde_json::from_str(&ok).unwrap();
+            v["runs"] = serde_json::json!(runs);
+            let got = CupCalibration::parse(&v.to_string(), Path::new("c.json"));
+            assert_eq!(got.is_ok(), good, "{runs}: {got:?}");
+            if let Err(e) = got {
+                assert!(e.to_string().contains(&format!("runs = {runs}")), "{e}");
+            }
         }
         // A shrink without the diameter it pulls toward (a file that leaves `shrink_to_mm` out)
         // would cut every cup by its share: refused, naming the field.

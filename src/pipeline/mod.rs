@@ -138,6 +138,26 @@ pub enum ReconError {
         /// What it must be.
         expected: String,
     },
+    /// A cup report whose resamples leave the plausible cups (`GuardParams::cup_range_mm`): the
+    /// spread they give is not a cup's, so no SD or size probability is stated (see
+    /// `cup_report`).
+    #[error("the cup's spread cannot be stated: {outside} of {samples} resampled cups lie outside {lo}-{hi} mm ({smallest:.1} to {largest:.1} mm) under contour noise of SD {noise_px} px; the noise SD must be an annotation's (a few pixels), or the result is too loose to resample")]
+    Resamples {
+        /// Resamples outside the range.
+        outside: usize,
+        /// Resamples drawn.
+        samples: usize,
+        /// The range, mm.
+        lo: f64,
+        /// Its upper end, mm.
+        hi: f64,
+        /// The smallest resampled diameter, mm.
+        smallest: f64,
+        /// The largest, mm.
+        largest: f64,
+        /// The contour noise SD the resamples were drawn with, px.
+        noise_px: f64,
+    },
     /// A setting outside what the method can run with (see `ReconParams::validate`).
     #[error("setting {field} = {value}: must be {expected}")]
     Param {

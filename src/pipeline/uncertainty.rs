@@ -343,6 +343,10 @@ pub fn cup_report(
         Ok(cup_spheres(m, o, &used.cup, region)?.cup.diameter())
     };
     let (diam, noise_px) = resampled_diameters(rec, &ctx, up, &cup)?;
+    // Judged as the result's cup is (not at all with the guards off).
+    if let Some(g) = &used.guards {
+        within_plausible_cups(&diam, g.cup_range_mm, noise_px)?;
+    }
     let (_, resample_sd) = mean_sd(&diam, true);
     let mut sorted = diam.clone();
     sorted.sort_by(f64::total_cmp);
@@ -379,6 +383,27 @@ pub fn cup_report(
         noise_px,
         resample_steps: up.resample_steps(&used),
         resampled_mm: diam,
+    })
+}
+
+/// Whether every resampled diameter `diam` is a cup the guards would take (`range`, mm): a
+/// spread reaching past any acetabulum is the noise's, not the cup's (the example case's
+/// resamples under 80 px of noise reach 86 mm, under 1e9 px 3e7 mm), so the report is refused
+/// rather than stated.
+fn within_plausible_cups(diam: &[f64], range: (f64, f64), noise_px: f64) -> Result<(), ReconError> {
+    let (lo, hi) = range;
+    let outside = diam.iter().filter(|&&d| !(d >= lo && d <= hi)).count();
+    if outside == 0 {
+        return Ok(());
+    }
+    Err(ReconError::Resamples {
+        outside,
+        samples: diam.len(),
+        lo,
+        hi,
+        smallest: diam.iter().copied().fold(f64::INFINITY, f64::min),
+        largest: diam.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        noise_px,
     })
 }
 
@@ -610,5 +635,68 @@ mod tests {
         };
         let (other, _) = resampled_diameters(&rec, &ctx, &up, &whole).unwrap();
         assert_ne!(other, report.resampled_mm);
+    }
+
+    /// A contour noise no annotation has (1e9 px: resampled cups of up to 3e7 mm; 80 px: up to
+    /// 86 mm) gives no cup report but the reason; the shipped example case's own noise (its
+    /// outlines' distance, about 1.7 px) and 10 px give one. Companion: the same noise with the
+    /// guards off is not judged.
+    #[test]
+    fn resamples_past_any_acetabulum_give_no_spread_but_the_reason() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/case/case.json");
+        let case = CaseFile::load(&path).expect("the shipped example case loads");
+        let prm = ReconParams::default();
+        let template = Template::standard();
+        let rec = reconstruct(&case.input(&template), &prm, Kernels::Cpu).unwrap();
+        let report = |noise_px: Option<f64>, prm: &ReconParams| {
+            let up = UncertaintyParams {
+                noise_px,
+                samples: 8,
+                ..Default::default()
+            };
+            cup_report(&rec, &case.observed, prm, Kernels::Cpu, &up)
+        };
+        for noise in [None, Some(10.0)] {
+            let r = report(noise, &prm).unwrap();
+            assert!(r.resampled_mm.iter().all(|d| (30.0..=80.0).contains(d)));
+        }
+        for noise in [80.0, 1e9] {
+            match report(Some(noise), &prm) {
+                Err(ReconError::Resamples {
+                    outside,
+                    samples: 8,
+                    largest,
+                    noise_px,
+                    ..
+                }) => {
+                    assert!(outside >= 1 && largest > 80.0 && noise_px == noise);
+                }
+                other => panic!("noise {noise} px: {other:?}"),
+            }
+        }
+        let text = report(Some(1e9), &prm).unwrap_err().to_string();
+        assert!(text.contains("outside 30-80 mm"), "{text}");
+        let unguarded = ReconParams {
+            guards: None,
+            ..prm.clone()
+        };
+        assert!(report(Some(80.0), &unguarded).is_ok());
+    }
+
+    /// Only diameters inside the range pass, its ends included; NaN does not.
+    #[test]
+    fn plausible_cups_are_those_inside_the_range() {
+        assert!(within_plausible_cups(&[30.0, 52.0, 80.0], (30.0, 80.0), 1.0).is_ok());
+        for bad in [29.9, 80.1, f64::NAN] {
+            let err = within_plausible_cups(&[52.0, bad, 51.0], (30.0, 80.0), 2.0).unwrap_err();
+            assert!(matches!(
+                err,
+                ReconError::Resamples {
+                    outside: 1,
+                    samples: 3,
+                    ..
+                }
+            ));
+        }
     }
 }
