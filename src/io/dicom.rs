@@ -142,7 +142,7 @@ pub fn is_dicom(path: &Path) -> bool {
 fn open(path: &Path) -> Result<dicom_object::DefaultDicomObject, DicomError> {
     dicom_object::open_file(path).map_err(|e| DicomError::Read {
         path: path.to_path_buf(),
-        reason: e.to_string(),
+        reason: super::printable(&e.to_string()),
     })
 }
 
@@ -169,7 +169,7 @@ fn positive_values(
     let v = e.to_multi_float64().map_err(|err| {
         bad(
             format!("{:?}", e.to_str().unwrap_or_default()),
-            &err.to_string(),
+            &super::printable(&err.to_string()),
         )
     })?;
     if v.is_empty() {
@@ -195,7 +195,7 @@ fn uint(obj: &InMemDicomObject, path: &Path, tag: Tag, label: &str) -> Result<u3
         path: path.to_path_buf(),
         tag: label.into(),
         value: format!("{:?}", e.to_str().unwrap_or_default()),
-        reason: err.to_string(),
+        reason: super::printable(&err.to_string()),
     })
 }
 
@@ -506,16 +506,17 @@ pub fn write_dicom_xray(path: &Path, x: &DicomXray) -> Result<(), DicomError> {
                 .media_storage_sop_class_uid(uids::DIGITAL_X_RAY_IMAGE_STORAGE_FOR_PRESENTATION)
                 .media_storage_sop_instance_uid(sop_instance.as_str()),
         )
-        .map_err(|e| werr(e.to_string()))?;
+        .map_err(|e| werr(super::printable(&e.to_string())))?;
     let mut bytes = Vec::new();
     file.write_all(&mut bytes)
-        .map_err(|e| werr(e.to_string()))?;
-    crate::io::write_atomic(path, &bytes).map_err(|e| werr(e.to_string()))
+        .map_err(|e| werr(super::printable(&e.to_string())))?;
+    crate::io::write_atomic(path, &bytes).map_err(|e| werr(super::printable(&e.to_string())))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::printable;
 
     fn xray(spacing: Option<([f64; 2], SpacingTag)>, sid: Option<f64>) -> DicomXray {
         DicomXray {
@@ -654,5 +655,25 @@ mod tests {
             e.contains("x.png") && e.contains("not a readable DICOM"),
             "{e}"
         );
+    }
+
+    /// A file whose transfer syntax UID was overwritten with NULs: the reader's message quotes
+    /// the UID, and it comes out with the NULs escaped (before, raw NULs went to the terminal
+    /// and into cases.csv). Companion: the shipped example's file as it is reads.
+    #[test]
+    fn a_corrupt_files_bytes_are_quoted_printable() {
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/case-dicom/view0.dcm");
+        let mut bytes = std::fs::read(&shipped).unwrap();
+        let uid = b"1.2.840.10008.1.2";
+        let at = bytes.windows(uid.len()).position(|w| w == uid).unwrap();
+        bytes[at..at + 7].fill(0);
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("nul.dcm");
+        std::fs::write(&p, &bytes).unwrap();
+        let e = read_dicom_geometry(&p).unwrap_err().to_string();
+        assert!(e.contains("nul.dcm") && e.contains("`\\u{0}\\u{0}"), "{e}");
+        assert!(!e.chars().any(|c| c.is_control()), "{e:?}");
+        assert!(read_dicom_geometry(&shipped).is_ok());
+        assert_eq!(printable("a\0b\u{1b}[2J\tc\nd"), "a\\u{0}b\\u{1b}[2J\tc\nd");
     }
 }

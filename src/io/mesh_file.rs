@@ -67,7 +67,7 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, MeshIoError> {
             let parse = |reason: String| MeshIoError::Parse {
                 path: path.to_path_buf(),
                 format: "STL",
-                reason,
+                reason: super::printable(&reason),
             };
             let m = stl_io::read_stl(&mut std::io::Cursor::new(&bytes)).map_err(|e| {
                 parse(stl_size_mismatch(&bytes, None).unwrap_or_else(|| e.to_string()))
@@ -102,7 +102,7 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, MeshIoError> {
                 e => MeshIoError::Parse {
                     path: path.to_path_buf(),
                     format: "OBJ",
-                    reason: e.to_string(),
+                    reason: super::printable(&e.to_string()),
                 },
             })?;
             let mut v = Vec::new();
@@ -198,7 +198,7 @@ fn read_ply(path: &Path) -> Result<RawMesh, MeshIoError> {
     let parse = |reason: String| MeshIoError::Parse {
         path: path.to_path_buf(),
         format: "PLY",
-        reason,
+        reason: super::printable(&reason),
     };
     let f = std::fs::File::open(path).map_err(|source| MeshIoError::Io {
         path: path.to_path_buf(),

@@ -18,7 +18,7 @@ pub use mesh_file::{
     read_mesh, write_mesh, write_obj, write_ply, write_ply_with, write_stl_ascii, write_stl_binary,
     MeshIoError, Rgb,
 };
-pub use shown::shown;
+pub use shown::{printable, shown};
 
 /// An X-ray for drawing: a DICOM file's pixels (`read_dicom_image`) or a PNG or JPEG.
 pub fn read_xray_image(path: &std::path::Path) -> Result<image::DynamicImage, String> {

@@ -1,5 +1,6 @@
 //! Values as error messages give them: a number too long to read (a value of 1e300 written out
-//! is 301 digits) in scientific notation, everything else as it was written.
+//! is 301 digits) in scientific notation, everything else as it was written; and a message that
+//! quotes a file's bytes (a DICOM reader's) with its control characters escaped.
 
 /// Most digits before the point a number is shown with as written ...
 const INTEGER_DIGITS: usize = 12;
@@ -13,6 +14,21 @@ fn too_long(token: &str) -> bool {
     int.len() > INTEGER_DIGITS
         || (int.trim_start_matches('0').is_empty()
             && frac.len() - frac.trim_start_matches('0').len() > LEADING_ZEROS)
+}
+
+/// `text` with every control character but a newline or a tab escaped (`\u{0}`, `\u{1b}`), so
+/// that a message quoting a corrupt file's bytes neither writes NULs into a CSV's error column
+/// nor moves the terminal's cursor.
+pub fn printable(text: &str) -> String {
+    text.chars()
+        .map(|c| {
+            if c.is_control() && c != '\n' && c != '\t' {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
 }
 
 /// `text` (a value as `Display` or `Debug` writes it: a number, a list of numbers, a word) with
