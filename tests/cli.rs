@@ -584,6 +584,29 @@ fn fails_cleanly_with(mut cmd: Command, out: &Path, needles: &[&str], code: i32)
     assert!(!out.exists(), "{needles:?}: output folder written");
 }
 
+/// A message that quotes something with a control character in it (here the case's own path,
+/// as a corrupt DICOM file's bytes are quoted) reaches the terminal escaped, not as the raw
+/// escape code. Companion: the same message read raw would hold the escape code.
+#[test]
+fn an_error_quoting_a_control_character_prints_it_escaped() {
+    let dir = tmp("ctrl");
+    let path = dir.join("no\u{1b}[2Jsuch.json");
+    let out = dir.join("ctrl-out");
+    let mut cmd = bin();
+    cmd.arg("reconstruct").arg(&path);
+    fails_cleanly(cmd, &out, &["no\\u{1b}[2Jsuch.json", "cannot read"]);
+    let o = bin()
+        .arg("reconstruct")
+        .arg(&path)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains('\u{1b}'), "{err:?}");
+    assert!(path.to_string_lossy().contains('\u{1b}'));
+}
+
 #[test]
 fn simulate_names_a_bad_list_entry_and_writes_nothing() {
     let dir = tmp("list");

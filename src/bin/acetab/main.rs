@@ -73,7 +73,8 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("acetab: error: {e}");
+            // Printable whatever a message quotes (a file's bytes: `io::printable`).
+            eprintln!("acetab: error: {}", acetab::io::printable(&e.to_string()));
             ExitCode::FAILURE
         }
     }

@@ -177,7 +177,7 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
                 );
             }
             Err(e) => {
-                let e = crate::common::unstage(&e.to_string(), &dir);
+                let e = acetab::io::printable(&crate::common::unstage(&e.to_string(), &dir));
                 eprintln!("acetab: error: {e}");
                 failed += 1;
                 table += &format!(
