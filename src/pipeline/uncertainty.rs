@@ -543,16 +543,21 @@ mod tests {
             .fold(0.0, f64::max)
     }
 
+    /// The shipped example case, the default settings and its result.
+    fn example_result() -> (crate::case::Case, ReconParams, Reconstruction) {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/case/case.json");
+        let case = CaseFile::load(&path).expect("the shipped example case loads");
+        let prm = ReconParams::default();
+        let rec = reconstruct(&case.input(&Template::standard()), &prm, Kernels::Cpu).unwrap();
+        (case, prm, rec)
+    }
+
     /// Resamples stopped after two Gauss-Newton steps (the default) give the diameters of
     /// resamples solved to convergence, draw by draw; a resample set one draw 0.02 mm off is
     /// told apart, and no steps at all is refused with the field named.
     #[test]
     fn two_steps_per_resample_give_the_converged_resamples_diameters() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/case/case.json");
-        let case = CaseFile::load(&path).expect("the shipped example case loads");
-        let prm = ReconParams::default();
-        let template = Template::standard();
-        let rec = reconstruct(&case.input(&template), &prm, Kernels::Cpu).unwrap();
+        let (case, prm, rec) = example_result();
         let report = |max_iterations: usize| {
             let up = UncertaintyParams {
                 max_iterations,
@@ -643,11 +648,7 @@ mod tests {
     /// guards off is not judged.
     #[test]
     fn resamples_past_any_acetabulum_give_no_spread_but_the_reason() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/case/case.json");
-        let case = CaseFile::load(&path).expect("the shipped example case loads");
-        let prm = ReconParams::default();
-        let template = Template::standard();
-        let rec = reconstruct(&case.input(&template), &prm, Kernels::Cpu).unwrap();
+        let (case, prm, rec) = example_result();
         let report = |noise_px: Option<f64>, prm: &ReconParams| {
             let up = UncertaintyParams {
                 noise_px,
