@@ -78,8 +78,9 @@ fn off_traced(curve: &acetab::geom::Curve, traced: &[Point2<f64>]) -> (f64, f64)
 /// Ten clicks a view, read as clicks: each view's curve passes through every click, in order,
 /// and the traced rim (whose own points are 2 px off it) lies nearer it than to the straight
 /// steps between the clicks (measured: 2.2-2.4 px on average and at most 7-10 px, against 3.1-4.7
-/// and 21-26 px); read as a traced line (the companion) the clicks are the steps. A `clicked`
-/// that is not a boolean is refused naming the field.
+/// and 21-26 px); read as a traced line (the companion) the clicks are the steps. The case keeps
+/// the clicks themselves (none for the line). A `clicked` that is not a boolean is refused
+/// naming the field.
 #[test]
 fn clicks_are_read_as_the_curve_through_them() {
     let dir = tempfile::tempdir().unwrap();
@@ -98,6 +99,9 @@ fn clicks_are_read_as_the_curve_through_them() {
         let line = &as_line.observed[v][0];
         assert_eq!(line.points.len(), 10);
         assert!(curve.points.len() > 30, "{}", curve.points.len());
+        // The clicks are kept as given, for the overlay to mark; a traced line has none.
+        assert_eq!(as_clicks.clicks[v], line.points);
+        assert!(as_line.clicks[v].is_empty());
         let mut at = 0;
         for p in &line.points {
             at += curve.points[at..]

@@ -136,6 +136,9 @@ pub struct Case {
     pub geometry: Vec<ViewGeometry>,
     /// What the case's views disagree on (a k that differs from its DICOM tags by over 1 %).
     pub warnings: Vec<String>,
+    /// Per view, the points of its contours marked `clicked`, as given (the method meets the
+    /// curve through them, `Curve::clicked`; the overlay marks them); empty where none is.
+    pub clicks: Vec<Vec<Point2<f64>>>,
 }
 
 /// Where a view's intrinsics came from, and the magnification they imply at the object.
@@ -397,6 +400,7 @@ impl CaseFile {
             names: Vec::new(),
             geometry: Vec::new(),
             warnings: Vec::new(),
+            clicks: Vec::new(),
         };
         for (vi, v) in self.views.iter().enumerate() {
             let f = |name: &str| format!("views[{vi}].{name}");
@@ -600,6 +604,7 @@ impl CaseFile {
                 ));
             }
             let mut curves = Vec::new();
+            let mut clicks = Vec::new();
             for (ci, c) in v.contours.iter().enumerate() {
                 let cf = |name: &str| format!("views[{vi}].contours[{ci}].{name}");
                 if c.points.len() > MAX_OUTLINE_POINTS {
@@ -753,7 +758,10 @@ impl CaseFile {
                     closed,
                 };
                 curves.push(match c.clicked {
-                    Some(true) => curve.clicked(),
+                    Some(true) => {
+                        clicks.extend_from_slice(&curve.points);
+                        curve.clicked()
+                    }
                     _ => curve,
                 });
             }
@@ -794,6 +802,7 @@ impl CaseFile {
             case.warnings.extend(warnings);
             case.cameras.push(cam);
             case.observed.push(curves);
+            case.clicks.push(clicks);
             case.images.push(image.map(|i| i.path));
             case.names.push(name);
         }

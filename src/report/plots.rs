@@ -233,8 +233,9 @@ const OBSERVED: RGBColor = RGBColor(230, 40, 40);
 const CUP: RGBColor = RGBColor(250, 210, 40);
 
 /// What an overlay shows besides the contours, each optional: the view's name (upper right), a
-/// 10 mm scale bar at the object's depth (`px_per_mm`, lower left), and the chosen catalogue
-/// cup's outline in the view (yellow), labelled with its size, as a templating film shows it.
+/// 10 mm scale bar at the object's depth (`px_per_mm`, lower left), the chosen catalogue cup's
+/// outline in the view (yellow), labelled with its size, as a templating film shows it, and the
+/// points an annotator clicked (dots on the observation, which is the curve through them).
 #[derive(Clone, Debug, Default)]
 pub struct OverlayMarks {
     /// The view's name.
@@ -243,7 +244,12 @@ pub struct OverlayMarks {
     pub px_per_mm: Option<f64>,
     /// The catalogue cup's outline (`Camera::sphere_outline`) and its size, mm.
     pub cup: Option<(Vec<Point2<f64>>, f64)>,
+    /// The clicked points of the view's annotation (`Case::clicks`); none drawn when empty.
+    pub clicks: Vec<Point2<f64>>,
 }
+
+/// Radius of a clicked point's dot on an overlay, px.
+const CLICK_DOT_PX: i32 = 4;
 
 /// A view's contours over its X-ray (or a dark canvas), cropped around them: initial model
 /// contour green, result blue, observation red on top (closed where the curve is), as in the
@@ -263,6 +269,7 @@ pub fn overlay(
         .chain(result)
         .chain(observed.iter().flat_map(|c| c.points.iter()))
         .chain(cup_pts)
+        .chain(&marks.clicks)
         .collect();
     if all.is_empty() {
         return Err(PlotError::Draw("no contours to draw".into()));
@@ -338,6 +345,11 @@ pub fn overlay(
             ))
             .map_err(draw_err)?;
         }
+        for p in &marks.clicks {
+            let at = ((p.x - x0).round() as i32, (p.y - y0).round() as i32);
+            root.draw(&Circle::new(at, CLICK_DOT_PX, OBSERVED.filled()))
+                .map_err(draw_err)?;
+        }
         let font = ensure_font().is_ok();
         if let (Some(ppm), true) = (marks.px_per_mm, font && h >= 60) {
             // 10 mm at the object, lower left.
@@ -374,11 +386,23 @@ pub fn overlay(
             if let Some(l) = &cup_label {
                 entries.push((l.as_str(), CUP));
             }
+            let clicked = if marks.clicks.is_empty() { 0 } else { 1 };
             root.draw(&Rectangle::new(
-                [(4, 4), (124, 10 + 18 * entries.len() as i32)],
+                [(4, 4), (124, 10 + 18 * (entries.len() + clicked) as i32)],
                 RGBColor(0, 0, 0).mix(0.6).filled(),
             ))
             .map_err(draw_err)?;
+            if clicked == 1 {
+                let y = 16 + 18 * entries.len() as i32;
+                root.draw(&Circle::new((22, y), CLICK_DOT_PX, OBSERVED.filled()))
+                    .map_err(draw_err)?;
+                root.draw(&Text::new(
+                    "clicked",
+                    (40, y - 7),
+                    ("sans-serif", 14).into_font().color(&WHITE),
+                ))
+                .map_err(draw_err)?;
+            }
             for (i, (label, colour)) in entries.into_iter().enumerate() {
                 let y = 16 + 18 * i as i32;
                 root.draw(&PathElement::new(
@@ -650,5 +674,54 @@ mod tests {
         }
         // Companion: one value short is refused, not drawn.
         assert!(surface_views(&cap, &values[1..], &axis, 3.0, "x", &p, &cpu).is_err());
+    }
+
+    /// The clicked points are dots on the observation: a pixel 3 px off the observed curve at a
+    /// click is the observation's red with the click given, and the dark canvas without.
+    #[test]
+    fn an_overlay_marks_the_clicked_points() {
+        let ring = |r: f64, n: usize| -> Vec<Point2<f64>> {
+            (0..n)
+                .map(|i| {
+                    let a = std::f64::consts::TAU * i as f64 / n as f64;
+                    Point2::new(300.0 + r * a.cos(), 300.0 + r * a.sin())
+                })
+                .collect()
+        };
+        let observed = [Curve {
+            points: ring(100.0, 200),
+            closed: true,
+        }];
+        let click = Point2::new(400.0, 300.0);
+        let tmp = tempfile::tempdir().unwrap();
+        let draw = |clicks: Vec<Point2<f64>>, name: &str| {
+            let marks = OverlayMarks {
+                clicks,
+                ..Default::default()
+            };
+            let p = tmp.path().join(name);
+            overlay(
+                (600, 600),
+                None,
+                &ring(60.0, 50),
+                &ring(80.0, 50),
+                &observed,
+                &marks,
+                &p,
+            )
+            .unwrap();
+            image::open(&p).unwrap().to_rgb8()
+        };
+        let with = draw(vec![click, Point2::new(200.0, 300.0)], "with.png");
+        let without = draw(Vec::new(), "without.png");
+        // The crop starts 40 px left of the leftmost point and 130 px above the topmost.
+        let (x, y) = ((click.x + 3.0 - 160.0) as u32, (click.y - 70.0) as u32);
+        let red = |c: [u8; 3]| c[0] > 150 && c[1] < 100 && c[2] < 100;
+        assert!(red(with.get_pixel(x, y).0), "{:?}", with.get_pixel(x, y));
+        assert!(
+            !red(without.get_pixel(x, y).0),
+            "{:?}",
+            without.get_pixel(x, y)
+        );
     }
 }
