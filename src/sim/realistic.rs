@@ -203,12 +203,25 @@ impl SimSetup {
         level: &NoiseLevel,
         seed: u64,
     ) -> Result<SimCase, SimError> {
-        let (observed, init) = self.realistic_annotations(truth, errors, level, seed)?;
-        let observed = observed
+        let (given, init) = self.realistic_annotations(truth, errors, level, seed)?;
+        let clicks = given
+            .iter()
+            .map(|view| {
+                if handed_on_as_clicks(errors) {
+                    view.iter().flat_map(|c| c.points.iter().copied()).collect()
+                } else {
+                    Vec::new()
+                }
+            })
+            .collect();
+        let observed = given
             .into_iter()
             .map(|view| view.into_iter().map(|c| handed_on(c, errors)).collect())
             .collect();
-        Ok(self.case_of(observed, init, seed))
+        Ok(SimCase {
+            clicks,
+            ..self.case_of(observed, init, seed)
+        })
     }
 
     /// The draws of `realistic_case`: each view's annotation as the annotator gave it (with
@@ -270,11 +283,16 @@ impl SimSetup {
 /// through them (`Curve::clicked`), as a case file's `"clicked": true` gives them; a traced line
 /// or a mask's boundary as it is.
 fn handed_on(curve: Curve, e: &RealisticErrors) -> Curve {
-    if e.click_px > 0.0 && e.raster_px == 0.0 {
+    if handed_on_as_clicks(e) {
         curve.clicked()
     } else {
         curve
     }
+}
+
+/// Whether the annotations under `e` reach the method as clicks (see `handed_on`).
+fn handed_on_as_clicks(e: &RealisticErrors) -> bool {
+    e.click_px > 0.0 && e.raster_px == 0.0
 }
 
 /// An annotator's trace of the closed outline `pts` seen by `cam`: the left-out arc removed,
@@ -613,6 +631,9 @@ mod tests {
         for v in 0..s.cameras.len() {
             let (da, db) = (&a.observed[v][0], &given[v][0]);
             assert_eq!(handed.observed[v][0], db.clicked());
+            // The case keeps the clicks for the overlays; a traced line has none.
+            assert_eq!(handed.clicks[v], db.points);
+            assert!(a.clicks[v].is_empty());
             assert!(handed.observed[v][0].points.len() > db.points.len());
             assert_eq!(*da, traced[v][0]);
             assert!(!db.closed);

@@ -11,7 +11,7 @@ use crate::pipeline::Input;
 use crate::sim::{simulated_views, GeometryError, XrayGeometry};
 use crate::template::{Placement, Template};
 use crate::views::Camera;
-use nalgebra::{Point3, Rotation3, Vector3};
+use nalgebra::{Point2, Point3, Rotation3, Vector3};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
@@ -61,6 +61,9 @@ pub struct SimCase {
     pub init: Placement,
     /// The seed of this case's draws.
     pub seed: u64,
+    /// Per view, the simulated annotator's clicks, where it clicked (`RealisticErrors::click_px`
+    /// read as clicks, whose curve `observed` carries); empty otherwise. The overlays mark them.
+    pub clicks: Vec<Vec<Point2<f64>>>,
 }
 
 impl SimCase {
@@ -317,6 +320,7 @@ impl SimSetup {
     /// A case in this set-up's nominal views with these outlines and start.
     pub(super) fn case_of(&self, observed: Vec<Vec<Curve>>, init: Placement, seed: u64) -> SimCase {
         SimCase {
+            clicks: vec![Vec::new(); observed.len()],
             cameras: self.cameras.clone(),
             observed,
             truth_placement: self.placement.clone(),

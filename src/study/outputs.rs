@@ -147,8 +147,7 @@ pub fn write_examples(
                     cam.sphere_outline(&center, 0.5 * ex.recon.cup.catalogue_mm, 120),
                     ex.recon.cup.catalogue_mm,
                 )),
-                // The simulated annotator's clicks are not kept apart from its curve.
-                clicks: Vec::new(),
+                clicks: ex.sim.clicks.get(k).cloned().unwrap_or_default(),
             };
             if let Err(e) = overlay(
                 (cam.width, cam.height),
