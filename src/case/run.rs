@@ -187,7 +187,7 @@ fn run_loaded(
                         cam.sphere_outline(&center, 0.5 * cup.catalogue_mm, 120),
                         cup.catalogue_mm,
                     )),
-                    clicks: case.clicks[k].clone(),
+                    clicks: case.clicks.get(k).cloned().unwrap_or_default(),
                 };
                 match overlay(
                     (cam.width, cam.height),
