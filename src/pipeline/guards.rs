@@ -71,6 +71,15 @@ impl Default for GuardParams {
     }
 }
 
+impl GuardParams {
+    /// Whether a cup of diameter `d` mm is one the guards take (`cup_range_mm`, ends included;
+    /// NaN is not): the cup guard's test, which the cup report's resamples are held to as well.
+    pub fn holds_cup(&self, d: f64) -> bool {
+        let (lo, hi) = self.cup_range_mm;
+        d >= lo && d <= hi
+    }
+}
+
 /// Why a result was not returned as it stood.
 #[derive(Clone, Debug, PartialEq, Serialize, thiserror::Error)]
 #[serde(tag = "guard", rename_all = "kebab-case")]
@@ -237,7 +246,7 @@ pub fn first_failure(g: &GuardParams, judged: &Judged) -> Option<GuardFailure> {
     } = *judged;
     let d = cup.diameter();
     let (lo, hi) = g.cup_range_mm;
-    if !(d >= lo && d <= hi) {
+    if !g.holds_cup(d) {
         return Some(GuardFailure::Cup {
             diameter_mm: d,
             lo,

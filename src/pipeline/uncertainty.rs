@@ -345,7 +345,7 @@ pub fn cup_report(
     let (diam, noise_px) = resampled_diameters(rec, &ctx, up, &cup)?;
     // Judged as the result's cup is (not at all with the guards off).
     if let Some(g) = &used.guards {
-        within_plausible_cups(&diam, g.cup_range_mm, noise_px)?;
+        within_plausible_cups(&diam, g, noise_px)?;
     }
     let (_, resample_sd) = mean_sd(&diam, true);
     let mut sorted = diam.clone();
@@ -386,13 +386,17 @@ pub fn cup_report(
     })
 }
 
-/// Whether every resampled diameter `diam` is a cup the guards would take (`range`, mm): a
-/// spread reaching past any acetabulum is the noise's, not the cup's (the example case's
-/// resamples under 80 px of noise reach 86 mm, under 1e9 px 3e7 mm), so the report is refused
-/// rather than stated.
-fn within_plausible_cups(diam: &[f64], range: (f64, f64), noise_px: f64) -> Result<(), ReconError> {
-    let (lo, hi) = range;
-    let outside = diam.iter().filter(|&&d| !(d >= lo && d <= hi)).count();
+/// Whether every resampled diameter `diam` is a cup the guards `g` would take
+/// (`GuardParams::holds_cup`): a spread reaching past any acetabulum is the noise's, not the
+/// cup's (the example case's resamples under 80 px of noise reach 86 mm, under 1e9 px 3e7 mm),
+/// so the report is refused rather than stated.
+fn within_plausible_cups(
+    diam: &[f64],
+    g: &crate::pipeline::GuardParams,
+    noise_px: f64,
+) -> Result<(), ReconError> {
+    let (lo, hi) = g.cup_range_mm;
+    let outside = diam.iter().filter(|&&d| !g.holds_cup(d)).count();
     if outside == 0 {
         return Ok(());
     }
@@ -687,9 +691,10 @@ mod tests {
     /// Only diameters inside the range pass, its ends included; NaN does not.
     #[test]
     fn plausible_cups_are_those_inside_the_range() {
-        assert!(within_plausible_cups(&[30.0, 52.0, 80.0], (30.0, 80.0), 1.0).is_ok());
+        let g = crate::pipeline::GuardParams::default();
+        assert!(within_plausible_cups(&[30.0, 52.0, 80.0], &g, 1.0).is_ok());
         for bad in [29.9, 80.1, f64::NAN] {
-            let err = within_plausible_cups(&[52.0, bad, 51.0], (30.0, 80.0), 2.0).unwrap_err();
+            let err = within_plausible_cups(&[52.0, bad, 51.0], &g, 2.0).unwrap_err();
             assert!(matches!(
                 err,
                 ReconError::Resamples {

@@ -386,13 +386,16 @@ pub fn overlay(
             if let Some(l) = &cup_label {
                 entries.push((l.as_str(), CUP));
             }
-            let clicked = if marks.clicks.is_empty() { 0 } else { 1 };
+            let clicked = !marks.clicks.is_empty();
             root.draw(&Rectangle::new(
-                [(4, 4), (124, 10 + 18 * (entries.len() + clicked) as i32)],
+                [
+                    (4, 4),
+                    (124, 10 + 18 * (entries.len() + usize::from(clicked)) as i32),
+                ],
                 RGBColor(0, 0, 0).mix(0.6).filled(),
             ))
             .map_err(draw_err)?;
-            if clicked == 1 {
+            if clicked {
                 let y = 16 + 18 * entries.len() as i32;
                 root.draw(&Circle::new((22, y), CLICK_DOT_PX, OBSERVED.filled()))
                     .map_err(draw_err)?;
