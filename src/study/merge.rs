@@ -277,7 +277,9 @@ mod tests {
         // taken for a merged folder (which would skip the set's check).
         for (name, shard) in [("odd1", "2/2"), ("odd2", "half"), ("odd3", "1/0")] {
             let d = write(name, 1, shard);
-            let e = merge_meta(&[d.clone()]).unwrap_err().to_string();
+            let e = merge_meta(std::slice::from_ref(&d))
+                .unwrap_err()
+                .to_string();
             assert!(
                 e.contains(&format!("study.shard is \"{shard}\""))
                     && e.contains(&d.join("summary.json").display().to_string()),

@@ -294,7 +294,9 @@ impl Row {
                 crate::io::shown(&v.to_string())
             ))
         };
-        let groups: [(&[(&str, f64)], fn(f64) -> bool, &str); 5] = [
+        // (the columns, what each value must pass, what the message says it must be)
+        type Group<'a> = (&'a [(&'a str, f64)], fn(f64) -> bool, &'a str);
+        let groups: [Group; 5] = [
             (
                 &at_least_0,
                 |v| v.is_finite() && v >= 0.0,

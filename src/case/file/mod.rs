@@ -447,9 +447,7 @@ mod tests {
     /// refused, the spread and the field named. Companion: the same views 16 degrees apart pass.
     #[test]
     fn views_too_near_one_direction_are_refused_with_their_spread() {
-        let e = ap_turned(6.0)
-            .err()
-            .expect("views 12 degrees apart refused");
+        let e = ap_turned(6.0).expect_err("views 12 degrees apart refused");
         let msg = e.to_string();
         assert!(
             msg.contains("near.json")
