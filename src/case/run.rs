@@ -103,7 +103,7 @@ fn file_safe(s: &str) -> String {
 }
 
 /// Reconstruct the case at `path` and write reconstruction.ply, cup.json, report.json and
-/// overlay-<view>.png into `out` (the provenance names no adapter: `run_case_with` does).
+/// `overlay-<view>.png` into `out` (the provenance names no adapter: `run_case_with` does).
 pub fn run_case(
     path: &Path,
     out: &Path,

@@ -5,8 +5,8 @@
 use super::distance_to_polyline;
 use nalgebra::Point2;
 
-/// A polyline's segments, ready for `distance`: segment i runs from (ax[i], ay[i]) along
-/// (bx[i], by[i]); len2[i] is its squared length, floored as `distance_to_polyline` floors it.
+/// A polyline's segments, ready for `distance`: segment i runs from `(ax[i], ay[i])` along
+/// `(bx[i], by[i])`; `len2[i]` is its squared length, floored as `distance_to_polyline` floors it.
 #[derive(Clone, Debug)]
 pub struct Segments {
     ax: Vec<f64>,

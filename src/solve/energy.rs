@@ -81,8 +81,8 @@ pub struct SpherePrior {
 
 /// A learned shape around the sphere prior's sphere (`prior::ShapePrior` looked up at each
 /// listed vertex's direction): vertex `vertices[n]`'s target distance from the centre is
-/// R (1 + mean[n] + sum_k b_k modes[k][n]), the mode coefficients b_k solved with the sphere (the
-/// sphere block's entries 4, 5, ...) under a Gaussian prior (rows b_k / sd[k]).
+/// `R (1 + mean[n] + sum_k b_k modes[k][n])`, the mode coefficients b_k solved with the sphere
+/// (the sphere block's entries 4, 5, ...) under a Gaussian prior (rows `b_k / sd[k]`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ShapeTerms {
     /// Mean relative deviation at each listed vertex.

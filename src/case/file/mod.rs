@@ -188,7 +188,7 @@ pub enum CaseError {
     Field {
         /// The file.
         path: PathBuf,
-        /// The field, as a path (views[1].k.fx).
+        /// The field, as a path (`views[1].k.fx`).
         field: String,
         /// Its value.
         value: String,
@@ -200,7 +200,7 @@ pub enum CaseError {
     Dicom {
         /// The case file.
         path: PathBuf,
-        /// The field (views[0].image).
+        /// The field (`views[0].image`).
         field: String,
         /// What the DICOM file lacks.
         source: Box<crate::io::DicomError>,
