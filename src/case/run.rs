@@ -179,16 +179,13 @@ fn run_loaded(
             #[cfg(feature = "plots")]
             for (k, cam) in case.cameras.iter().enumerate() {
                 let name = format!("overlay-{k}-{}.png", file_safe(&case.names[k]));
-                let center = rec.sphere.center_point();
-                let marks = OverlayMarks {
-                    view: Some(case.names[k].clone()),
-                    px_per_mm: Some(cam.pixels_per_mm_at(&center)),
-                    cup: Some((
-                        cam.sphere_outline(&center, 0.5 * cup.catalogue_mm, 120),
-                        cup.catalogue_mm,
-                    )),
-                    clicks: case.clicks.get(k).cloned().unwrap_or_default(),
-                };
+                let marks = OverlayMarks::of_result(
+                    case.names[k].clone(),
+                    cam,
+                    &rec.sphere.center_point(),
+                    cup.catalogue_mm,
+                    case.clicks.get(k).map_or(&[], Vec::as_slice),
+                );
                 match overlay(
                     (cam.width, cam.height),
                     case.images[k].as_deref(),

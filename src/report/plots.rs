@@ -248,6 +248,29 @@ pub struct OverlayMarks {
     pub clicks: Vec<Point2<f64>>,
 }
 
+impl OverlayMarks {
+    /// The marks of a result's overlay in view `cam` named `view`: the scale bar at the depth of
+    /// the cup's centre `center`, the outline of the chosen catalogue cup (`catalogue_mm`)
+    /// there, and the view's `clicks`.
+    pub fn of_result(
+        view: String,
+        cam: &crate::views::Camera,
+        center: &nalgebra::Point3<f64>,
+        catalogue_mm: f64,
+        clicks: &[Point2<f64>],
+    ) -> OverlayMarks {
+        OverlayMarks {
+            view: Some(view),
+            px_per_mm: Some(cam.pixels_per_mm_at(center)),
+            cup: Some((
+                cam.sphere_outline(center, 0.5 * catalogue_mm, 120),
+                catalogue_mm,
+            )),
+            clicks: clicks.to_vec(),
+        }
+    }
+}
+
 /// Radius of a clicked point's dot on an overlay, px.
 const CLICK_DOT_PX: i32 = 4;
 

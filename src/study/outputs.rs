@@ -139,16 +139,13 @@ pub fn write_examples(
         #[cfg(feature = "plots")]
         for (k, cam) in ex.sim.cameras.iter().enumerate() {
             let p = d.join(format!("view{k}.png"));
-            let center = ex.recon.sphere.center_point();
-            let marks = OverlayMarks {
-                view: Some(format!("view {k}")),
-                px_per_mm: Some(cam.pixels_per_mm_at(&center)),
-                cup: Some((
-                    cam.sphere_outline(&center, 0.5 * ex.recon.cup.catalogue_mm, 120),
-                    ex.recon.cup.catalogue_mm,
-                )),
-                clicks: ex.sim.clicks.get(k).cloned().unwrap_or_default(),
-            };
+            let marks = OverlayMarks::of_result(
+                format!("view {k}"),
+                cam,
+                &ex.recon.sphere.center_point(),
+                ex.recon.cup.catalogue_mm,
+                ex.sim.clicks.get(k).map_or(&[], Vec::as_slice),
+            );
             if let Err(e) = overlay(
                 (cam.width, cam.height),
                 None,

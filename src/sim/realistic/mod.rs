@@ -204,14 +204,12 @@ impl SimSetup {
         seed: u64,
     ) -> Result<SimCase, SimError> {
         let (given, init) = self.realistic_annotations(truth, errors, level, seed)?;
+        let as_clicks = handed_on_as_clicks(errors);
         let clicks = given
             .iter()
-            .map(|view| {
-                if handed_on_as_clicks(errors) {
-                    view.iter().flat_map(|c| c.points.iter().copied()).collect()
-                } else {
-                    Vec::new()
-                }
+            .map(|view| match as_clicks {
+                true => view.iter().flat_map(|c| c.points.iter().copied()).collect(),
+                false => Vec::new(),
             })
             .collect();
         let observed = given

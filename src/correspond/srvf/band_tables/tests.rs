@@ -1,5 +1,5 @@
-//! The band tables' tests: the row-wise and the vectorised builds against the cell-by-cell DP, to the
-//! bit, and a table one back-pointer or one ulp off told apart.
+//! The band tables' tests: the row-wise and the vectorised builds against the cell-by-cell DP,
+//! to the bit, and a table one back-pointer or one ulp off told apart.
 
 use super::*;
 use crate::correspond::srvf::dp::tests::random_q;
