@@ -586,7 +586,7 @@ fn fails_cleanly_with(mut cmd: Command, out: &Path, needles: &[&str], code: i32)
 
 /// A message that quotes something with a control character in it (here the case's own path,
 /// as a corrupt DICOM file's bytes are quoted) reaches the terminal escaped, not as the raw
-/// escape code. Companion: the same message read raw would hold the escape code.
+/// escape code. Companion: the same message printed raw is rejected by the same check.
 #[test]
 fn an_error_quoting_a_control_character_prints_it_escaped() {
     let dir = tmp("ctrl");
@@ -603,8 +603,12 @@ fn an_error_quoting_a_control_character_prints_it_escaped() {
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!err.contains('\u{1b}'), "{err:?}");
-    assert!(path.to_string_lossy().contains('\u{1b}'));
+    let shows_escaped =
+        |text: &str| text.contains("no\\u{1b}[2Jsuch.json") && !text.contains('\u{1b}');
+    assert!(shows_escaped(&err), "{err:?}");
+    // Companion: the same message printed raw, as before the escaping, is rejected.
+    let raw = format!("error: cannot read {}", path.display());
+    assert!(!shows_escaped(&raw), "{raw:?}");
 }
 
 #[test]
