@@ -144,78 +144,118 @@ pub fn run_bench(
     progress: &dyn Fn(&str),
 ) -> Result<BenchReport, BenchError> {
     let mut rows = Vec::new();
-    let geometry = XrayGeometry::default();
     for &nv in &p.mesh_sizes {
-        let mesh = hemisphere(26.0, nv);
-        let graph = DeformationGraph::new(&mesh, &GraphParams::default());
-        let mut x = graph.identity();
-        for (k, v) in x.iter_mut().enumerate() {
-            *v += 0.01 * ((k % 7) as f64 - 3.0);
-        }
-        let batch = cdeform::DeformBatch::from_graphs(&[(&graph, &x)]).map_err(GpuError::from)?;
-        let size = format!("{} vertices", mesh.vertex_count());
-        let c = median_ms(p.repeats, || {
-            std::hint::black_box(cdeform::deform(&batch));
-            Ok(())
-        })?;
-        let g = median_ms(p.repeats, || gpu.deform(&batch).map(|_| ()))?;
-        rows.push(row("deform", size.clone(), c, g));
-        progress(&format!("deform {size}"));
-
-        let verts: Vec<[f32; 4]> = mesh
-            .vertices
-            .iter()
-            .map(|q| [q.x as f32, q.y as f32, q.z as f32, 0.0])
-            .collect();
-        let cams = simulated_views(&geometry, &Point3::origin());
-        let views: Vec<cproject::ViewRows> =
-            cams.iter().map(cproject::ViewRows::from_camera).collect();
-        let c = median_ms(p.repeats, || {
-            std::hint::black_box(cproject::project(&verts, verts.len(), &views));
-            Ok(())
-        })?;
-        let g = median_ms(p.repeats, || {
-            gpu.project(&verts, verts.len(), &views).map(|_| ())
-        })?;
-        rows.push(row("project", format!("{size} x 3 views"), c, g));
-        progress(&format!("project {size}"));
-
-        let tris: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
-        let proj = cproject::project(&verts, verts.len(), &views[..1]);
-        let window = csil::Window::around(&proj, 512).ok_or(GpuError::Input {
-            kernel: "silhouette",
-            message: "nothing in front of the source".into(),
-        })?;
-        let c = median_ms(p.repeats, || {
-            let ids = csil::rasterise(&proj, &tris, &window);
-            std::hint::black_box(csil::trace(&csil::edges(&ids, window.size), window.size));
-            Ok(())
-        })?;
-        let g = median_ms(p.repeats, || {
-            gpu.silhouette_of_projected(&proj, &tris, &window)
-                .map(|_| ())
-        })?;
-        rows.push(row("silhouette", format!("{size}, 512^2 texels"), c, g));
-        progress(&format!("silhouette {size}"));
+        rows.extend(mesh_kernel_rows(gpu, p, nv, progress)?);
     }
-    let steps = coprime_steps(5);
-    let n = p.dp_samples.max(8);
-    let curves: Vec<(Vec<_>, Vec<_>)> = (0..p.dp_batches.iter().copied().max().unwrap_or(0))
+    rows.extend(dp_rows(gpu, p, progress)?);
+    rows.extend(band_rows(gpu, p, progress)?);
+    let study = if p.study_runs > 0 {
+        study_throughput(gpu, p, progress)?
+    } else {
+        Vec::new()
+    };
+    Ok(BenchReport {
+        adapter: adapter.into(),
+        kernels: rows,
+        study,
+    })
+}
+
+/// The deformation, projection and silhouette kernels on a hemisphere of about `nv` vertices.
+fn mesh_kernel_rows(
+    gpu: &Gpu,
+    p: &BenchParams,
+    nv: usize,
+    progress: &dyn Fn(&str),
+) -> Result<Vec<BenchRow>, BenchError> {
+    let mut rows = Vec::new();
+    let mesh = hemisphere(26.0, nv);
+    let graph = DeformationGraph::new(&mesh, &GraphParams::default());
+    let mut x = graph.identity();
+    for (k, v) in x.iter_mut().enumerate() {
+        *v += 0.01 * ((k % 7) as f64 - 3.0);
+    }
+    let batch = cdeform::DeformBatch::from_graphs(&[(&graph, &x)]).map_err(GpuError::from)?;
+    let size = format!("{} vertices", mesh.vertex_count());
+    let c = median_ms(p.repeats, || {
+        std::hint::black_box(cdeform::deform(&batch));
+        Ok(())
+    })?;
+    let g = median_ms(p.repeats, || gpu.deform(&batch).map(|_| ()))?;
+    rows.push(row("deform", size.clone(), c, g));
+    progress(&format!("deform {size}"));
+
+    let verts: Vec<[f32; 4]> = mesh
+        .vertices
+        .iter()
+        .map(|q| [q.x as f32, q.y as f32, q.z as f32, 0.0])
+        .collect();
+    let cams = simulated_views(&XrayGeometry::default(), &Point3::origin());
+    let views: Vec<cproject::ViewRows> = cams.iter().map(cproject::ViewRows::from_camera).collect();
+    let c = median_ms(p.repeats, || {
+        std::hint::black_box(cproject::project(&verts, verts.len(), &views));
+        Ok(())
+    })?;
+    let g = median_ms(p.repeats, || {
+        gpu.project(&verts, verts.len(), &views).map(|_| ())
+    })?;
+    rows.push(row("project", format!("{size} x 3 views"), c, g));
+    progress(&format!("project {size}"));
+
+    let tris: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+    let proj = cproject::project(&verts, verts.len(), &views[..1]);
+    let window = csil::Window::around(&proj, 512).ok_or(GpuError::Input {
+        kernel: "silhouette",
+        message: "nothing in front of the source".into(),
+    })?;
+    let c = median_ms(p.repeats, || {
+        let ids = csil::rasterise(&proj, &tris, &window);
+        std::hint::black_box(csil::trace(&csil::edges(&ids, window.size), window.size));
+        Ok(())
+    })?;
+    let g = median_ms(p.repeats, || {
+        gpu.silhouette_of_projected(&proj, &tris, &window)
+            .map(|_| ())
+    })?;
+    rows.push(row("silhouette", format!("{size}, 512^2 texels"), c, g));
+    progress(&format!("silhouette {size}"));
+    Ok(rows)
+}
+
+/// The SRVFs of one alignment problem's two curves.
+type SrvfPair = (Vec<Vector2<f64>>, Vec<Vector2<f64>>);
+
+/// `count` alignment problems: `samples` points of a sine wave over 3 units against a second
+/// wave a little faster (by 0.01 per problem) and shifted in phase.
+fn sine_pairs(count: usize, samples: usize) -> Vec<SrvfPair> {
+    let wave = |f: f64, ph: f64| -> Vec<Point2<f64>> {
+        (0..samples)
+            .map(|i| {
+                let u = i as f64 / (samples - 1) as f64 * 3.0;
+                Point2::new(u, (f * u + ph).sin())
+            })
+            .collect()
+    };
+    (0..count)
         .map(|k| {
-            let c = |f: f64, ph: f64| -> Vec<Point2<f64>> {
-                (0..n)
-                    .map(|i| {
-                        let t = i as f64 / (n - 1) as f64 * 3.0;
-                        Point2::new(t, (f * t + ph).sin())
-                    })
-                    .collect()
-            };
             (
-                srvf(&c(2.0, 0.0), false),
-                srvf(&c(2.0 + 0.01 * k as f64, 0.3), false),
+                srvf(&wave(2.0, 0.0), false),
+                srvf(&wave(2.0 + 0.01 * k as f64, 0.3), false),
             )
         })
-        .collect();
+        .collect()
+}
+
+/// The full SRVF DP tables, batches of `p.dp_batches` problems of `p.dp_samples` samples.
+fn dp_rows(
+    gpu: &Gpu,
+    p: &BenchParams,
+    progress: &dyn Fn(&str),
+) -> Result<Vec<BenchRow>, BenchError> {
+    let steps = coprime_steps(5);
+    let n = p.dp_samples.max(8);
+    let curves = sine_pairs(p.dp_batches.iter().copied().max().unwrap_or(0), n);
+    let mut rows = Vec::new();
     for &bsz in &p.dp_batches {
         let pairs: Vec<_> = curves[..bsz]
             .iter()
@@ -230,26 +270,19 @@ pub fn run_bench(
         rows.push(row("srvf_dp", format!("{bsz} problems, T = {n}"), c, g));
         progress(&format!("srvf_dp {bsz}"));
     }
-    // The study's own DP: T = 200 samples, a band of +-6 cells about a gently bent path, the
-    // position term (weight 3), as `srvf_band` runs it for a study's alignments.
+    Ok(rows)
+}
+
+/// The study's own DP: T = 200 samples, a band of +-6 cells about a gently bent path, the
+/// position term (weight 3), as `srvf_band` runs it for a study's alignments.
+fn band_rows(
+    gpu: &Gpu,
+    p: &BenchParams,
+    progress: &dyn Fn(&str),
+) -> Result<Vec<BenchRow>, BenchError> {
+    let steps = coprime_steps(5);
     let t = 200;
-    type Pair = (Vec<Vector2<f64>>, Vec<Vector2<f64>>);
-    let band: Vec<Pair> = (0..p.dp_batches.iter().copied().max().unwrap_or(0))
-        .map(|k| {
-            let c = |f: f64, ph: f64| -> Vec<Point2<f64>> {
-                (0..t)
-                    .map(|i| {
-                        let u = i as f64 / (t - 1) as f64 * 3.0;
-                        Point2::new(u, (f * u + ph).sin())
-                    })
-                    .collect()
-            };
-            (
-                srvf(&c(2.0, 0.0), false),
-                srvf(&c(2.0 + 0.01 * k as f64, 0.3), false),
-            )
-        })
-        .collect();
+    let band = sine_pairs(p.dp_batches.iter().copied().max().unwrap_or(0), t);
     let (mut lo, mut hi) = (vec![0usize; t], vec![0usize; t]);
     for i in 1..t {
         let c = i as f64 + 3.0 * (i as f64 * std::f64::consts::PI / (t - 1) as f64).sin();
@@ -257,6 +290,7 @@ pub fn run_bench(
         hi[i] = ((c + 6.0).ceil() as usize).clamp(lo[i], t - 1);
     }
     hi[t - 1] = t - 1;
+    let mut rows = Vec::new();
     for &bsz in &p.dp_batches {
         let problems: Vec<BandProblem> = band[..bsz]
             .iter()
@@ -287,83 +321,84 @@ pub fn run_bench(
         ));
         progress(&format!("srvf_band {bsz}"));
     }
+    Ok(rows)
+}
+
+/// Whole studies' throughput (srvf, level 3, the phantom): on the CPU and the GPU with the
+/// study's threads, then per batch of runs in flight on the CPU and on the GPU with the runs
+/// batched (their SRVF DPs on the host and on the device, as asked).
+fn study_throughput(
+    gpu: &Gpu,
+    p: &BenchParams,
+    progress: &dyn Fn(&str),
+) -> Result<Vec<Throughput>, BenchError> {
     let mut study = Vec::new();
-    if p.study_runs > 0 {
-        let truth = phantom(&PhantomParams::default()).mesh;
+    let truth = phantom(&PhantomParams::default()).mesh;
+    let cfg = StudyConfig {
+        levels: vec![3],
+        runs: p.study_runs,
+        methods: vec![StudyMethod::Srvf],
+        threads: p.threads.max(1),
+        // The reconstructions alone, as the bench has always timed them.
+        uncertainty: None,
+        ..Default::default()
+    };
+    let timed = |cfg: &StudyConfig, kernels: Kernels| -> Result<(usize, f64), BenchError> {
+        let s = Instant::now();
+        let (rows, _) = run_study(&truth, cfg, &|| {}, kernels)?;
+        Ok((rows.len(), s.elapsed().as_secs_f64()))
+    };
+    let through = |backend: &str, batch, (runs, seconds): (usize, f64)| Throughput {
+        backend: backend.into(),
+        batch,
+        requests_per_dispatch: None,
+        device_seconds: None,
+        runs,
+        seconds,
+        runs_per_second: runs as f64 / seconds,
+    };
+    for kernels in [Kernels::Cpu, Kernels::Gpu(gpu)] {
+        study.push(through(kernels.name(), cfg.threads, timed(&cfg, kernels)?));
+        progress(&format!("study on {}", kernels.name()));
+    }
+    let batches = if p.study_batches.is_empty() {
+        vec![cfg.threads]
+    } else {
+        p.study_batches.clone()
+    };
+    for b in batches {
+        // b runs in flight: on the CPU b threads; on the GPU also their requests merged b
+        // at a time.
         let cfg = StudyConfig {
-            levels: vec![3],
-            runs: p.study_runs,
-            methods: vec![StudyMethod::Srvf],
-            threads: p.threads.max(1),
-            // The reconstructions alone, as the bench has always timed them.
-            uncertainty: None,
-            ..Default::default()
+            threads: b.max(1),
+            runs: p.study_runs.max(b),
+            ..cfg.clone()
         };
-        let timed = |cfg: &StudyConfig, kernels: Kernels| -> Result<(usize, f64), BenchError> {
-            let s = Instant::now();
-            let (rows, _) = run_study(&truth, cfg, &|| {}, kernels)?;
-            Ok((rows.len(), s.elapsed().as_secs_f64()))
-        };
-        let through = |backend: &str, batch, (runs, seconds): (usize, f64)| Throughput {
-            backend: backend.into(),
-            batch,
-            requests_per_dispatch: None,
-            device_seconds: None,
-            runs,
-            seconds,
-            runs_per_second: runs as f64 / seconds,
-        };
-        for kernels in [Kernels::Cpu, Kernels::Gpu(gpu)] {
-            study.push(through(kernels.name(), cfg.threads, timed(&cfg, kernels)?));
-            progress(&format!("study on {}", kernels.name()));
-        }
-        let batches = if p.study_batches.is_empty() {
-            vec![cfg.threads]
-        } else {
-            p.study_batches.clone()
-        };
-        for b in batches {
-            // b runs in flight: on the CPU b threads; on the GPU also their requests merged b
-            // at a time.
-            let cfg = StudyConfig {
-                threads: b.max(1),
-                runs: p.study_runs.max(b),
-                ..cfg.clone()
-            };
-            study.push(through("cpu", cfg.threads, timed(&cfg, Kernels::Cpu)?));
-            progress(&format!("study on the cpu, batch {b}"));
-            // The GPU with the runs batched, their SRVF DPs on the host and on the device
-            // (`simulate --dp host|device`), as asked.
-            for (on_device, label) in [
-                (false, "gpu, runs batched"),
-                (true, "gpu, runs batched, DP on the device"),
-            ] {
-                if !(if on_device { p.dp_device } else { p.dp_host }) {
-                    continue;
-                }
-                let batcher = crate::engine::gpu::GpuBatcher::new(
-                    gpu,
-                    cfg.threads,
-                    crate::engine::gpu::batcher::STUDY_WAIT,
-                )
-                .with_dp_on_device(on_device);
-                let mut t = through(label, cfg.threads, timed(&cfg, Kernels::Batched(&batcher))?);
-                let (req, disp) = batcher.counts();
-                let st = batcher.stats();
-                t.requests_per_dispatch = (disp > 0).then(|| req as f64 / disp as f64);
-                t.device_seconds = Some(
-                    st.deform.device_seconds
-                        + st.project.device_seconds
-                        + st.srvf_band.device_seconds,
-                );
-                study.push(t);
-                progress(&format!("study on the {label}, batch {b}"));
+        study.push(through("cpu", cfg.threads, timed(&cfg, Kernels::Cpu)?));
+        progress(&format!("study on the cpu, batch {b}"));
+        for (on_device, label) in [
+            (false, "gpu, runs batched"),
+            (true, "gpu, runs batched, DP on the device"),
+        ] {
+            if !(if on_device { p.dp_device } else { p.dp_host }) {
+                continue;
             }
+            let batcher = crate::engine::gpu::GpuBatcher::new(
+                gpu,
+                cfg.threads,
+                crate::engine::gpu::batcher::STUDY_WAIT,
+            )
+            .with_dp_on_device(on_device);
+            let mut t = through(label, cfg.threads, timed(&cfg, Kernels::Batched(&batcher))?);
+            let (req, disp) = batcher.counts();
+            let st = batcher.stats();
+            t.requests_per_dispatch = (disp > 0).then(|| req as f64 / disp as f64);
+            t.device_seconds = Some(
+                st.deform.device_seconds + st.project.device_seconds + st.srvf_band.device_seconds,
+            );
+            study.push(t);
+            progress(&format!("study on the {label}, batch {b}"));
         }
     }
-    Ok(BenchReport {
-        adapter: adapter.into(),
-        kernels: rows,
-        study,
-    })
+    Ok(study)
 }

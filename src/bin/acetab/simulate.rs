@@ -206,209 +206,38 @@ pub struct SimulateArgs {
 }
 
 pub fn run(args: SimulateArgs) -> Result<(), String> {
-    let SimulateArgs {
-        gt,
-        levels,
-        views,
-        runs,
-        protocol,
-        realistic,
-        refine_poses,
-        pose_prior,
-        methods,
-        seed,
-        threads,
-        shard,
-        backend,
-        batch,
-        dp,
-        contours,
-        w_rot,
-        w_reg,
-        w_obs,
-        w_along_srvf,
-        w_along,
-        rim_pairs,
-        coarse_nodes,
-        correspondence_updates,
-        settled_round_mm,
-        srvf_samples,
-        srvf_alternations,
-        srvf_neighbourhood,
-        uncertainty_samples,
-        calibration,
-        calibrate_loso,
-        calibrate_shrink,
-        calibrate_no_depth,
-        prior,
-        cup_estimator,
-        prior_leave_out,
-        out,
-        force,
-        json,
-    } = args;
     // The prior is checked before any run (with --prior-leave-out, each mesh's own is made
     // when its study starts).
-    let (shape_prior, prior_from) = crate::prior::choose(&prior, None)?;
-    if prior_leave_out && shape_prior.is_none() {
+    let (shape_prior, prior_from) = crate::prior::choose(&args.prior, None)?;
+    if args.prior_leave_out && shape_prior.is_none() {
         return Err("--prior-leave-out needs a prior (--prior default or a file)".into());
     }
-    let realistic_protocol = protocol == ProtocolArg::Realistic;
-    // The shipped calibration learned on the study's views (the paper's views' when none
-    // was); a calibration learned on other views is used, with a warning.
-    let (shipped_or_file, calibration) = crate::common::calibration(
-        &calibration,
-        realistic_protocol,
-        cup_estimator,
-        shape_prior.is_some(),
-        &views.0,
-    )?;
-    if calibrate_loso.is_none() {
-        let directions: Vec<_> = views.0.iter().map(|v| v.source_direction()).collect();
-        let theirs = views
-            .0
-            .iter()
-            .map(|v| v.to_string())
-            .collect::<Vec<_>>()
-            .join(",");
-        if let Some(w) = shipped_or_file.view_warning(&calibration, &directions, &theirs) {
-            eprintln!("acetab: warning: {w}");
-        }
-    }
-    // With --calibrate-loso each mesh's own is learned when its study starts, from studies made
-    // under this study's protocol.
-    if let Some(train) = &calibrate_loso {
-        let ours = match protocol {
-            ProtocolArg::Ideal => "ideal",
-            ProtocolArg::Realistic => "realistic",
-        };
-        if let Some((theirs, d)) = crate::calibrate::protocols_in(std::slice::from_ref(train))
-            .map_err(|e| e.replacen("--study", "--calibrate-loso", 1))?
-            .into_iter()
-            .find(|(k, _)| *k != ours)
-        {
-            return Err(format!(
-                "--calibrate-loso {}: {} was made under the {theirs} protocol, this study is {ours}: a calibration learned under one protocol does not describe the other's errors",
-                train.display(),
-                d.display()
-            ));
-        }
-    }
-    let cal = if calibrate_loso.is_some() {
-        acetab::pipeline::CupCalibration::none(cup_estimator)
-    } else {
-        shipped_or_file
-    };
-    let model_sd_mm = cal.model_sd_mm;
-    if realistic.is_some() && protocol != ProtocolArg::Realistic {
-        return Err(
-            "--realistic sets the realistic protocol's errors: add --protocol realistic".into(),
-        );
-    }
-    for (flag, w) in [
-        ("--w-rot", w_rot),
-        ("--w-reg", w_reg),
-        ("--w-obs", w_obs),
-        ("--w-along-srvf", w_along_srvf),
-        ("--w-along", w_along),
-    ] {
-        if !(w.is_finite() && w >= 0.0) {
-            return Err(format!("{flag} {w}: must be a finite non-negative weight"));
-        }
-    }
-    if !(rim_pairs.is_finite() && (0.0..=1.0).contains(&rim_pairs)) {
-        return Err(format!(
-            "--rim-pairs {rim_pairs}: must be a share of the sphere's radius in [0, 1] (0: off)"
-        ));
-    }
-    let mut cfg = StudyConfig {
-        protocol: match protocol {
-            ProtocolArg::Ideal => Protocol::Ideal,
-            ProtocolArg::Realistic => {
-                Protocol::Realistic(realistic.map_or_else(RealisticErrors::default, |r| r.0))
-            }
-        },
-        levels: levels.0,
-        runs,
-        methods: methods.0,
-        seed,
-        threads: threads_or_all(threads),
-        shard,
-        params: ReconParams {
-            contour_source: contours,
-            weights: acetab::solve::EdWeights {
-                rot: w_rot,
-                reg: w_reg,
-                obs: w_obs,
-                tangential: w_along,
-            },
-            tangential_srvf: w_along_srvf,
-            rim_pairs: (rim_pairs > 0.0).then(|| acetab::pipeline::RimPairs {
-                within: rim_pairs,
-                ..Default::default()
-            }),
-            deformation: DeformationParams {
-                coarse_graph_nodes: coarse_nodes,
-                correspondence_updates,
-                settled_round_mm,
-                shape_prior,
-                ..Default::default()
-            },
-            correspond: {
-                let d = acetab::correspond::CorrespondParams::default();
-                acetab::correspond::CorrespondParams {
-                    srvf: acetab::correspond::srvf::SrvfParams {
-                        samples: srvf_samples,
-                        max_alternations: srvf_alternations,
-                        neighbourhood: srvf_neighbourhood,
-                        ..d.srvf.clone()
-                    },
-                    ..d
-                }
-            },
-            pose: refine_poses.then(|| pose_prior.unwrap_or_default()),
-            cup: cal.correcting(acetab::pipeline::CupParams {
-                estimator: cup_estimator,
-                ..Default::default()
-            }),
-            ..Default::default()
-        },
-        geometry: XrayGeometry {
-            views: views.0,
-            ..Default::default()
-        },
-        uncertainty: (uncertainty_samples > 0).then(|| UncertaintyParams {
-            samples: uncertainty_samples as usize,
-            model_sd_mm,
-            ..Default::default()
-        }),
-        ..Default::default()
-    };
-    let dev = open_device(backend)?;
+    let (cal, calibration) = calibration_of(&args, shape_prior.is_some())?;
+    check_settings(&args)?;
+    let mut cfg = study_config(&args, shape_prior, &cal);
+    let dev = open_device(args.backend)?;
     let engine = engine_on(&dev)?;
-    // On the GPU, runs in flight together share dispatches (one submit per kernel).
-    match (batch, dev.as_ref()) {
-        (Some(b), Some(_)) => cfg.threads = b,
-        (Some(b), None) => {
-            return Err(format!(
-                "--batch {b}: runs are batched on the device only with --backend gpu (or auto with an adapter); on the CPU use --threads"
-            ))
-        }
-        (None, _) => {}
-    }
-    let dp_on_device = match (dp, dev.as_ref()) {
-        (DpChoice::Host, _) => false,
-        (DpChoice::Device, Some(_)) => true,
-        (DpChoice::Device, None) => {
-            return Err("--dp device: the SRVF DPs go to the device only with --backend gpu (or auto with an adapter)".into())
-        }
-        (DpChoice::Auto, d) => d.is_some_and(|d| !d.is_software()),
-    };
+    let dp_on_device = device_work(&args, dev.as_ref(), &mut cfg)?;
     let batcher = engine.as_ref().map(|g| {
         GpuBatcher::new(g, cfg.threads, acetab::engine::gpu::batcher::STUDY_WAIT)
             .with_dp_on_device(dp_on_device)
     });
     let kernels = batcher.as_ref().map_or(Kernels::Cpu, Kernels::Batched);
+    let SimulateArgs {
+        gt,
+        runs,
+        seed,
+        shard,
+        calibrate_loso,
+        calibrate_shrink,
+        calibrate_no_depth,
+        prior,
+        prior_leave_out,
+        out,
+        force,
+        json,
+        ..
+    } = args;
     let study = Study {
         cfg: &cfg,
         calibration,
@@ -439,6 +268,186 @@ pub fn run(args: SimulateArgs) -> Result<(), String> {
         return print_summary_as(&rows, json);
     }
     sweep(&study, &meshes, &out, json)
+}
+
+/// The cup calibration the study's runs apply and where it came from (summary.json): the
+/// shipped one learned on the study's views (the paper's views' when none was) or the file
+/// given, with a warning when it was learned on other views; none under --calibrate-loso, where
+/// each mesh's own is learned when its study starts, from studies made under this protocol.
+fn calibration_of(
+    args: &SimulateArgs,
+    has_prior: bool,
+) -> Result<(acetab::pipeline::CupCalibration, String), String> {
+    let realistic_protocol = args.protocol == ProtocolArg::Realistic;
+    let views = &args.views.0;
+    let (shipped_or_file, calibration) = crate::common::calibration(
+        &args.calibration,
+        realistic_protocol,
+        args.cup_estimator,
+        has_prior,
+        views,
+    )?;
+    let Some(train) = &args.calibrate_loso else {
+        let directions: Vec<_> = views.iter().map(|v| v.source_direction()).collect();
+        let theirs = views
+            .iter()
+            .map(|v| v.to_string())
+            .collect::<Vec<_>>()
+            .join(",");
+        if let Some(w) = shipped_or_file.view_warning(&calibration, &directions, &theirs) {
+            eprintln!("acetab: warning: {w}");
+        }
+        return Ok((shipped_or_file, calibration));
+    };
+    let ours = match args.protocol {
+        ProtocolArg::Ideal => "ideal",
+        ProtocolArg::Realistic => "realistic",
+    };
+    if let Some((theirs, d)) = crate::calibrate::protocols_in(std::slice::from_ref(train))
+        .map_err(|e| e.replacen("--study", "--calibrate-loso", 1))?
+        .into_iter()
+        .find(|(k, _)| *k != ours)
+    {
+        return Err(format!(
+            "--calibrate-loso {}: {} was made under the {theirs} protocol, this study is {ours}: a calibration learned under one protocol does not describe the other's errors",
+            train.display(),
+            d.display()
+        ));
+    }
+    Ok((
+        acetab::pipeline::CupCalibration::none(args.cup_estimator),
+        calibration,
+    ))
+}
+
+/// The flags no parser checks alone: --realistic needs its protocol, the weights are finite
+/// and non-negative, --rim-pairs a share in [0, 1].
+fn check_settings(args: &SimulateArgs) -> Result<(), String> {
+    if args.realistic.is_some() && args.protocol != ProtocolArg::Realistic {
+        return Err(
+            "--realistic sets the realistic protocol's errors: add --protocol realistic".into(),
+        );
+    }
+    for (flag, w) in [
+        ("--w-rot", args.w_rot),
+        ("--w-reg", args.w_reg),
+        ("--w-obs", args.w_obs),
+        ("--w-along-srvf", args.w_along_srvf),
+        ("--w-along", args.w_along),
+    ] {
+        if !(w.is_finite() && w >= 0.0) {
+            return Err(format!("{flag} {w}: must be a finite non-negative weight"));
+        }
+    }
+    let rim_pairs = args.rim_pairs;
+    if !(rim_pairs.is_finite() && (0.0..=1.0).contains(&rim_pairs)) {
+        return Err(format!(
+            "--rim-pairs {rim_pairs}: must be a share of the sphere's radius in [0, 1] (0: off)"
+        ));
+    }
+    Ok(())
+}
+
+/// The study's settings from the flags: protocol, levels, runs, methods, the reconstruction's
+/// parameters (with `cal`'s cup correction), the views and the cup's resamples.
+fn study_config(
+    args: &SimulateArgs,
+    shape_prior: Option<std::sync::Arc<acetab::prior::ShapePrior>>,
+    cal: &acetab::pipeline::CupCalibration,
+) -> StudyConfig {
+    let correspond = {
+        let d = acetab::correspond::CorrespondParams::default();
+        acetab::correspond::CorrespondParams {
+            srvf: acetab::correspond::srvf::SrvfParams {
+                samples: args.srvf_samples,
+                max_alternations: args.srvf_alternations,
+                neighbourhood: args.srvf_neighbourhood,
+                ..d.srvf.clone()
+            },
+            ..d
+        }
+    };
+    let params = ReconParams {
+        contour_source: args.contours,
+        weights: acetab::solve::EdWeights {
+            rot: args.w_rot,
+            reg: args.w_reg,
+            obs: args.w_obs,
+            tangential: args.w_along,
+        },
+        tangential_srvf: args.w_along_srvf,
+        rim_pairs: (args.rim_pairs > 0.0).then(|| acetab::pipeline::RimPairs {
+            within: args.rim_pairs,
+            ..Default::default()
+        }),
+        deformation: DeformationParams {
+            coarse_graph_nodes: args.coarse_nodes,
+            correspondence_updates: args.correspondence_updates,
+            settled_round_mm: args.settled_round_mm,
+            shape_prior,
+            ..Default::default()
+        },
+        correspond,
+        pose: args
+            .refine_poses
+            .then(|| args.pose_prior.clone().unwrap_or_default()),
+        cup: cal.correcting(acetab::pipeline::CupParams {
+            estimator: args.cup_estimator,
+            ..Default::default()
+        }),
+        ..Default::default()
+    };
+    StudyConfig {
+        protocol: match args.protocol {
+            ProtocolArg::Ideal => Protocol::Ideal,
+            ProtocolArg::Realistic => Protocol::Realistic(
+                args.realistic
+                    .as_ref()
+                    .map_or_else(RealisticErrors::default, |r| r.0.clone()),
+            ),
+        },
+        levels: args.levels.0.clone(),
+        runs: args.runs,
+        methods: args.methods.0.clone(),
+        seed: args.seed,
+        threads: threads_or_all(args.threads),
+        shard: args.shard,
+        params,
+        geometry: XrayGeometry {
+            views: args.views.0.clone(),
+            ..Default::default()
+        },
+        uncertainty: (args.uncertainty_samples > 0).then(|| UncertaintyParams {
+            samples: args.uncertainty_samples as usize,
+            model_sd_mm: cal.model_sd_mm,
+            ..Default::default()
+        }),
+        ..Default::default()
+    }
+}
+
+/// What the device does: under --batch the runs in flight together share its dispatches (one
+/// submit per kernel), so `cfg.threads` becomes the batch; whether the SRVF DPs go to it.
+fn device_work(
+    args: &SimulateArgs,
+    dev: Option<&acetab::engine::gpu::GpuDevice>,
+    cfg: &mut StudyConfig,
+) -> Result<bool, String> {
+    match (args.batch, dev) {
+        (Some(b), Some(_)) => cfg.threads = b,
+        (Some(b), None) => {
+            return Err(format!(
+                "--batch {b}: runs are batched on the device only with --backend gpu (or auto with an adapter); on the CPU use --threads"
+            ))
+        }
+        (None, _) => {}
+    }
+    match (args.dp, dev) {
+        (DpChoice::Host, _) => Ok(false),
+        (DpChoice::Device, Some(_)) => Ok(true),
+        (DpChoice::Device, None) => Err("--dp device: the SRVF DPs go to the device only with --backend gpu (or auto with an adapter)".into()),
+        (DpChoice::Auto, d) => Ok(d.is_some_and(|d| !d.is_software())),
+    }
 }
 
 /// `--prior` as given, `--prior-leave-out`, and where the prior came from (summary.json).
@@ -562,40 +571,10 @@ impl Study<'_> {
         let truth = load_truth(gt)?;
         // Leave-one-subject-out: this mesh's calibration, learned without its subject.
         let mut own = cfg.clone();
-        let mut calibration = calibration.clone();
-        if let Some(Loso { train, what, depth }) = loso {
-            let subject = crate::calibrate::subject_of(Path::new(gt));
-            let mut cal = crate::calibrate::learn(
-                std::slice::from_ref(train),
-                std::slice::from_ref(&subject),
-                acetab::study::StudyMethod::Srvf,
-                *what,
-                None,
-            )
-            .map_err(|e| format!("--calibrate-loso: {e}"))?;
-            if !depth {
-                cal.depth_mm = 0.0;
-            }
-            let used = own.params.cup.estimator;
-            if cal.cup_estimator() != Some(used) {
-                return Err(format!(
-                    "--calibrate-loso {}: its studies used the {} cup estimator, this one {}",
-                    train.display(),
-                    cal.estimator,
-                    used.name()
-                ));
-            }
-            own.params.cup = cal.correcting(own.params.cup.clone());
-            if let Some(up) = own.uncertainty.as_mut() {
-                up.model_sd_mm = cal.model_sd_mm;
-            }
-            let no_depth = if *depth { "" } else { " (no depth offset)" };
-            calibration = format!(
-                "leave-one-subject-out: {} without subject {subject}{no_depth}: {}",
-                train.display(),
-                cal.learned_from
-            );
-        }
+        let calibration = match loso {
+            Some(loso) => loso.calibrate(gt, &mut own)?,
+            None => calibration.clone(),
+        };
         let mut prior_from = prior.from.clone();
         if prior.leave_out {
             let subject = crate::calibrate::subject_of(Path::new(gt));
@@ -656,21 +635,7 @@ impl Study<'_> {
             "provenance": Provenance::here(kernels.name(), adapter.clone(), cfg.threads, seed),
             // Where the kernels ran and, on the GPU, this study's kernel requests, the dispatches
             // they were merged into and the seconds the runs waited for the device.
-            "engine": match batcher.zip(stats_before) {
-                Some((b, before)) => {
-                    let k = b.stats().since(&before);
-                    serde_json::json!({
-                        "backend": kernels.name(),
-                        "adapter": adapter_json,
-                        "batch": b.lanes(),
-                        "dp": if b.dp_on_device() { "device" } else { "host" },
-                        "requests": k.deform.requests + k.project.requests + k.srvf_band.requests,
-                        "dispatches": k.deform.dispatches + k.project.dispatches + k.srvf_band.dispatches,
-                        "kernels": k,
-                    })
-                }
-                None => serde_json::json!({"backend": kernels.name(), "adapter": null, "batch": 1, "dp": "host"}),
-            },
+            "engine": engine_json(kernels, batcher, stats_before, adapter_json),
             "resample_steps": cfg.uncertainty.as_ref().map(|u| u.resample_steps(&cfg.params)),
         });
         if let serde_json::Value::Object(own) = own_keys {
@@ -710,6 +675,73 @@ impl Study<'_> {
         );
         }
         Ok(rows)
+    }
+}
+
+impl Loso {
+    /// Learn the calibration of the mesh `gt` without its subject and apply it to `cfg` (the
+    /// cup's correction and the resamples' model SD); what it was learned from (summary.json).
+    fn calibrate(&self, gt: &str, cfg: &mut StudyConfig) -> Result<String, String> {
+        let Loso { train, what, depth } = self;
+        let subject = crate::calibrate::subject_of(Path::new(gt));
+        let mut cal = crate::calibrate::learn(
+            std::slice::from_ref(train),
+            std::slice::from_ref(&subject),
+            acetab::study::StudyMethod::Srvf,
+            *what,
+            None,
+        )
+        .map_err(|e| format!("--calibrate-loso: {e}"))?;
+        if !depth {
+            cal.depth_mm = 0.0;
+        }
+        let used = cfg.params.cup.estimator;
+        if cal.cup_estimator() != Some(used) {
+            return Err(format!(
+                "--calibrate-loso {}: its studies used the {} cup estimator, this one {}",
+                train.display(),
+                cal.estimator,
+                used.name()
+            ));
+        }
+        cfg.params.cup = cal.correcting(cfg.params.cup.clone());
+        if let Some(up) = cfg.uncertainty.as_mut() {
+            up.model_sd_mm = cal.model_sd_mm;
+        }
+        let no_depth = if *depth { "" } else { " (no depth offset)" };
+        Ok(format!(
+            "leave-one-subject-out: {} without subject {subject}{no_depth}: {}",
+            train.display(),
+            cal.learned_from
+        ))
+    }
+}
+
+/// summary.json's `engine`: where the kernels ran and, on the GPU, this study's kernel requests,
+/// the dispatches they were merged into and the seconds the runs waited for the device (the
+/// batcher's counts since `before`).
+fn engine_json(
+    kernels: Kernels,
+    batcher: Option<&GpuBatcher>,
+    before: Option<acetab::engine::gpu::batcher::BatcherStats>,
+    adapter_json: &Option<serde_json::Value>,
+) -> serde_json::Value {
+    match batcher.zip(before) {
+        Some((b, before)) => {
+            let k = b.stats().since(&before);
+            serde_json::json!({
+                "backend": kernels.name(),
+                "adapter": adapter_json,
+                "batch": b.lanes(),
+                "dp": if b.dp_on_device() { "device" } else { "host" },
+                "requests": k.deform.requests + k.project.requests + k.srvf_band.requests,
+                "dispatches": k.deform.dispatches + k.project.dispatches + k.srvf_band.dispatches,
+                "kernels": k,
+            })
+        }
+        None => serde_json::json!({
+            "backend": kernels.name(), "adapter": null, "batch": 1, "dp": "host"
+        }),
     }
 }
 
