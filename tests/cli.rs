@@ -1108,22 +1108,28 @@ fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
     // its runs as failed, and the sweep ends with an error naming it (resumed too). A single
     // study like it writes nothing (`simulate_with_every_run_failed_writes_nothing`).
     let wild = dir.join("wild");
-    let run_wild = || {
+    // The third pass prints the table as JSON, and fails all the same.
+    let run_wild = |json: bool| {
         bin()
             .arg("simulate")
             .args(ONE_RUN.split(' '))
             .args(["--w-reg", "0", "--w-rot", "0", "--gt"])
             .arg(meshes.join("big.obj"))
             .arg(meshes.join("small.obj"))
+            .args(json.then_some("--json"))
             .arg("--out")
             .arg(&wild)
             .output()
             .unwrap()
     };
-    for pass in 0..2 {
-        let o = run_wild();
+    for pass in 0..3 {
+        let o = run_wild(pass == 2);
         let err = String::from_utf8_lossy(&o.stderr).into_owned();
         assert_eq!(o.status.code(), Some(1), "pass {pass}: {err}");
+        if pass == 2 {
+            let rows: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+            assert!(rows.as_array().is_some_and(|r| !r.is_empty()), "{rows}");
+        }
         assert!(err.contains("big: all 1 runs failed"), "{err}");
         assert!(
             err.contains("the study failed on 2 mesh(es): big, small"),
@@ -1148,6 +1154,12 @@ fn a_population_sweep_writes_one_folder_a_mesh_and_resumes() {
         // runs 2, failed 2, ..., catastrophic 2
         assert!(all.starts_with("all,srvf,1,2,2,"), "{table}");
     }
+    // Companion: the sweep whose every mesh ran, resumed with --json, prints its table and
+    // succeeds.
+    let o = run_with(&["--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(rows.as_array().is_some_and(|r| !r.is_empty()), "{rows}");
     // Companion: a folder with no mesh is refused.
     let empty = dir.join("empty");
     std::fs::create_dir_all(&empty).unwrap();
@@ -2048,7 +2060,7 @@ fn pose_study_writes_its_summary_into_out() {
 }
 
 /// Several cases: one folder each under --out and cases.csv, a line per case; a case that fails
-/// is a line with its error and the others still run.
+/// is a line with its error, the others still run, and the command exits non-zero naming it.
 #[test]
 fn several_cases_reconstruct_into_one_folder_each_and_a_table() {
     let dir = tmp("cases");
@@ -2066,8 +2078,9 @@ fn several_cases_reconstruct_into_one_folder_each_and_a_table() {
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{err}");
+    assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("2 of 3 cases reconstructed"), "{err}");
+    assert!(err.contains("1 of 3 cases failed: broken"), "{err}");
     for name in ["case", "left"] {
         assert!(out.join(name).join("cup.json").is_file(), "{name}");
     }
@@ -2083,6 +2096,18 @@ fn several_cases_reconstruct_into_one_folder_each_and_a_table() {
         lines[1].starts_with("case,") && !lines[1].contains("NaN"),
         "{table}"
     );
+    // Companion: the same batch without the broken case succeeds.
+    let o = bin()
+        .arg("reconstruct")
+        .arg(&good)
+        .arg(dir.join("left.json"))
+        .args(["--uncertainty-samples", "2", "--out"])
+        .arg(dir.join("all-good"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("2 of 2 cases reconstructed"), "{err}");
     // Companion: two cases of one name would share a folder and are refused up front.
     let o = bin()
         .arg("reconstruct")

@@ -158,7 +158,7 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
     let mut table = String::from(
         "case,file,diameter_mm,catalogue_mm,sd_mm,size_probability,reprojection_rms_px,fallback,error\n",
     );
-    let mut failed = 0;
+    let mut failed = Vec::new();
     for (c, name) in case.iter().zip(&names) {
         let dir = out.join(name);
         match run_case_calibrated(c, &dir, &prm, kernels, &up, provenance.clone(), &choice) {
@@ -179,7 +179,7 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
             Err(e) => {
                 let e = acetab::io::printable(&crate::common::unstage(&e.to_string(), &dir));
                 eprintln!("acetab: error: {e}");
-                failed += 1;
+                failed.push(name.clone());
                 table += &format!(
                     "{},{},NaN,NaN,NaN,NaN,NaN,,{}\n",
                     csv_text(name),
@@ -193,14 +193,22 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         .map_err(|e| crate::common::io_msg(&out.join("cases.csv"), e))?;
     eprintln!(
         "{} of {} cases reconstructed; cases.csv in {}",
-        case.len() - failed,
+        case.len() - failed.len(),
         case.len(),
         out.display()
     );
-    if failed == case.len() {
-        return Err(format!("all {} cases failed (see cases.csv)", case.len()));
+    // A case that failed fails the command too (the others' folders and cases.csv are
+    // written), so a script that runs a batch sees it.
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(format!(
+            "{} of {} cases failed: {} (cases.csv says why)",
+            failed.len(),
+            case.len(),
+            failed.join(", ")
+        ))
     }
-    Ok(())
 }
 
 /// One CSV cell: quoted when it holds a comma, a quote or a line break.

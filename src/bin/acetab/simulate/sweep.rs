@@ -6,8 +6,10 @@ use crate::common::{io_msg, mesh_files};
 use acetab::study::compare::{Comparison, Verdict, TOLERANCE};
 use acetab::study::cup_spread::cup_spread;
 use acetab::study::frame_shift::frame_shifts;
-use acetab::study::population::{comparisons, mesh_name, worst_meshes, write_population};
-use acetab::study::read_csv;
+use acetab::study::population::{
+    comparisons, mesh_name, worst_meshes, write_population, PopulationRow,
+};
+use acetab::study::{read_csv, Row};
 use std::path::{Path, PathBuf};
 
 /// The meshes of a population sweep (name, path), or none for a single study (one --gt that
@@ -131,14 +133,29 @@ pub(super) fn sweep(
             "{}",
             serde_json::to_string(&rows).map_err(|e| e.to_string())?
         );
-        eprintln!(
-            "{} meshes in {:.1} s; population table in {}",
-            tables.len(),
-            start.elapsed().as_secs_f64(),
-            out.display()
-        );
-        return Ok(());
+    } else {
+        print_population(&rows, &tables);
     }
+    eprintln!(
+        "{} meshes in {:.1} s; population table in {}",
+        tables.len(),
+        start.elapsed().as_secs_f64(),
+        out.display()
+    );
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(format!(
+            "the study failed on {} mesh(es): {}",
+            failed.len(),
+            failed.join(", ")
+        ))
+    }
+}
+
+/// The population table as text: per method and level over all meshes, the worst mesh per
+/// method, the paired comparisons, the cup's spread and the results' translation to the truth.
+fn print_population(rows: &[PopulationRow], tables: &[(String, Vec<Row>)]) {
     println!(
         "{:<17} {:>5} {:>6} {:>6} {:>9} {:>9} {:>12} {:>11} {:>10} {:>9}",
         "method",
@@ -168,10 +185,10 @@ pub(super) fn sweep(
             r.mae_mean
         );
     }
-    for (m, mesh, mae) in worst_meshes(&rows) {
+    for (m, mesh, mae) in worst_meshes(rows) {
         println!("worst mesh for {}: {mesh} (mean MAE {mae:.3} mm)", m.name());
     }
-    print_comparisons(&comparisons(&tables));
+    print_comparisons(&comparisons(tables));
     // An SD that too few runs or meshes leave undefined is "n/a", not NaN.
     let mm = |v: f64| {
         if v.is_finite() {
@@ -180,7 +197,7 @@ pub(super) fn sweep(
             "n/a".to_string()
         }
     };
-    for c in cup_spread(&tables).iter().filter(|c| c.runs > 0) {
+    for c in cup_spread(tables).iter().filter(|c| c.runs > 0) {
         println!(
             "{} cup error over {} runs on {} meshes: bias {:+.2} mm, SD {} (per acetabulum {}, run to run {}), RMS {:.2}",
             c.method.name(),
@@ -193,7 +210,7 @@ pub(super) fn sweep(
             c.rms_mm
         );
     }
-    for f in frame_shifts(&tables).iter().filter(|f| f.runs > 0) {
+    for f in frame_shifts(tables).iter().filter(|f| f.runs > 0) {
         let [x, y, z] = f.mean_mm;
         let [rx, ry, rz] = f.rms_mm;
         println!(
@@ -210,21 +227,6 @@ pub(super) fn sweep(
                 f.depth_mean_mm
             );
         }
-    }
-    eprintln!(
-        "{} meshes in {:.1} s; population table in {}",
-        tables.len(),
-        start.elapsed().as_secs_f64(),
-        out.display()
-    );
-    if failed.is_empty() {
-        Ok(())
-    } else {
-        Err(format!(
-            "the study failed on {} mesh(es): {}",
-            failed.len(),
-            failed.join(", ")
-        ))
     }
 }
 
