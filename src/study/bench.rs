@@ -102,6 +102,7 @@ impl Default for BenchParams {
     }
 }
 
+/// The median of `repeats` timings of `f` in milliseconds, after one warm-up call.
 fn median_ms(repeats: usize, mut f: impl FnMut() -> Result<(), GpuError>) -> Result<f64, GpuError> {
     f()?; // warm-up: pipelines, pools, caches
     let mut t: Vec<f64> = (0..repeats.max(1))
@@ -114,14 +115,26 @@ fn median_ms(repeats: usize, mut f: impl FnMut() -> Result<(), GpuError>) -> Res
     Ok(t[t.len() / 2])
 }
 
-fn row(kernel: &str, size: String, cpu_ms: f64, gpu_ms: f64) -> BenchRow {
-    BenchRow {
+/// One kernel's row: its CPU twin and its GPU kernel each timed (`median_ms`).
+fn timed_row(
+    repeats: usize,
+    kernel: &str,
+    size: String,
+    mut cpu: impl FnMut(),
+    gpu: impl FnMut() -> Result<(), GpuError>,
+) -> Result<BenchRow, GpuError> {
+    let cpu_ms = median_ms(repeats, || {
+        cpu();
+        Ok(())
+    })?;
+    let gpu_ms = median_ms(repeats, gpu)?;
+    Ok(BenchRow {
         kernel: kernel.into(),
         size,
         cpu_ms,
         gpu_ms,
         ratio: cpu_ms / gpu_ms.max(1e-9),
-    }
+    })
 }
 
 /// Why the bench stopped.
@@ -177,12 +190,15 @@ fn mesh_kernel_rows(
     }
     let batch = cdeform::DeformBatch::from_graphs(&[(&graph, &x)]).map_err(GpuError::from)?;
     let size = format!("{} vertices", mesh.vertex_count());
-    let c = median_ms(p.repeats, || {
-        std::hint::black_box(cdeform::deform(&batch));
-        Ok(())
-    })?;
-    let g = median_ms(p.repeats, || gpu.deform(&batch).map(|_| ()))?;
-    rows.push(row("deform", size.clone(), c, g));
+    rows.push(timed_row(
+        p.repeats,
+        "deform",
+        size.clone(),
+        || {
+            std::hint::black_box(cdeform::deform(&batch));
+        },
+        || gpu.deform(&batch).map(|_| ()),
+    )?);
     progress(&format!("deform {size}"));
 
     let verts: Vec<[f32; 4]> = mesh
@@ -192,14 +208,15 @@ fn mesh_kernel_rows(
         .collect();
     let cams = simulated_views(&XrayGeometry::default(), &Point3::origin());
     let views: Vec<cproject::ViewRows> = cams.iter().map(cproject::ViewRows::from_camera).collect();
-    let c = median_ms(p.repeats, || {
-        std::hint::black_box(cproject::project(&verts, verts.len(), &views));
-        Ok(())
-    })?;
-    let g = median_ms(p.repeats, || {
-        gpu.project(&verts, verts.len(), &views).map(|_| ())
-    })?;
-    rows.push(row("project", format!("{size} x 3 views"), c, g));
+    rows.push(timed_row(
+        p.repeats,
+        "project",
+        format!("{size} x 3 views"),
+        || {
+            std::hint::black_box(cproject::project(&verts, verts.len(), &views));
+        },
+        || gpu.project(&verts, verts.len(), &views).map(|_| ()),
+    )?);
     progress(&format!("project {size}"));
 
     let tris: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
@@ -208,16 +225,19 @@ fn mesh_kernel_rows(
         kernel: "silhouette",
         message: "nothing in front of the source".into(),
     })?;
-    let c = median_ms(p.repeats, || {
-        let ids = csil::rasterise(&proj, &tris, &window);
-        std::hint::black_box(csil::trace(&csil::edges(&ids, window.size), window.size));
-        Ok(())
-    })?;
-    let g = median_ms(p.repeats, || {
-        gpu.silhouette_of_projected(&proj, &tris, &window)
-            .map(|_| ())
-    })?;
-    rows.push(row("silhouette", format!("{size}, 512^2 texels"), c, g));
+    rows.push(timed_row(
+        p.repeats,
+        "silhouette",
+        format!("{size}, 512^2 texels"),
+        || {
+            let ids = csil::rasterise(&proj, &tris, &window);
+            std::hint::black_box(csil::trace(&csil::edges(&ids, window.size), window.size));
+        },
+        || {
+            gpu.silhouette_of_projected(&proj, &tris, &window)
+                .map(|_| ())
+        },
+    )?);
     progress(&format!("silhouette {size}"));
     Ok(rows)
 }
@@ -262,12 +282,15 @@ fn dp_rows(
             .map(|(a, b)| (&a[..], &b[..]))
             .collect();
         let batch = cdp::DpBatch::new(&pairs, &steps).map_err(GpuError::from)?;
-        let c = median_ms(p.repeats, || {
-            std::hint::black_box(cdp::dp_tables(&batch));
-            Ok(())
-        })?;
-        let g = median_ms(p.repeats, || gpu.srvf_dp_tables(&batch).map(|_| ()))?;
-        rows.push(row("srvf_dp", format!("{bsz} problems, T = {n}"), c, g));
+        rows.push(timed_row(
+            p.repeats,
+            "srvf_dp",
+            format!("{bsz} problems, T = {n}"),
+            || {
+                std::hint::black_box(cdp::dp_tables(&batch));
+            },
+            || gpu.srvf_dp_tables(&batch).map(|_| ()),
+        )?);
         progress(&format!("srvf_dp {bsz}"));
     }
     Ok(rows)
@@ -308,17 +331,15 @@ fn band_rows(
             })
             .collect();
         let batch = cband::BandBatch::new(&problems).map_err(GpuError::from)?;
-        let c = median_ms(p.repeats, || {
-            std::hint::black_box(cband::band_tables(&batch));
-            Ok(())
-        })?;
-        let g = median_ms(p.repeats, || gpu.srvf_band_tables(&batch).map(|_| ()))?;
-        rows.push(row(
+        rows.push(timed_row(
+            p.repeats,
             "srvf_band",
             format!("{bsz} problems, T = {t}, band +-6"),
-            c,
-            g,
-        ));
+            || {
+                std::hint::black_box(cband::band_tables(&batch));
+            },
+            || gpu.srvf_band_tables(&batch).map(|_| ()),
+        )?);
         progress(&format!("srvf_band {bsz}"));
     }
     Ok(rows)
