@@ -1,7 +1,7 @@
 //! `acetab simulate` over many meshes: each mesh's study in a folder of its own (resumed where
 //! it is there already, made with the same settings), then the population table.
 
-use super::Study;
+use super::study::Study;
 use crate::common::{io_msg, mesh_files};
 use acetab::study::compare::{Comparison, Verdict, TOLERANCE};
 use acetab::study::cup_spread::cup_spread;
