@@ -397,11 +397,11 @@ fn study_throughput(
         };
         study.push(through("cpu", cfg.threads, timed(&cfg, Kernels::Cpu)?));
         progress(&format!("study on the cpu, batch {b}"));
-        for (on_device, label) in [
-            (false, "gpu, runs batched"),
-            (true, "gpu, runs batched, DP on the device"),
+        for (wanted, on_device, label) in [
+            (p.dp_host, false, "gpu, runs batched"),
+            (p.dp_device, true, "gpu, runs batched, DP on the device"),
         ] {
-            if !(if on_device { p.dp_device } else { p.dp_host }) {
+            if !wanted {
                 continue;
             }
             let batcher = crate::engine::gpu::GpuBatcher::new(
@@ -411,12 +411,10 @@ fn study_throughput(
             )
             .with_dp_on_device(on_device);
             let mut t = through(label, cfg.threads, timed(&cfg, Kernels::Batched(&batcher))?);
-            let (req, disp) = batcher.counts();
-            let st = batcher.stats();
-            t.requests_per_dispatch = (disp > 0).then(|| req as f64 / disp as f64);
-            t.device_seconds = Some(
-                st.deform.device_seconds + st.project.device_seconds + st.srvf_band.device_seconds,
-            );
+            let all = batcher.stats().total();
+            t.requests_per_dispatch =
+                (all.dispatches > 0).then(|| all.requests as f64 / all.dispatches as f64);
+            t.device_seconds = Some(all.device_seconds);
             study.push(t);
             progress(&format!("study on the {label}, batch {b}"));
         }

@@ -184,6 +184,16 @@ impl BatcherStats {
             srvf_band_on_host: self.srvf_band_on_host - before.srvf_band_on_host,
         }
     }
+
+    /// The three kernels' work together: requests, dispatches and device seconds summed.
+    pub fn total(&self) -> KernelStats {
+        let [d, p, b] = [self.deform, self.project, self.srvf_band];
+        KernelStats {
+            requests: d.requests + p.requests + b.requests,
+            dispatches: d.dispatches + p.dispatches + b.dispatches,
+            device_seconds: d.device_seconds + p.device_seconds + b.device_seconds,
+        }
+    }
 }
 
 /// The longest a study's request waits for the other runs in flight (`GpuBatcher::new`'s
@@ -353,11 +363,8 @@ impl<'g> GpuBatcher<'g> {
 
     /// (requests, dispatches) so far over every kernel: their ratio is the mean batch size.
     pub fn counts(&self) -> (usize, usize) {
-        let s = self.stats();
-        (
-            s.deform.requests + s.project.requests + s.srvf_band.requests,
-            s.deform.dispatches + s.project.dispatches + s.srvf_band.dispatches,
-        )
+        let t = self.stats().total();
+        (t.requests, t.dispatches)
     }
 
     /// Per kernel, the requests, dispatches and device seconds so far.

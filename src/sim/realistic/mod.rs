@@ -207,9 +207,12 @@ impl SimSetup {
         let as_clicks = handed_on_as_clicks(errors);
         let clicks = given
             .iter()
-            .map(|view| match as_clicks {
-                true => view.iter().flat_map(|c| c.points.iter().copied()).collect(),
-                false => Vec::new(),
+            .map(|view| {
+                if as_clicks {
+                    view.iter().flat_map(|c| c.points.iter().copied()).collect()
+                } else {
+                    Vec::new()
+                }
             })
             .collect();
         let observed = given

@@ -208,14 +208,14 @@ impl Study<'_> {
     /// without its subject (`--calibrate-loso`) and the prior made without it
     /// (`--prior-leave-out`); and where the calibration and the prior came from (summary.json).
     fn own_settings(&self, gt: &str) -> Result<(StudyConfig, String, String), String> {
+        let subject = crate::calibrate::subject_of(Path::new(gt));
         let mut own = self.cfg.clone();
         let calibration = match &self.loso {
-            Some(loso) => loso.calibrate(gt, &mut own)?,
+            Some(loso) => loso.calibrate(&subject, &mut own)?,
             None => self.calibration.clone(),
         };
         let mut prior_from = self.prior.from.clone();
         if self.prior.leave_out {
-            let subject = crate::calibrate::subject_of(Path::new(gt));
             let (p, from) = crate::prior::choose(&self.prior.arg, Some(&subject))?;
             own.params.deformation.shape_prior = p;
             prior_from = from;
@@ -253,14 +253,13 @@ fn write_study(
 }
 
 impl Loso {
-    /// Learn the calibration of the mesh `gt` without its subject and apply it to `cfg` (the
-    /// cup's correction and the resamples' model SD); what it was learned from (summary.json).
-    fn calibrate(&self, gt: &str, cfg: &mut StudyConfig) -> Result<String, String> {
+    /// Learn the calibration without `subject` (the mesh's) and apply it to `cfg` (the cup's
+    /// correction and the resamples' model SD); what it was learned from (summary.json).
+    fn calibrate(&self, subject: &str, cfg: &mut StudyConfig) -> Result<String, String> {
         let Loso { train, what, depth } = self;
-        let subject = crate::calibrate::subject_of(Path::new(gt));
         let mut cal = crate::calibrate::learn(
             std::slice::from_ref(train),
-            std::slice::from_ref(&subject),
+            &[subject.to_string()],
             acetab::study::StudyMethod::Srvf,
             *what,
             None,
@@ -308,8 +307,8 @@ fn engine_json(
                 "adapter": adapter_json,
                 "batch": b.lanes(),
                 "dp": if b.dp_on_device() { "device" } else { "host" },
-                "requests": k.deform.requests + k.project.requests + k.srvf_band.requests,
-                "dispatches": k.deform.dispatches + k.project.dispatches + k.srvf_band.dispatches,
+                "requests": k.total().requests,
+                "dispatches": k.total().dispatches,
                 "kernels": k,
             })
         }
