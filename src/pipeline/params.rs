@@ -353,6 +353,15 @@ impl Default for ReconParams {
 /// Largest energy weight `ReconParams::validate` takes (see there).
 pub const MAX_WEIGHT: f64 = 1e6;
 
+/// `ReconParams::validate`'s error: the field, its value as printed, what it must be.
+fn bad(field: &'static str, value: impl ToString, expected: &'static str) -> ReconError {
+    ReconError::Param {
+        field,
+        value: crate::io::shown(&value.to_string()),
+        expected,
+    }
+}
+
 impl ReconParams {
     /// The along-outline weight of this method's pairs in every solve that fits them (stage A,
     /// stage B, the pose refinement): `tangential_srvf` for SRVF's, `weights.tangential`
@@ -369,13 +378,15 @@ impl ReconParams {
     /// first; the error names the field and its value. (The standard template's settings are
     /// checked by `Template::cap`.)
     pub fn validate(&self) -> Result<(), ReconError> {
-        fn bad(field: &'static str, value: impl ToString, expected: &'static str) -> ReconError {
-            ReconError::Param {
-                field,
-                value: crate::io::shown(&value.to_string()),
-                expected,
-            }
-        }
+        self.check_weights_and_tolerances()?;
+        self.check_cup()?;
+        self.check_restarts()?;
+        self.check_pairs()
+    }
+
+    /// The energy's weights, the solver's and rounds' tolerances, the outlier rules and the
+    /// pose refinement's settings.
+    fn check_weights_and_tolerances(&self) -> Result<(), ReconError> {
         let non_negative = [
             ("weights.rot", self.weights.rot),
             ("weights.reg", self.weights.reg),
@@ -442,6 +453,11 @@ impl ReconParams {
         if let Some((field, v)) = self.pose.as_ref().and_then(PoseParams::invalid) {
             return Err(bad(field, v, "finite and > 0"));
         }
+        Ok(())
+    }
+
+    /// The cup's corrections, catalogue and estimator (the prior-region cup needs a prior).
+    fn check_cup(&self) -> Result<(), ReconError> {
         if let Some((field, v, expected)) = self.cup.invalid_correction() {
             let field = match field {
                 "bias_mm" => "cup.bias_mm",
@@ -467,6 +483,11 @@ impl ReconParams {
                 "observed-part unless a shape prior is used (deformation.shape_prior and sphere_prior > 0)",
             ));
         }
+        Ok(())
+    }
+
+    /// The restarts' triggers, number and tilt.
+    fn check_restarts(&self) -> Result<(), ReconError> {
         let restart = &self.placement;
         if !(restart.restart_above_px > 0.0) {
             return Err(bad(
@@ -497,6 +518,11 @@ impl ReconParams {
                 "in (0, 180) degrees",
             ));
         }
+        Ok(())
+    }
+
+    /// SRVF's rim pairs and the ICP baselines' normal-angle test.
+    fn check_pairs(&self) -> Result<(), ReconError> {
         if let Some(rp) = &self.rim_pairs {
             if !(rp.within > 0.0 && rp.within <= 1.0) {
                 return Err(bad(

@@ -294,159 +294,210 @@ pub fn overlay(
         .chain(cup_pts)
         .chain(&marks.clicks)
         .collect();
-    if all.is_empty() {
-        return Err(PlotError::Draw("no contours to draw".into()));
-    }
-    let margin = 40.0;
-    let x0 = (all.iter().map(|p| p.x).fold(f64::INFINITY, f64::min) - margin)
-        .max(0.0)
-        .floor();
-    // Room above the contours for the legend.
-    let y0 = (all.iter().map(|p| p.y).fold(f64::INFINITY, f64::min) - margin - 90.0)
-        .max(0.0)
-        .floor();
-    let x1 = (all.iter().map(|p| p.x).fold(f64::NEG_INFINITY, f64::max) + margin)
-        .min(size.0 as f64)
-        .ceil();
-    let y1 = (all.iter().map(|p| p.y).fold(f64::NEG_INFINITY, f64::max) + margin)
-        .min(size.1 as f64)
-        .ceil();
-    let (w, h) = (((x1 - x0).max(16.0)) as u32, ((y1 - y0).max(16.0)) as u32);
-    let mut buf = match background {
-        Some(p) => {
-            let img = crate::io::read_xray_image(p)
-                .map_err(|reason| PlotError::File {
-                    path: p.to_path_buf(),
-                    reason,
-                })?
-                .to_rgb8();
-            let mut b = vec![0u8; (w * h * 3) as usize];
-            for y in 0..h {
-                for x in 0..w {
-                    let (sx, sy) = (x0 as u32 + x, y0 as u32 + y);
-                    if sx < img.width() && sy < img.height() {
-                        let px = img.get_pixel(sx, sy).0;
-                        b[((y * w + x) * 3) as usize..][..3].copy_from_slice(&px);
-                    }
-                }
-            }
-            b
-        }
-        None => vec![24u8; (w * h * 3) as usize],
-    };
+    let crop = Crop::around(&all, size)?;
+    let mut buf = crop.background(background)?;
     {
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        let to_px = |c: &[Point2<f64>], close: bool| {
-            let mut v: Vec<(i32, i32)> = c
-                .iter()
-                .map(|p| ((p.x - x0).round() as i32, (p.y - y0).round() as i32))
-                .collect();
-            if close && !v.is_empty() {
-                v.push(v[0]);
-            }
-            v
-        };
+        let root = BitMapBackend::with_buffer(&mut buf, (crop.w, crop.h)).into_drawing_area();
         root.draw(&PathElement::new(
-            to_px(initial, true),
+            crop.to_px(initial, true),
             INITIAL.stroke_width(2),
         ))
         .map_err(draw_err)?;
         if !cup_pts.is_empty() {
-            root.draw(&PathElement::new(to_px(cup_pts, true), CUP.stroke_width(1)))
-                .map_err(draw_err)?;
+            root.draw(&PathElement::new(
+                crop.to_px(cup_pts, true),
+                CUP.stroke_width(1),
+            ))
+            .map_err(draw_err)?;
         }
         root.draw(&PathElement::new(
-            to_px(result, true),
+            crop.to_px(result, true),
             RESULT.stroke_width(2),
         ))
         .map_err(draw_err)?;
         // The observation on top: where the annotation leaves a gap, the result shows through.
         for c in observed {
             root.draw(&PathElement::new(
-                to_px(&c.points, c.closed),
+                crop.to_px(&c.points, c.closed),
                 OBSERVED.stroke_width(2),
             ))
             .map_err(draw_err)?;
         }
         for p in &marks.clicks {
-            let at = ((p.x - x0).round() as i32, (p.y - y0).round() as i32);
-            root.draw(&Circle::new(at, CLICK_DOT_PX, OBSERVED.filled()))
+            root.draw(&Circle::new(crop.at(p), CLICK_DOT_PX, OBSERVED.filled()))
                 .map_err(draw_err)?;
         }
-        let font = ensure_font().is_ok();
-        if let (Some(ppm), true) = (marks.px_per_mm, font && h >= 60) {
-            // 10 mm at the object, lower left.
-            let len = (10.0 * ppm).round() as i32;
-            let (x, y) = (12, h as i32 - 16);
-            root.draw(&PathElement::new(
-                vec![(x, y), (x + len, y)],
-                WHITE.stroke_width(3),
-            ))
-            .map_err(draw_err)?;
-            root.draw(&Text::new(
-                "10 mm",
-                (x + len + 6, y - 8),
-                ("sans-serif", 14).into_font().color(&WHITE),
-            ))
-            .map_err(draw_err)?;
-        }
-        if let (Some(name), true) = (&marks.view, font) {
-            let x = (w as i32 - 8 - 8 * name.chars().count() as i32).max(120);
-            root.draw(&Text::new(
-                name.as_str(),
-                (x, 8),
-                ("sans-serif", 16).into_font().color(&WHITE),
-            ))
-            .map_err(draw_err)?;
-        }
-        let cup_label = marks.cup.as_ref().map(|(_, mm)| format!("cup {mm:.0} mm"));
-        if font && w >= 140 && h >= 70 {
-            let mut entries = vec![
-                ("initial", INITIAL),
-                ("result", RESULT),
-                ("observed", OBSERVED),
-            ];
-            if let Some(l) = &cup_label {
-                entries.push((l.as_str(), CUP));
-            }
-            let clicked = !marks.clicks.is_empty();
-            root.draw(&Rectangle::new(
-                [
-                    (4, 4),
-                    (124, 10 + 18 * (entries.len() + usize::from(clicked)) as i32),
-                ],
-                RGBColor(0, 0, 0).mix(0.6).filled(),
-            ))
-            .map_err(draw_err)?;
-            if clicked {
-                let y = 16 + 18 * entries.len() as i32;
-                root.draw(&Circle::new((22, y), CLICK_DOT_PX, OBSERVED.filled()))
-                    .map_err(draw_err)?;
-                root.draw(&Text::new(
-                    "clicked",
-                    (40, y - 7),
-                    ("sans-serif", 14).into_font().color(&WHITE),
-                ))
-                .map_err(draw_err)?;
-            }
-            for (i, (label, colour)) in entries.into_iter().enumerate() {
-                let y = 16 + 18 * i as i32;
-                root.draw(&PathElement::new(
-                    vec![(10, y), (34, y)],
-                    colour.stroke_width(3),
-                ))
-                .map_err(draw_err)?;
-                root.draw(&Text::new(
-                    label,
-                    (40, y - 7),
-                    ("sans-serif", 14).into_font().color(&WHITE),
-                ))
-                .map_err(draw_err)?;
+        if ensure_font().is_ok() {
+            draw_scale_and_name(&root, marks, (crop.w, crop.h))?;
+            if crop.w >= 140 && crop.h >= 70 {
+                draw_overlay_legend(&root, marks)?;
             }
         }
         root.present().map_err(draw_err)?;
     }
-    save_png(buf, w, h, path)
+    save_png(buf, crop.w, crop.h, path)
+}
+
+/// An overlay's window on its X-ray: from (`x0`, `y0`), `w` x `h` pixels.
+struct Crop {
+    x0: f64,
+    y0: f64,
+    w: u32,
+    h: u32,
+}
+
+impl Crop {
+    /// Round the points `all`, with a margin and room above for the legend, inside the image of
+    /// `size`; an error when there is nothing to draw.
+    fn around(all: &[&Point2<f64>], size: (u32, u32)) -> Result<Crop, PlotError> {
+        if all.is_empty() {
+            return Err(PlotError::Draw("no contours to draw".into()));
+        }
+        let margin = 40.0;
+        let x0 = (all.iter().map(|p| p.x).fold(f64::INFINITY, f64::min) - margin)
+            .max(0.0)
+            .floor();
+        // Room above the contours for the legend.
+        let y0 = (all.iter().map(|p| p.y).fold(f64::INFINITY, f64::min) - margin - 90.0)
+            .max(0.0)
+            .floor();
+        let x1 = (all.iter().map(|p| p.x).fold(f64::NEG_INFINITY, f64::max) + margin)
+            .min(size.0 as f64)
+            .ceil();
+        let y1 = (all.iter().map(|p| p.y).fold(f64::NEG_INFINITY, f64::max) + margin)
+            .min(size.1 as f64)
+            .ceil();
+        let (w, h) = (((x1 - x0).max(16.0)) as u32, ((y1 - y0).max(16.0)) as u32);
+        Ok(Crop { x0, y0, w, h })
+    }
+
+    /// The window's RGB pixels: the X-ray at `background` where it reaches, else dark.
+    fn background(&self, background: Option<&Path>) -> Result<Vec<u8>, PlotError> {
+        let (w, h) = (self.w, self.h);
+        let Some(p) = background else {
+            return Ok(vec![24u8; (w * h * 3) as usize]);
+        };
+        let img = crate::io::read_xray_image(p)
+            .map_err(|reason| PlotError::File {
+                path: p.to_path_buf(),
+                reason,
+            })?
+            .to_rgb8();
+        let mut b = vec![0u8; (w * h * 3) as usize];
+        for y in 0..h {
+            for x in 0..w {
+                let (sx, sy) = (self.x0 as u32 + x, self.y0 as u32 + y);
+                if sx < img.width() && sy < img.height() {
+                    let px = img.get_pixel(sx, sy).0;
+                    b[((y * w + x) * 3) as usize..][..3].copy_from_slice(&px);
+                }
+            }
+        }
+        Ok(b)
+    }
+
+    /// Point `p` in the window's pixels.
+    fn at(&self, p: &Point2<f64>) -> (i32, i32) {
+        (
+            (p.x - self.x0).round() as i32,
+            (p.y - self.y0).round() as i32,
+        )
+    }
+
+    /// The curve `c` in the window's pixels, its first point repeated at the end when `close`.
+    fn to_px(&self, c: &[Point2<f64>], close: bool) -> Vec<(i32, i32)> {
+        let mut v: Vec<(i32, i32)> = c.iter().map(|p| self.at(p)).collect();
+        if close && !v.is_empty() {
+            v.push(v[0]);
+        }
+        v
+    }
+}
+
+/// An overlay's drawing area.
+type Canvas<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
+
+/// The 10 mm scale bar at the object (lower left, when the window is tall enough) and the
+/// view's name (upper right) of `marks`, on a window `w` x `h`.
+fn draw_scale_and_name(
+    root: &Canvas,
+    marks: &OverlayMarks,
+    (w, h): (u32, u32),
+) -> Result<(), PlotError> {
+    if let (Some(ppm), true) = (marks.px_per_mm, h >= 60) {
+        let len = (10.0 * ppm).round() as i32;
+        let (x, y) = (12, h as i32 - 16);
+        root.draw(&PathElement::new(
+            vec![(x, y), (x + len, y)],
+            WHITE.stroke_width(3),
+        ))
+        .map_err(draw_err)?;
+        root.draw(&Text::new(
+            "10 mm",
+            (x + len + 6, y - 8),
+            ("sans-serif", 14).into_font().color(&WHITE),
+        ))
+        .map_err(draw_err)?;
+    }
+    if let Some(name) = &marks.view {
+        let x = (w as i32 - 8 - 8 * name.chars().count() as i32).max(120);
+        root.draw(&Text::new(
+            name.as_str(),
+            (x, 8),
+            ("sans-serif", 16).into_font().color(&WHITE),
+        ))
+        .map_err(draw_err)?;
+    }
+    Ok(())
+}
+
+/// The legend in the upper left: initial, result, observed, the cup when `marks` has one, and
+/// the clicked points' dot when it has clicks.
+fn draw_overlay_legend(root: &Canvas, marks: &OverlayMarks) -> Result<(), PlotError> {
+    let cup_label = marks.cup.as_ref().map(|(_, mm)| format!("cup {mm:.0} mm"));
+    let mut entries = vec![
+        ("initial", INITIAL),
+        ("result", RESULT),
+        ("observed", OBSERVED),
+    ];
+    if let Some(l) = &cup_label {
+        entries.push((l.as_str(), CUP));
+    }
+    let clicked = !marks.clicks.is_empty();
+    root.draw(&Rectangle::new(
+        [
+            (4, 4),
+            (124, 10 + 18 * (entries.len() + usize::from(clicked)) as i32),
+        ],
+        RGBColor(0, 0, 0).mix(0.6).filled(),
+    ))
+    .map_err(draw_err)?;
+    if clicked {
+        let y = 16 + 18 * entries.len() as i32;
+        root.draw(&Circle::new((22, y), CLICK_DOT_PX, OBSERVED.filled()))
+            .map_err(draw_err)?;
+        root.draw(&Text::new(
+            "clicked",
+            (40, y - 7),
+            ("sans-serif", 14).into_font().color(&WHITE),
+        ))
+        .map_err(draw_err)?;
+    }
+    for (i, (label, colour)) in entries.into_iter().enumerate() {
+        let y = 16 + 18 * i as i32;
+        root.draw(&PathElement::new(
+            vec![(10, y), (34, y)],
+            colour.stroke_width(3),
+        ))
+        .map_err(draw_err)?;
+        root.draw(&Text::new(
+            label,
+            (40, y - 7),
+            ("sans-serif", 14).into_font().color(&WHITE),
+        ))
+        .map_err(draw_err)?;
+    }
+    Ok(())
 }
 
 /// One dot per mesh and series (method): `series[k] = (name, value per mesh)`, meshes along x in

@@ -197,52 +197,8 @@ pub fn run(args: PlanViewsArgs) -> Result<(), String> {
         .map(|s| read_sweep(s, args.method, &mut all_sources))
         .collect::<Result<_, _>>()?;
     let names = source_names(&all_sources);
-    // View sets are compared under one protocol (a sweep that does not say is not held to one).
-    let said = || {
-        sweeps
-            .iter()
-            .zip(&args.sweep)
-            .filter_map(|(s, p)| Some((s.protocol?, p)))
-    };
-    if let Some(((k0, p0), (k, p))) = said().next().and_then(|first| {
-        said()
-            .find(|(k, _)| *k != first.0)
-            .map(|other| (first, other))
-    }) {
-        return Err(format!(
-            "--sweep {}: made under the {k} protocol, --sweep {} under the {k0}: view sets are compared under one protocol",
-            p.display(),
-            p0.display()
-        ));
-    }
-    for (s, path) in sweeps.iter().zip(&args.sweep).skip(1) {
-        if s.meshes != sweeps[0].meshes {
-            let missing = |a: &Sweep, b: &Sweep| -> String {
-                let names: Vec<&str> = b
-                    .meshes
-                    .iter()
-                    .filter(|m| !a.meshes.contains(m))
-                    .map(String::as_str)
-                    .collect();
-                match names.len() {
-                    0 => "none".into(),
-                    n if n <= 5 => names.join(", "),
-                    n => format!("{} and {} more", names[..5].join(", "), n - 5),
-                }
-            };
-            eprintln!(
-                "acetab: warning: --sweep {} holds {} acetabula, {} holds {}: the sets are not compared on the same acetabula (not in {}: {}; not in {}: {})",
-                path.display(),
-                s.meshes.len(),
-                args.sweep[0].display(),
-                sweeps[0].meshes.len(),
-                path.display(),
-                missing(s, &sweeps[0]),
-                args.sweep[0].display(),
-                missing(&sweeps[0], s),
-            );
-        }
-    }
+    one_protocol(&sweeps, &args.sweep)?;
+    warn_other_acetabula(&sweeps, &args.sweep);
     let mut rows: Vec<ViewSetRow> = Vec::new();
     for s in &sweeps {
         rows.extend(
@@ -259,12 +215,75 @@ pub fn run(args: PlanViewsArgs) -> Result<(), String> {
         "sweeps": args.sweep.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
         "sources": all_sources.iter().zip(&names).map(|(p, n)| serde_json::json!({"name": n, "path": p.display().to_string()})).collect::<Vec<_>>(),
     });
+    write_plan(&args.out, &rows, &meta)?;
+    print_plan(&rows);
+    eprintln!("view-planning table in {}", args.out.display());
+    Ok(())
+}
+
+/// View sets are compared under one protocol (a sweep that does not say is not held to one):
+/// an error naming two `sweeps` (read from `paths`) made under different ones.
+fn one_protocol(sweeps: &[Sweep], paths: &[PathBuf]) -> Result<(), String> {
+    let said = || {
+        sweeps
+            .iter()
+            .zip(paths)
+            .filter_map(|(s, p)| Some((s.protocol?, p)))
+    };
+    if let Some(((k0, p0), (k, p))) = said().next().and_then(|first| {
+        said()
+            .find(|(k, _)| *k != first.0)
+            .map(|other| (first, other))
+    }) {
+        return Err(format!(
+            "--sweep {}: made under the {k} protocol, --sweep {} under the {k0}: view sets are compared under one protocol",
+            p.display(),
+            p0.display()
+        ));
+    }
+    Ok(())
+}
+
+/// A warning for each sweep (read from `paths`) whose acetabula are not the first one's.
+fn warn_other_acetabula(sweeps: &[Sweep], paths: &[PathBuf]) {
+    let missing = |a: &Sweep, b: &Sweep| -> String {
+        let names: Vec<&str> = b
+            .meshes
+            .iter()
+            .filter(|m| !a.meshes.contains(m))
+            .map(String::as_str)
+            .collect();
+        match names.len() {
+            0 => "none".into(),
+            n if n <= 5 => names.join(", "),
+            n => format!("{} and {} more", names[..5].join(", "), n - 5),
+        }
+    };
+    for (s, path) in sweeps.iter().zip(paths).skip(1) {
+        if s.meshes != sweeps[0].meshes {
+            eprintln!(
+                "acetab: warning: --sweep {} holds {} acetabula, {} holds {}: the sets are not compared on the same acetabula (not in {}: {}; not in {}: {})",
+                path.display(),
+                s.meshes.len(),
+                paths[0].display(),
+                sweeps[0].meshes.len(),
+                path.display(),
+                missing(s, &sweeps[0]),
+                paths[0].display(),
+                missing(&sweeps[0], s),
+            );
+        }
+    }
+}
+
+/// views.csv and views.json (the rows with `meta`) written into `out`, all or nothing.
+fn write_plan(out: &Path, rows: &[ViewSetRow], meta: &serde_json::Value) -> Result<(), String> {
     fill_dir_atomically(
-        &args.out,
+        out,
         |d| {
             let p = d.join("views.csv");
             let mut w = csv::Writer::from_path(&p).map_err(|e| format!("{}: {e}", p.display()))?;
-            for r in &rows {
+            for r in rows {
                 w.serialize(r)
                     .map_err(|e| format!("{}: {e}", p.display()))?;
             }
@@ -277,7 +296,11 @@ pub fn run(args: PlanViewsArgs) -> Result<(), String> {
         },
         io_msg,
     )
-    .map_err(|e| crate::common::unstage(&e, &args.out))?;
+    .map_err(|e| crate::common::unstage(&e, out))
+}
+
+/// The table on the terminal, then the set with most cups within 1 mm over all sources.
+fn print_plan(rows: &[ViewSetRow]) {
     println!(
         "{:<28} {:<22} {:>5} {:>6} {:>7} {:>9} {:>8} {:>7} {:>8} {:>9} {:>9}",
         "views",
@@ -292,7 +315,7 @@ pub fn run(args: PlanViewsArgs) -> Result<(), String> {
         "one size",
         "<=cup SD"
     );
-    for r in &rows {
+    for r in rows {
         println!(
             "{:<28} {:<22} {:>5} {:>6} {:>7.3} {:>+9.2} {:>8.2} {:>6.0}% {:>7.0}% {:>8.0}% {:>9}",
             r.views,
@@ -321,6 +344,4 @@ pub fn run(args: PlanViewsArgs) -> Result<(), String> {
             100.0 * best.exact_size
         );
     }
-    eprintln!("view-planning table in {}", args.out.display());
-    Ok(())
 }

@@ -77,71 +77,156 @@ pub struct ReconstructArgs {
 }
 
 pub fn run(args: ReconstructArgs) -> Result<(), String> {
-    let ReconstructArgs {
-        case,
-        out,
-        force,
-        method,
-        catalogue,
-        backend,
-        contours,
-        refine_poses,
-        pose_prior,
-        uncertainty_samples,
-        calibration,
-        prior,
-        cup_estimator,
-        seed,
-        json,
-    } = args;
-    let (shape_prior, _) = crate::prior::choose(&prior, None)?;
+    let (shape_prior, _) = crate::prior::choose(&args.prior, None)?;
     // The file (or "none") is checked up front; each case then gets the calibration learned on
     // its views (`CalibrationChoice::resolve`).
     let (cal, _) = crate::common::calibration(
-        &calibration,
+        &args.calibration,
         true,
-        cup_estimator,
+        args.cup_estimator,
         shape_prior.is_some(),
         &[],
     )?;
-    let choice = CalibrationChoice::from_arg(calibration.as_deref(), true, cup_estimator, cal);
-    crate::common::check_out(&out, force)?;
-    let catalogue = CupCatalogue::parse(&catalogue).map_err(|e| format!("--catalogue: {e}"))?;
+    let choice =
+        CalibrationChoice::from_arg(args.calibration.as_deref(), true, args.cup_estimator, cal);
+    crate::common::check_out(&args.out, args.force)?;
+    let catalogue =
+        CupCatalogue::parse(&args.catalogue).map_err(|e| format!("--catalogue: {e}"))?;
     let mut prm = ReconParams {
-        method,
+        method: args.method,
         cup: CupParams {
             catalogue,
-            estimator: cup_estimator,
+            estimator: args.cup_estimator,
             ..Default::default()
         },
-        contour_source: contours,
-        pose: refine_poses.then(|| pose_prior.unwrap_or_default()),
+        contour_source: args.contours,
+        pose: args
+            .refine_poses
+            .then(|| args.pose_prior.unwrap_or_default()),
         ..Default::default()
     };
     prm.deformation.shape_prior = shape_prior;
-    let dev = open_device(backend)?;
+    let dev = open_device(args.backend)?;
     let engine = engine_on(&dev)?;
     let kernels = engine.as_ref().map_or(Kernels::Cpu, Kernels::Gpu);
-    let up = UncertaintyParams {
-        samples: uncertainty_samples as usize,
-        seed,
-        ..Default::default()
+    let runner = CaseRunner {
+        up: UncertaintyParams {
+            samples: args.uncertainty_samples as usize,
+            seed: args.seed,
+            ..Default::default()
+        },
+        provenance: acetab::report::Provenance::here(
+            kernels.name(),
+            dev.as_ref().map(|d| d.describe()),
+            1,
+            args.seed,
+        ),
+        prm,
+        kernels,
+        choice,
+        json: args.json,
     };
-    let provenance = acetab::report::Provenance::here(
-        kernels.name(),
-        dev.as_ref().map(|d| d.describe()),
-        1,
-        seed,
-    );
-    if let [one] = case.as_slice() {
-        let report = run_case_calibrated(one, &out, &prm, kernels, &up, provenance, &choice)
-            .map_err(|e| crate::common::unstage(&e.to_string(), &out))?;
-        print_report(&report, json, &out)?;
-        return Ok(());
+    if let [one] = args.case.as_slice() {
+        let report = runner
+            .run(one, &args.out)
+            .map_err(|e| crate::common::unstage(&e.to_string(), &args.out))?;
+        return print_report(&report, args.json, &args.out);
     }
-    // Several cases: one folder each, then the table.
+    runner.run_many(&args.case, &args.out)
+}
+
+/// What every case of one `acetab reconstruct` shares.
+struct CaseRunner<'g> {
+    prm: ReconParams,
+    kernels: Kernels<'g>,
+    up: UncertaintyParams,
+    provenance: acetab::report::Provenance,
+    choice: CalibrationChoice,
+    /// Print each report as JSON.
+    json: bool,
+}
+
+impl CaseRunner<'_> {
+    /// The case file `case`, its outputs written to `out`.
+    fn run(
+        &self,
+        case: &std::path::Path,
+        out: &std::path::Path,
+    ) -> Result<acetab::case::CaseRunReport, acetab::case::CaseRunError> {
+        run_case_calibrated(
+            case,
+            out,
+            &self.prm,
+            self.kernels,
+            &self.up,
+            self.provenance.clone(),
+            &self.choice,
+        )
+    }
+
+    /// Several cases: one folder each under `out` (named after the file), then cases.csv, a
+    /// line per case; an error when any failed (the others still run and are written).
+    fn run_many(&self, cases: &[PathBuf], out: &std::path::Path) -> Result<(), String> {
+        let names = case_names(cases)?;
+        std::fs::create_dir_all(out).map_err(|e| crate::common::io_msg(out, e))?;
+        let mut table = String::from(
+            "case,file,diameter_mm,catalogue_mm,sd_mm,size_probability,reprojection_rms_px,fallback,error\n",
+        );
+        let mut failed = Vec::new();
+        for (c, name) in cases.iter().zip(&names) {
+            let dir = out.join(name);
+            let (name_cell, file_cell) = (csv_text(name), csv_text(&c.display().to_string()));
+            match self.run(c, &dir) {
+                Ok(r) => {
+                    print_report(&r, self.json, &dir)?;
+                    table += &format!(
+                        "{name_cell},{file_cell},{:.6},{},{:.6},{:.6},{:.6},{},\n",
+                        r.cup.diameter_mm,
+                        r.cup.catalogue_mm,
+                        r.cup.sd_mm,
+                        r.cup.probability_of(r.cup.catalogue_mm),
+                        r.log.reprojection_rms_px,
+                        r.log.fallback.map(|f| f.to_string()).unwrap_or_default(),
+                    );
+                }
+                Err(e) => {
+                    let e = acetab::io::printable(&crate::common::unstage(&e.to_string(), &dir));
+                    eprintln!("acetab: error: {e}");
+                    failed.push(name.clone());
+                    table += &format!(
+                        "{name_cell},{file_cell},NaN,NaN,NaN,NaN,NaN,,{}\n",
+                        csv_text(&e)
+                    );
+                }
+            }
+        }
+        acetab::io::write_atomic(&out.join("cases.csv"), table.as_bytes())
+            .map_err(|e| crate::common::io_msg(&out.join("cases.csv"), e))?;
+        eprintln!(
+            "{} of {} cases reconstructed; cases.csv in {}",
+            cases.len() - failed.len(),
+            cases.len(),
+            out.display()
+        );
+        // A case that failed fails the command too (the others' folders and cases.csv are
+        // written), so a script that runs a batch sees it.
+        if failed.is_empty() {
+            Ok(())
+        } else {
+            Err(format!(
+                "{} of {} cases failed: {} (cases.csv says why)",
+                failed.len(),
+                cases.len(),
+                failed.join(", ")
+            ))
+        }
+    }
+}
+
+/// Each case's folder name (its file's stem); an error when two collide.
+fn case_names(cases: &[PathBuf]) -> Result<Vec<String>, String> {
     let mut names: Vec<String> = Vec::new();
-    for c in &case {
+    for c in cases {
         let stem = c
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
@@ -154,61 +239,7 @@ pub fn run(args: ReconstructArgs) -> Result<(), String> {
         }
         names.push(stem);
     }
-    std::fs::create_dir_all(&out).map_err(|e| crate::common::io_msg(&out, e))?;
-    let mut table = String::from(
-        "case,file,diameter_mm,catalogue_mm,sd_mm,size_probability,reprojection_rms_px,fallback,error\n",
-    );
-    let mut failed = Vec::new();
-    for (c, name) in case.iter().zip(&names) {
-        let dir = out.join(name);
-        match run_case_calibrated(c, &dir, &prm, kernels, &up, provenance.clone(), &choice) {
-            Ok(r) => {
-                print_report(&r, json, &dir)?;
-                table += &format!(
-                    "{},{},{:.6},{},{:.6},{:.6},{:.6},{},\n",
-                    csv_text(name),
-                    csv_text(&c.display().to_string()),
-                    r.cup.diameter_mm,
-                    r.cup.catalogue_mm,
-                    r.cup.sd_mm,
-                    r.cup.probability_of(r.cup.catalogue_mm),
-                    r.log.reprojection_rms_px,
-                    r.log.fallback.map(|f| f.to_string()).unwrap_or_default(),
-                );
-            }
-            Err(e) => {
-                let e = acetab::io::printable(&crate::common::unstage(&e.to_string(), &dir));
-                eprintln!("acetab: error: {e}");
-                failed.push(name.clone());
-                table += &format!(
-                    "{},{},NaN,NaN,NaN,NaN,NaN,,{}\n",
-                    csv_text(name),
-                    csv_text(&c.display().to_string()),
-                    csv_text(&e)
-                );
-            }
-        }
-    }
-    acetab::io::write_atomic(&out.join("cases.csv"), table.as_bytes())
-        .map_err(|e| crate::common::io_msg(&out.join("cases.csv"), e))?;
-    eprintln!(
-        "{} of {} cases reconstructed; cases.csv in {}",
-        case.len() - failed.len(),
-        case.len(),
-        out.display()
-    );
-    // A case that failed fails the command too (the others' folders and cases.csv are
-    // written), so a script that runs a batch sees it.
-    if failed.is_empty() {
-        Ok(())
-    } else {
-        Err(format!(
-            "{} of {} cases failed: {} (cases.csv says why)",
-            failed.len(),
-            case.len(),
-            failed.join(", ")
-        ))
-    }
+    Ok(names)
 }
 
 /// One CSV cell: quoted when it holds a comma, a quote or a line break.

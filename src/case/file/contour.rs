@@ -117,16 +117,44 @@ pub(super) fn view_contours(
 /// `Curve::clicked`); a closed one that looks like an open arc adds a warning to `warnings`.
 fn contour(
     path: &Path,
-    (vi, ci): (usize, usize),
+    at: (usize, usize),
     c: &ContourFile,
-    (width, height): (u32, u32),
+    image: (u32, u32),
     warnings: &mut Vec<String>,
 ) -> Result<Curve, CaseError> {
-    let cf = |name: &str| format!("views[{vi}].contours[{ci}].{name}");
+    points_in_image(path, at, c, image)?;
+    let closed = closed_of(path, at, c)?;
+    let (pts, index) = distinct_points(c, closed);
+    enough_and_once_round(path, at, c, &pts, &index, closed)?;
+    if closed {
+        encloses_its_hull(path, at, c, &pts)?;
+        if let Some(w) = open_arc(&pts) {
+            warnings.push(open_arc_warning(path, at, &w, &index));
+        }
+    }
+    Ok(Curve {
+        points: pts,
+        closed,
+    })
+}
+
+/// The field name `name` of contour `ci` of view `vi`.
+fn field((vi, ci): (usize, usize), name: &str) -> String {
+    format!("views[{vi}].contours[{ci}].{name}")
+}
+
+/// At most `MAX_OUTLINE_POINTS` points, each finite and inside the `width` x `height` image
+/// (give or take `IMAGE_MARGIN`).
+fn points_in_image(
+    path: &Path,
+    at: (usize, usize),
+    c: &ContourFile,
+    (width, height): (u32, u32),
+) -> Result<(), CaseError> {
     if c.points.len() > MAX_OUTLINE_POINTS {
         return Err(field_err(
             path,
-            cf("points"),
+            field(at, "points"),
             format!("{} points", c.points.len()),
             format!("a contour has at most {MAX_OUTLINE_POINTS} points (thin it)"),
         ));
@@ -136,7 +164,7 @@ fn contour(
         if !p[0].is_finite() || !p[1].is_finite() {
             return Err(field_err(
                 path,
-                cf(&format!("points[{pi}]")),
+                field(at, &format!("points[{pi}]")),
                 format!("{p:?}"),
                 "coordinates must be finite",
             ));
@@ -148,26 +176,33 @@ fn contour(
         {
             return Err(field_err(
                 path,
-                cf(&format!("points[{pi}]")),
+                field(at, &format!("points[{pi}]")),
                 format!("{p:?}"),
                 format!("outside the {width}x{height} image"),
             ));
         }
     }
-    let closed = match (c.closed, c.kind) {
-        (Some(b), None) => b,
-        (None, Some(k)) => k == ContourKind::Closed,
-        (Some(b), Some(k)) if b == (k == ContourKind::Closed) => b,
-        (b, k) => {
-            return Err(field_err(
-                path,
-                cf("closed/kind"),
-                format!("closed {b:?}, kind {k:?}"),
-                "give either \"closed\": true|false or \"kind\": \"closed\"|\"open\"|\"partial\" (and not two that disagree)",
-            ))
-        }
-    };
-    // The distinct points, each with its index in the file.
+    Ok(())
+}
+
+/// Whether the contour is closed, from `closed` or `kind` (which must agree when both are given).
+fn closed_of(path: &Path, at: (usize, usize), c: &ContourFile) -> Result<bool, CaseError> {
+    match (c.closed, c.kind) {
+        (Some(b), None) => Ok(b),
+        (None, Some(k)) => Ok(k == ContourKind::Closed),
+        (Some(b), Some(k)) if b == (k == ContourKind::Closed) => Ok(b),
+        (b, k) => Err(field_err(
+            path,
+            field(at, "closed/kind"),
+            format!("closed {b:?}, kind {k:?}"),
+            "give either \"closed\": true|false or \"kind\": \"closed\"|\"open\"|\"partial\" (and not two that disagree)",
+        )),
+    }
+}
+
+/// The contour's distinct points (a point repeating the one before it dropped, and a closed
+/// one's explicitly repeated first point), each with its index in the file.
+fn distinct_points(c: &ContourFile, closed: bool) -> (Vec<Point2<f64>>, Vec<usize>) {
     let mut pts: Vec<Point2<f64>> = Vec::with_capacity(c.points.len());
     let mut index: Vec<usize> = Vec::with_capacity(c.points.len());
     for (pi, p) in c.points.iter().enumerate() {
@@ -178,15 +213,27 @@ fn contour(
         }
     }
     if closed && pts.len() > 1 && (pts[0] - pts[pts.len() - 1]).norm() < 1e-9 {
-        pts.pop(); // an explicitly repeated first point
+        pts.pop();
         index.pop();
     }
-    let distinct = pts.len();
-    if distinct < MIN_OUTLINE_POINTS {
+    (pts, index)
+}
+
+/// Enough distinct points `pts` (their indices in the file `index`), spread wide enough, a
+/// closed contour going once round its centre, and no stray point.
+fn enough_and_once_round(
+    path: &Path,
+    at: (usize, usize),
+    c: &ContourFile,
+    pts: &[Point2<f64>],
+    index: &[usize],
+    closed: bool,
+) -> Result<(), CaseError> {
+    if pts.len() < MIN_OUTLINE_POINTS {
         return Err(field_err(
             path,
-            cf("points"),
-            format!("{} distinct points", distinct),
+            field(at, "points"),
+            format!("{} distinct points", pts.len()),
             format!("a contour needs at least {MIN_OUTLINE_POINTS} distinct points"),
         ));
     }
@@ -194,22 +241,18 @@ fn contour(
     if extent < MIN_OUTLINE_EXTENT_PX {
         return Err(field_err(
             path,
-            cf("points"),
+            field(at, "points"),
             format!("extent {extent:.3} px"),
             format!("the contour is smaller than {MIN_OUTLINE_EXTENT_PX} pixels"),
         ));
     }
     // A closed outline traced round more than once (two passes of the annotation joined) goes
     // twice round its own centre; a noisy or notched one, once.
-    let turns = if closed {
-        turns_round_centroid(&pts)
-    } else {
-        1
-    };
+    let turns = if closed { turns_round_centroid(pts) } else { 1 };
     if turns > 1 {
         return Err(field_err(
             path,
-            cf("points"),
+            field(at, "points"),
             format!(
                 "{} points going {turns} times round their centre",
                 c.points.len()
@@ -217,11 +260,11 @@ fn contour(
             "a closed contour goes once round the rim: is it traced twice?",
         ));
     }
-    if let Some(s) = stray_point(&pts, closed) {
+    if let Some(s) = stray_point(pts, closed) {
         let pi = index[s.index];
         return Err(field_err(
             path,
-            cf(&format!("points[{pi}]")),
+            field(at, &format!("points[{pi}]")),
             format!("{:?}", c.points[pi]),
             format!(
                 "a stray point: {:.0} px from both its neighbours, which lie {:.0} px \
@@ -231,46 +274,53 @@ fn contour(
             ),
         ));
     }
-    // A closed rim encloses most of its convex hull; points on one line enclose nothing, and an
-    // outline that crosses itself (parts joined in the wrong order) little, its loops' areas
-    // cancelling.
-    if closed {
-        let (inside, hull) = hull_fill(&pts);
-        if !fills_hull(inside, hull) {
-            return Err(field_err(
-                path,
-                cf("points"),
-                format!(
-                    "{} points enclosing {inside:.0} px^2 of their convex hull's \
-                     {hull:.0} px^2",
-                    c.points.len()
-                ),
-                format!(
-                    "a closed rim encloses at least {:.0} % of its convex hull: are \
-                     its points on one line, or does it cross itself (parts of the \
-                     annotation joined in the wrong order)?",
-                    100.0 * MIN_HULL_FILL
-                ),
-            ));
-        }
-        if let Some(w) = open_arc(&pts) {
-            let (i, j) = (index[w.from], index[(w.from + 1) % distinct]);
-            warnings.push(format!(
-                "{}: {}: a closed outline whose points {i} and {j} lie {:.0} px \
-                 apart, {:.0} % of its width, against {:.0} px for its next longest \
-                 step: if it is an open arc (the rim left out where the walls are \
-                 blurred), give it \"closed\": false; closed, that straight segment \
-                 is taken for rim",
-                path.display(),
-                cf("closed"),
-                w.px,
-                100.0 * w.share,
-                w.next_px
-            ));
-        }
+    Ok(())
+}
+
+/// A closed rim encloses most of its convex hull; points on one line enclose nothing, and an
+/// outline that crosses itself (parts joined in the wrong order) little, its loops' areas
+/// cancelling.
+fn encloses_its_hull(
+    path: &Path,
+    at: (usize, usize),
+    c: &ContourFile,
+    pts: &[Point2<f64>],
+) -> Result<(), CaseError> {
+    let (inside, hull) = hull_fill(pts);
+    if fills_hull(inside, hull) {
+        return Ok(());
     }
-    Ok(Curve {
-        points: pts,
-        closed,
-    })
+    Err(field_err(
+        path,
+        field(at, "points"),
+        format!(
+            "{} points enclosing {inside:.0} px^2 of their convex hull's \
+             {hull:.0} px^2",
+            c.points.len()
+        ),
+        format!(
+            "a closed rim encloses at least {:.0} % of its convex hull: are \
+             its points on one line, or does it cross itself (parts of the \
+             annotation joined in the wrong order)?",
+            100.0 * MIN_HULL_FILL
+        ),
+    ))
+}
+
+/// The warning for a closed outline that looks like an open arc joined by its chord (`w`,
+/// from its distinct points, whose indices in the file are `index`).
+fn open_arc_warning(path: &Path, at: (usize, usize), w: &OpenArc, index: &[usize]) -> String {
+    let (i, j) = (index[w.from], index[(w.from + 1) % index.len()]);
+    format!(
+        "{}: {}: a closed outline whose points {i} and {j} lie {:.0} px \
+         apart, {:.0} % of its width, against {:.0} px for its next longest \
+         step: if it is an open arc (the rim left out where the walls are \
+         blurred), give it \"closed\": false; closed, that straight segment \
+         is taken for rim",
+        path.display(),
+        field(at, "closed"),
+        w.px,
+        100.0 * w.share,
+        w.next_px
+    )
 }

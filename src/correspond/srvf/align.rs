@@ -365,44 +365,24 @@ pub(super) fn align_closed_on(
     if !exhaustive {
         order = pick_distinct_seeds(&order, t, prm.seed_candidates.max(1));
     }
-    let q1g = closed_grid(&q1, 0);
-    let pag = closed_grid(&pa, 0);
-    let mut best: Option<(f64, usize, f64, Warp)> = None;
-    // Refine seed s with full DP (under `p`); `near`: search a band around the best path so far,
-    // since a neighbouring seed shifts the optimal path by one cell.
-    let refine =
-        |s: usize, best: &mut Option<(f64, usize, f64, Warp)>, near: bool, p: &SrvfParams| {
-            let hint = if near {
-                best.as_ref().map(|b| b.3.path.clone())
-            } else {
-                None
-            };
-            let pbg = closed_grid(&pb, s);
-            let (theta, w) = rotate_and_warp(
-                &q1g,
-                &closed_grid(&q2, s),
-                energies[s].1,
-                p,
-                &steps,
-                hint.as_deref(),
-                Some(Anchor {
-                    a: &pag,
-                    b: &pbg,
-                    weight: p.anchor,
-                }),
-                on,
-            );
-            if best.as_ref().is_none_or(|b| w.energy < b.0) {
-                *best = Some((w.energy, s, theta, w));
-            }
-        };
+    let search = SeedSearch {
+        t,
+        q1g: closed_grid(&q1, 0),
+        pag: closed_grid(&pa, 0),
+        q2,
+        pb,
+        energies,
+        steps,
+        on,
+    };
+    let mut best: Option<BestSeed> = None;
     if exhaustive {
         let exact = SrvfParams {
             band: 0,
             ..prm.clone()
         };
         for s in order {
-            refine(s, &mut best, false, &exact);
+            search.refine(s, &mut best, false, &exact);
         }
     } else {
         // Coarse to fine: rank the candidate seeds by a DP at <= 48 samples, then refine the two
@@ -413,65 +393,14 @@ pub(super) fn align_closed_on(
         let ranked: Vec<usize> = if order.len() <= REFINED_SEEDS {
             order
         } else {
-            let tc = t.min(48);
-            let coarse_prm = SrvfParams {
-                max_alternations: 2,
-                ..prm.clone()
-            };
-            let (ca, _) = resample_closed(&ra, tc);
-            let cq1 = closed_grid(&srvf(&ca, true), 0);
-            let cpa = closed_grid(&frame.map(&ca), 0);
-            // Every candidate's coarse curves, then their alignments in step (one request a
-            // round on a device).
-            let coarse: Vec<SeedGrids> = order
-                .iter()
-                .map(|&s| {
-                    let (cb, _) = resample_closed(&rotate_list(&rb, s), tc);
-                    (
-                        closed_grid(&srvf(&cb, true), 0),
-                        closed_grid(&frame.map(&cb), 0),
-                    )
-                })
-                .collect();
-            let cands = seed_candidates(&order, &coarse, &energies, &cpa, prm.anchor);
-            let aligned = rotate_and_warp_many(&cq1, &cands, &coarse_prm, &steps, on);
-            let mut ranked: Vec<(f64, usize)> = aligned
-                .iter()
-                .zip(&order)
-                .map(|((_, w), &s)| (w.energy, s))
-                .collect();
-            ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
-            ranked.into_iter().map(|(_, s)| s).collect()
+            search.coarse_rank(&order, &ra, &rb, &frame, prm)
         };
-        // The best seeds refined at full resolution in step, then kept in rank order as one at
-        // a time would.
-        let first: Vec<usize> = ranked.iter().take(REFINED_SEEDS).copied().collect();
-        let grids: Vec<SeedGrids> = first
-            .iter()
-            .map(|&s| (closed_grid(&q2, s), closed_grid(&pb, s)))
-            .collect();
-        let cands = seed_candidates(&first, &grids, &energies, &pag, prm.anchor);
-        let refined = rotate_and_warp_many(&q1g, &cands, prm, &steps, on);
-        for (&s, (theta, w)) in first.iter().zip(refined) {
-            if best.as_ref().is_none_or(|b| w.energy < b.0) {
-                best = Some((w.energy, s, theta, w));
-            }
-        }
-        // The candidates are kept apart, so walk the seed one sample at a time while it helps.
-        for dir in [1usize, t - 1] {
-            loop {
-                let current = best.as_ref().map(|b| (b.0, b.1)).expect("refined above");
-                let s = (current.1 + dir) % t;
-                refine(s, &mut best, true, prm);
-                if best.as_ref().map(|b| b.1) != Some(s) {
-                    break;
-                }
-            }
-        }
+        search.refine_first(&ranked, &mut best, prm);
+        search.walk(&mut best, prm);
     }
     let (_, seed, theta, w) = best.expect("at least one seed is tried");
     // The shape distance alone (the position term only chose among warps).
-    let energy = dist2(&q1g, &w.warped);
+    let energy = dist2(&search.q1g, &w.warped);
     let poly = ClosedPolyline::new(b);
     let mut b_arclength = Vec::with_capacity(t);
     let (mut b_points, mut b_index) = (Vec::with_capacity(t), Vec::with_capacity(t));
@@ -493,6 +422,125 @@ pub(super) fn align_closed_on(
         b_index,
         reversed: false,
     })
+}
+
+/// The best seed so far: its energy, the seed, its rotation and its warp.
+type BestSeed = (f64, usize, f64, Warp);
+
+/// The closed alignment's seed search: A's SRVF and positions on the closed grid, B's SRVF and
+/// positions (to be started at a seed), each seed's rotation-only energy and rotation.
+struct SeedSearch<'o> {
+    t: usize,
+    q1g: Vec<Vector2<f64>>,
+    pag: Vec<Vector2<f64>>,
+    q2: Vec<Vector2<f64>>,
+    pb: Vec<Vector2<f64>>,
+    energies: Vec<(f64, f64)>,
+    steps: Vec<(usize, usize)>,
+    on: DpOn<'o>,
+}
+
+impl SeedSearch<'_> {
+    /// Seed `s` refined with a full DP under `p`, kept in `best` when it beats it; `near`:
+    /// search a band around the best path so far, since a neighbouring seed shifts the optimal
+    /// path by one cell.
+    fn refine(&self, s: usize, best: &mut Option<BestSeed>, near: bool, p: &SrvfParams) {
+        let hint = if near {
+            best.as_ref().map(|b| b.3.path.clone())
+        } else {
+            None
+        };
+        let pbg = closed_grid(&self.pb, s);
+        let (theta, w) = rotate_and_warp(
+            &self.q1g,
+            &closed_grid(&self.q2, s),
+            self.energies[s].1,
+            p,
+            &self.steps,
+            hint.as_deref(),
+            Some(Anchor {
+                a: &self.pag,
+                b: &pbg,
+                weight: p.anchor,
+            }),
+            self.on,
+        );
+        if best.as_ref().is_none_or(|b| w.energy < b.0) {
+            *best = Some((w.energy, s, theta, w));
+        }
+    }
+
+    /// The seeds `order` ranked by a DP of the curves (`ra`, `rb`, in B's anchor `frame`)
+    /// resampled to at most 48 points: every candidate's coarse curves, then their alignments
+    /// in step (one request a round on a device).
+    fn coarse_rank(
+        &self,
+        order: &[usize],
+        ra: &[Point2<f64>],
+        rb: &[Point2<f64>],
+        frame: &AnchorFrame,
+        prm: &SrvfParams,
+    ) -> Vec<usize> {
+        let tc = self.t.min(48);
+        let coarse_prm = SrvfParams {
+            max_alternations: 2,
+            ..prm.clone()
+        };
+        let (ca, _) = resample_closed(ra, tc);
+        let cq1 = closed_grid(&srvf(&ca, true), 0);
+        let cpa = closed_grid(&frame.map(&ca), 0);
+        let coarse: Vec<SeedGrids> = order
+            .iter()
+            .map(|&s| {
+                let (cb, _) = resample_closed(&rotate_list(rb, s), tc);
+                (
+                    closed_grid(&srvf(&cb, true), 0),
+                    closed_grid(&frame.map(&cb), 0),
+                )
+            })
+            .collect();
+        let cands = seed_candidates(order, &coarse, &self.energies, &cpa, prm.anchor);
+        let aligned = rotate_and_warp_many(&cq1, &cands, &coarse_prm, &self.steps, self.on);
+        let mut ranked: Vec<(f64, usize)> = aligned
+            .iter()
+            .zip(order)
+            .map(|((_, w), &s)| (w.energy, s))
+            .collect();
+        ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+        ranked.into_iter().map(|(_, s)| s).collect()
+    }
+
+    /// The best `REFINED_SEEDS` of `ranked` refined at full resolution in step, then kept in
+    /// rank order as one at a time would.
+    fn refine_first(&self, ranked: &[usize], best: &mut Option<BestSeed>, prm: &SrvfParams) {
+        let first: Vec<usize> = ranked.iter().take(REFINED_SEEDS).copied().collect();
+        let grids: Vec<SeedGrids> = first
+            .iter()
+            .map(|&s| (closed_grid(&self.q2, s), closed_grid(&self.pb, s)))
+            .collect();
+        let cands = seed_candidates(&first, &grids, &self.energies, &self.pag, prm.anchor);
+        let refined = rotate_and_warp_many(&self.q1g, &cands, prm, &self.steps, self.on);
+        for (&s, (theta, w)) in first.iter().zip(refined) {
+            if best.as_ref().is_none_or(|b| w.energy < b.0) {
+                *best = Some((w.energy, s, theta, w));
+            }
+        }
+    }
+
+    /// The candidates are kept apart, so walk the best seed one sample at a time each way
+    /// while it helps.
+    fn walk(&self, best: &mut Option<BestSeed>, prm: &SrvfParams) {
+        let t = self.t;
+        for dir in [1usize, t - 1] {
+            while let Some(current) = best.as_ref().map(|b| b.1) {
+                let s = (current + dir) % t;
+                self.refine(s, best, true, prm);
+                if best.as_ref().map(|b| b.1) != Some(s) {
+                    break;
+                }
+            }
+        }
+    }
 }
 
 /// A seed's grids: B's SRVF and B's positions, started at the seed.

@@ -7,7 +7,7 @@ use super::align::{
 };
 use super::band::DpOn;
 use super::curve::{best_rotation, dist2, srvf, Anchor};
-use super::dp::coprime_steps;
+use super::dp::{coprime_steps, Warp};
 use crate::geom::{polyline_length, resample_closed, resample_open, ClosedPolyline};
 use nalgebra::{Point2, Vector2};
 
@@ -71,6 +71,9 @@ pub fn align_partial(
     align_partial_on(a, b, prm, DpOn::Host)
 }
 
+/// Starts of B's sub-arcs ranked per direction of A (fractions of B, evenly spaced).
+const STARTS: usize = 96;
+
 /// `align_partial` with its DPs run where `on` says.
 pub(super) fn align_partial_on(
     a: &[Point2<f64>],
@@ -81,141 +84,31 @@ pub(super) fn align_partial_on(
     check("A", a)?;
     check("B", b)?;
     check_samples(prm.samples)?;
-    let poly = ClosedPolyline::new(b);
-    let ratio = (polyline_length(a, false) / poly.total).clamp(0.05, 1.0);
+    let search = SubArcSearch {
+        a,
+        poly: ClosedPolyline::new(b),
+        frame: AnchorFrame::of(b),
+        steps: coprime_steps(prm.neighbourhood),
+        on,
+    };
     let coarse = SrvfParams {
         samples: prm.samples.min(48),
         max_alternations: 2,
         ..prm.clone()
     };
-    let steps = coprime_steps(prm.neighbourhood);
-    let tang = unit_tangents(b, 1024);
-    let starts = 96usize;
-    // Sub-arc lengths (fractions of B): A's length ratio says little when the scales differ,
-    // so a geometric ladder from 5 % to 95 % is ranked too, with the ratio's neighbours.
-    let mut fracs: Vec<f64> = (0..32)
-        .map(|k| 0.05 * (0.95f64 / 0.05).powf(k as f64 / 31.0))
-        .collect();
-    fracs.extend([0.85, 1.0, 1.15].iter().map(|f| (ratio * f).min(0.95)));
-    let arc_q = |reversed: bool, t: usize| {
-        let mut aa = a.to_vec();
-        if reversed {
-            aa.reverse();
-        }
-        let (ra, _) = resample_open(&aa, t);
-        let q = srvf(&ra, false);
-        (ra, q)
-    };
-    let frame = AnchorFrame::of(b);
-    // A's positions in the anchor frame, by direction and sample count.
-    let arc_pos = |reversed: bool, t: usize| frame.map(&arc_q(reversed, t).0);
-    // (energy, reversed, start fraction, length fraction)
-    let mut cands: Vec<(f64, bool, f64, f64)> = Vec::new();
-    let rank_t = prm.samples.min(32);
-    let coarse_q1 = [
-        arc_q(false, coarse.samples).1,
-        arc_q(true, coarse.samples).1,
-    ];
-    let rank_q1 = [arc_q(false, rank_t).1, arc_q(true, rank_t).1];
-    let coarse_pa = [
-        arc_pos(false, coarse.samples),
-        arc_pos(true, coarse.samples),
-    ];
-    let rank_pa = [arc_pos(false, rank_t), arc_pos(true, rank_t)];
-    for (d, q1) in rank_q1.iter().enumerate() {
-        for k in 0..starts {
-            let start = k as f64 / starts as f64;
-            for &f in &fracs {
-                cands.push((
-                    subarc_rotation_energy(q1, &tang, start, f, prm),
-                    d == 1,
-                    start,
-                    f,
-                ));
-            }
-        }
-    }
-    cands.sort_by(|x, y| x.0.total_cmp(&y.0));
-    let mut picked: Vec<(bool, f64, f64)> = Vec::new();
-    for &(_, rev, start, len) in &cands {
-        let close = picked.iter().any(|&(r2, s2, _)| {
-            let d = (start - s2).rem_euclid(1.0);
-            r2 == rev && d.min(1.0 - d) < 1.5 / starts as f64
-        });
-        if !close {
-            picked.push((rev, start, len));
-            if picked.len() == 8 {
-                break;
-            }
-        }
-    }
-    let eval = |q1: &[Vector2<f64>],
-                pa: &[Vector2<f64>],
-                p: &SrvfParams,
-                start: f64,
-                len: f64,
-                hint: Option<&[(usize, usize)]>| {
-        let arc = sub_arc(&poly, start * poly.total, len * poly.total, q1.len());
-        let q2 = srvf(&arc, false);
-        let pb = frame.map(&arc);
-        let anchor = Anchor {
-            a: pa,
-            b: &pb,
-            weight: p.anchor,
-        };
-        rotate_and_warp(
-            q1,
-            &q2,
-            best_rotation(q1, &q2),
-            p,
-            &steps,
-            hint,
-            Some(anchor),
-            on,
-        )
-    };
     // The candidates are told apart by a DP at the ranking resolution; the winner is polished at
     // the (finer) coarse resolution.
     let rank_prm = SrvfParams {
-        samples: rank_t,
+        samples: prm.samples.min(32),
         ..coarse.clone()
     };
-    let mut best: Option<(f64, bool, f64, f64)> = None;
-    for &(rev, start, len) in &picked {
-        let d = usize::from(rev);
-        let (_, w) = eval(&rank_q1[d], &rank_pa[d], &rank_prm, start, len, None);
-        if best.as_ref().is_none_or(|b| w.energy < b.0) {
-            best = Some((w.energy, rev, start, len));
-        }
-    }
-    let (_, reversed, mut start, mut len) = best.expect("candidates are never empty");
-    let q1c = &coarse_q1[usize::from(reversed)];
-    let pac = &coarse_pa[usize::from(reversed)];
-    let (_, w) = eval(q1c, pac, &coarse, start, len, None);
-    let (mut energy, mut path) = (w.energy, w.path);
-    // Pattern search: move while a move helps, else halve the steps (at most 24 evaluations).
-    let (mut step_s, mut step_l) = (0.5 / starts as f64, 0.05 * len);
-    let mut evals = 0;
-    while evals < 24 && step_s > 0.02 / starts as f64 {
-        let mut moved = false;
-        for (ds, dl) in [(-step_s, 0.0), (step_s, 0.0), (0.0, -step_l), (0.0, step_l)] {
-            let l2 = (len + dl).clamp(0.02, 0.99);
-            // A small move of the sub-arc moves the warp path little: search near it.
-            let (_, w) = eval(q1c, pac, &coarse, start + ds, l2, Some(&path));
-            evals += 1;
-            if w.energy < energy {
-                (energy, start, len, path) = (w.energy, start + ds, l2, w.path);
-                moved = true;
-            }
-        }
-        if !moved {
-            step_s *= 0.5;
-            step_l *= 0.5;
-        }
-    }
+    let picked = search.candidates(b, prm, rank_prm.samples);
+    let (reversed, start, len) = search.best_of(&picked, &rank_prm);
+    let (start, len) = search.polish(reversed, start, len, &coarse);
     let t = prm.samples;
-    let (ra, q1) = arc_q(reversed, t);
-    let (theta, w) = eval(&q1, &frame.map(&ra), prm, start, len, None);
+    let (ra, q1) = search.arc_q(reversed, t);
+    let (theta, w) = search.eval(&q1, &search.frame.map(&ra), prm, start, len, None);
+    let poly = &search.poly;
     let (start, len) = (start * poly.total, len * poly.total);
     let mut out = Alignment {
         distance: dist2(&q1, &w.warped).max(0.0).sqrt(),
@@ -242,4 +135,162 @@ pub(super) fn align_partial_on(
         out.gamma.reverse();
     }
     Ok(out)
+}
+
+/// The open arc `a` against the sub-arcs of the closed curve B (`poly`), each sub-arc given by
+/// its direction, start and length as fractions of B.
+struct SubArcSearch<'a> {
+    a: &'a [Point2<f64>],
+    poly: ClosedPolyline<'a>,
+    /// B's anchor frame (where A's and the sub-arcs' positions are compared).
+    frame: AnchorFrame,
+    steps: Vec<(usize, usize)>,
+    on: DpOn<'a>,
+}
+
+impl SubArcSearch<'_> {
+    /// A (reversed or not) resampled at `t` points, and its SRVF.
+    fn arc_q(&self, reversed: bool, t: usize) -> (Vec<Point2<f64>>, Vec<Vector2<f64>>) {
+        let mut aa = self.a.to_vec();
+        if reversed {
+            aa.reverse();
+        }
+        let (ra, _) = resample_open(&aa, t);
+        let q = srvf(&ra, false);
+        (ra, q)
+    }
+
+    /// A's positions in the anchor frame, by direction and sample count.
+    fn arc_pos(&self, reversed: bool, t: usize) -> Vec<Vector2<f64>> {
+        self.frame.map(&self.arc_q(reversed, t).0)
+    }
+
+    /// The rotation and warp of A (SRVF `q1`, anchor-frame positions `pa`) onto the sub-arc
+    /// from `start` over `len`, under `p`; `hint`: a warp path to search near.
+    fn eval(
+        &self,
+        q1: &[Vector2<f64>],
+        pa: &[Vector2<f64>],
+        p: &SrvfParams,
+        start: f64,
+        len: f64,
+        hint: Option<&[(usize, usize)]>,
+    ) -> (f64, Warp) {
+        let poly = &self.poly;
+        let arc = sub_arc(poly, start * poly.total, len * poly.total, q1.len());
+        let q2 = srvf(&arc, false);
+        let pb = self.frame.map(&arc);
+        let anchor = Anchor {
+            a: pa,
+            b: &pb,
+            weight: p.anchor,
+        };
+        rotate_and_warp(
+            q1,
+            &q2,
+            best_rotation(q1, &q2),
+            p,
+            &self.steps,
+            hint,
+            Some(anchor),
+            self.on,
+        )
+    }
+
+    /// Every start x length x direction ranked by its rotation-only energy (A at `rank_t`
+    /// samples against B's tangent field, no resampling); the eight best of distinct starts
+    /// (direction, start, length).
+    fn candidates(
+        &self,
+        b: &[Point2<f64>],
+        prm: &SrvfParams,
+        rank_t: usize,
+    ) -> Vec<(bool, f64, f64)> {
+        let ratio = (polyline_length(self.a, false) / self.poly.total).clamp(0.05, 1.0);
+        let tang = unit_tangents(b, 1024);
+        // Sub-arc lengths (fractions of B): A's length ratio says little when the scales
+        // differ, so a geometric ladder from 5 % to 95 % is ranked too, with the ratio's
+        // neighbours.
+        let mut fracs: Vec<f64> = (0..32)
+            .map(|k| 0.05 * (0.95f64 / 0.05).powf(k as f64 / 31.0))
+            .collect();
+        fracs.extend([0.85, 1.0, 1.15].iter().map(|f| (ratio * f).min(0.95)));
+        // (energy, reversed, start fraction, length fraction)
+        let mut cands: Vec<(f64, bool, f64, f64)> = Vec::new();
+        for reversed in [false, true] {
+            let q1 = self.arc_q(reversed, rank_t).1;
+            for k in 0..STARTS {
+                let start = k as f64 / STARTS as f64;
+                for &f in &fracs {
+                    cands.push((
+                        subarc_rotation_energy(&q1, &tang, start, f, prm),
+                        reversed,
+                        start,
+                        f,
+                    ));
+                }
+            }
+        }
+        cands.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let mut picked: Vec<(bool, f64, f64)> = Vec::new();
+        for &(_, rev, start, len) in &cands {
+            let close = picked.iter().any(|&(r2, s2, _)| {
+                let d = (start - s2).rem_euclid(1.0);
+                r2 == rev && d.min(1.0 - d) < 1.5 / STARTS as f64
+            });
+            if !close {
+                picked.push((rev, start, len));
+                if picked.len() == 8 {
+                    break;
+                }
+            }
+        }
+        picked
+    }
+
+    /// The candidate whose DP alignment under `rank_prm` has the least energy (the first of
+    /// equals); the candidates are never empty (every start and length is ranked).
+    fn best_of(&self, picked: &[(bool, f64, f64)], rank_prm: &SrvfParams) -> (bool, f64, f64) {
+        let t = rank_prm.samples;
+        let rank = [false, true].map(|rev| (self.arc_q(rev, t).1, self.arc_pos(rev, t)));
+        let mut best: Option<(f64, bool, f64, f64)> = None;
+        for &(rev, start, len) in picked {
+            let (q1, pa) = &rank[usize::from(rev)];
+            let (_, w) = self.eval(q1, pa, rank_prm, start, len, None);
+            if best.as_ref().is_none_or(|b| w.energy < b.0) {
+                best = Some((w.energy, rev, start, len));
+            }
+        }
+        best.map_or(picked[0], |(_, rev, start, len)| (rev, start, len))
+    }
+
+    /// The sub-arc's start and length polished under `coarse` by a pattern search: move while
+    /// a move helps, else halve the steps (at most 24 evaluations).
+    fn polish(&self, reversed: bool, start: f64, len: f64, coarse: &SrvfParams) -> (f64, f64) {
+        let t = coarse.samples;
+        let (q1c, pac) = (self.arc_q(reversed, t).1, self.arc_pos(reversed, t));
+        let (_, w) = self.eval(&q1c, &pac, coarse, start, len, None);
+        let (mut energy, mut path) = (w.energy, w.path);
+        let (mut start, mut len) = (start, len);
+        let (mut step_s, mut step_l) = (0.5 / STARTS as f64, 0.05 * len);
+        let mut evals = 0;
+        while evals < 24 && step_s > 0.02 / STARTS as f64 {
+            let mut moved = false;
+            for (ds, dl) in [(-step_s, 0.0), (step_s, 0.0), (0.0, -step_l), (0.0, step_l)] {
+                let l2 = (len + dl).clamp(0.02, 0.99);
+                // A small move of the sub-arc moves the warp path little: search near it.
+                let (_, w) = self.eval(&q1c, &pac, coarse, start + ds, l2, Some(&path));
+                evals += 1;
+                if w.energy < energy {
+                    (energy, start, len, path) = (w.energy, start + ds, l2, w.path);
+                    moved = true;
+                }
+            }
+            if !moved {
+                step_s *= 0.5;
+                step_l *= 0.5;
+            }
+        }
+        (start, len)
+    }
 }
