@@ -177,53 +177,9 @@ fn run_loaded(
             warnings.extend(rec.log.view_note(&case.names));
             write_ply(&rec.mesh, None, &stage.join("reconstruction.ply"))?;
             #[cfg(feature = "plots")]
-            for (k, cam) in case.cameras.iter().enumerate() {
-                let name = format!("overlay-{k}-{}.png", file_safe(&case.names[k]));
-                let marks = OverlayMarks::of_result(
-                    case.names[k].clone(),
-                    cam,
-                    &rec.sphere.center_point(),
-                    cup.catalogue_mm,
-                    case.clicks.get(k).map_or(&[], Vec::as_slice),
-                );
-                match overlay(
-                    (cam.width, cam.height),
-                    case.images[k].as_deref(),
-                    &rec.initial_contours[k].points,
-                    &rec.final_contours[k].points,
-                    &case.observed[k],
-                    &marks,
-                    &stage.join(&name),
-                ) {
-                    Ok(()) => files.push(name),
-                    Err(e) => warnings.push(format!("{name} not drawn: {e}")),
-                }
-            }
-            // The result from two viewpoints, coloured by its distance to the cup sphere as
-            // fitted (the surface's geometry, before the calibration's size correction).
-            #[cfg(feature = "plots")]
             {
-                let fitted = &rec.fitted_sphere;
-                let c = fitted.center_point();
-                let dist: Vec<f64> = rec
-                    .mesh
-                    .vertices
-                    .iter()
-                    .map(|v| ((v - c).norm() - fitted.radius).abs())
-                    .collect();
-                let axis = crate::report::plots::opening_axis(&rec.mesh, fitted);
-                match crate::report::plots::surface_views(
-                    &rec.mesh,
-                    &dist,
-                    &axis,
-                    3.0,
-                    "off the cup sphere (mm)",
-                    &stage.join("reconstruction.png"),
-                    &|p| kernels.render_surface(p).0,
-                ) {
-                    Ok(()) => files.push("reconstruction.png".into()),
-                    Err(e) => warnings.push(format!("reconstruction.png not drawn: {e}")),
-                }
+                draw_overlays(case, &rec, &cup, stage, &mut files, &mut warnings);
+                draw_surface(&rec, kernels, stage, &mut files, &mut warnings);
             }
             #[cfg(not(feature = "plots"))]
             let _ = &case.images; // overlays need the `plots` feature
@@ -256,6 +212,75 @@ fn run_loaded(
         write_err,
     )?;
     Ok(report.expect("set by the successful fill"))
+}
+
+/// Each view's overlay (`overlay-K-NAME.png`: the contours over its X-ray, the catalogue cup,
+/// the clicks) written into `stage`; the files drawn added to `files`, a warning for each not.
+#[cfg(feature = "plots")]
+fn draw_overlays(
+    case: &Case,
+    rec: &Reconstruction,
+    cup: &CupReport,
+    stage: &Path,
+    files: &mut Vec<String>,
+    warnings: &mut Vec<String>,
+) {
+    for (k, cam) in case.cameras.iter().enumerate() {
+        let name = format!("overlay-{k}-{}.png", file_safe(&case.names[k]));
+        let marks = OverlayMarks::of_result(
+            case.names[k].clone(),
+            cam,
+            &rec.sphere.center_point(),
+            cup.catalogue_mm,
+            case.clicks.get(k).map_or(&[], Vec::as_slice),
+        );
+        match overlay(
+            (cam.width, cam.height),
+            case.images[k].as_deref(),
+            &rec.initial_contours[k].points,
+            &rec.final_contours[k].points,
+            &case.observed[k],
+            &marks,
+            &stage.join(&name),
+        ) {
+            Ok(()) => files.push(name),
+            Err(e) => warnings.push(format!("{name} not drawn: {e}")),
+        }
+    }
+}
+
+/// The result from two viewpoints (`reconstruction.png`), coloured by its distance to the cup
+/// sphere as fitted (the surface's geometry, before the calibration's size correction),
+/// rendered by `kernels`; added to `files`, or a warning when it is not drawn.
+#[cfg(feature = "plots")]
+fn draw_surface(
+    rec: &Reconstruction,
+    kernels: Kernels,
+    stage: &Path,
+    files: &mut Vec<String>,
+    warnings: &mut Vec<String>,
+) {
+    let fitted = &rec.fitted_sphere;
+    let c = fitted.center_point();
+    let dist: Vec<f64> = rec
+        .mesh
+        .vertices
+        .iter()
+        .map(|v| ((v - c).norm() - fitted.radius).abs())
+        .collect();
+    let axis = crate::report::plots::opening_axis(&rec.mesh, fitted);
+    match crate::report::plots::surface_views(
+        &rec.mesh,
+        &dist,
+        &axis,
+        3.0,
+        "off the cup sphere (mm)",
+        &stage.join("reconstruction.png"),
+        &|p| kernels.render_surface(p).0,
+    ) {
+        Ok(()) => files.push("reconstruction.png".into()),
+        Err(e) => warnings.push(format!("reconstruction.png not drawn: {e}")),
+    }
 }
 
 /// Reconstruct a validated case and report its cup (with its uncertainty), writing nothing:

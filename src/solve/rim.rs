@@ -122,20 +122,63 @@ pub fn rim_orientation(
     if points < MIN_POINTS || views < 2 {
         return Err(RimError::TooFewPoints { points, views });
     }
-    // The circle's (cos, sin) at its samples' angles, the same every evaluation.
-    let turn = |samples: usize| -> Vec<(f64, f64)> {
-        (0..samples)
-            .map(|k| {
-                let t = k as f64 * std::f64::consts::TAU / samples as f64;
-                (t.cos(), t.sin())
-            })
-            .collect()
+    let fit = RimCost {
+        cams,
+        rim,
+        c,
+        r,
+        coarse_turn: circle_turn(36),
+        fine_turn: circle_turn(CIRCLE_SAMPLES),
     };
-    let (coarse_turn, fine_turn) = (turn(36), turn(CIRCLE_SAMPLES));
-    // `coarse`: the rim points against a 36-point circle (the grid's quick look). `d2` is the
-    // caller's buffer.
-    let cost = |n: &Vector3<f64>, h: f64, coarse: bool, d2: &mut Vec<f64>| -> f64 {
-        let trig = if coarse { &coarse_turn } else { &fine_turn };
+    let best = fit.pattern_search(fit.grid_best(points), points);
+    let n = Unit::new_normalize(axis_of(best.1, best.2));
+    let (anteversion_deg, inclination_deg) = radiographic_angles(&n);
+    Ok(RimFit {
+        axis: [n.x, n.y, n.z],
+        offset_mm: best.3,
+        inclination_deg,
+        anteversion_deg,
+        rms_px: best.0.sqrt(),
+        points,
+    })
+}
+
+/// A circle's (cos, sin) at `samples` angles evenly round it.
+fn circle_turn(samples: usize) -> Vec<(f64, f64)> {
+    (0..samples)
+        .map(|k| {
+            let t = k as f64 * std::f64::consts::TAU / samples as f64;
+            (t.cos(), t.sin())
+        })
+        .collect()
+}
+
+/// A rim circle's fit: (mean squared distance of the kept rim points, px^2; anteversion and
+/// inclination of its axis, degrees; its height above the sphere's centre, mm).
+type RimCandidate = (f64, f64, f64, f64);
+
+/// The rim points of each view (`rim`) against circles on the sphere (centre `c`, radius `r`).
+struct RimCost<'a> {
+    cams: &'a [Camera],
+    rim: Vec<Vec<Point2<f64>>>,
+    c: Point3<f64>,
+    r: f64,
+    /// The circle's (cos, sin) at its samples' angles, the same every evaluation: 36 for the
+    /// grid's quick look, `CIRCLE_SAMPLES` in full.
+    coarse_turn: Vec<(f64, f64)>,
+    fine_turn: Vec<(f64, f64)>,
+}
+
+impl RimCost<'_> {
+    /// The mean squared distance of the best `KEEP` share of the rim points to the circle of
+    /// axis `n` at height `h`; `coarse`: every `COARSE_EVERY`th point against the 36-point
+    /// circle. `d2` is the caller's buffer.
+    fn cost(&self, n: &Vector3<f64>, h: f64, coarse: bool, d2: &mut Vec<f64>) -> f64 {
+        let trig = if coarse {
+            &self.coarse_turn
+        } else {
+            &self.fine_turn
+        };
         let u = n
             .cross(&if n.x.abs() < 0.9 {
                 Vector3::x()
@@ -144,10 +187,10 @@ pub fn rim_orientation(
             })
             .normalize();
         let v = n.cross(&u);
-        let rr = (r * r - h * h).max(0.0).sqrt();
-        let cc: Point3<f64> = c + n * h;
+        let rr = (self.r * self.r - h * h).max(0.0).sqrt();
+        let cc: Point3<f64> = self.c + n * h;
         d2.clear();
-        for (cam, pts) in cams.iter().zip(&rim) {
+        for (cam, pts) in self.cams.iter().zip(&self.rim) {
             if pts.is_empty() {
                 continue;
             }
@@ -165,64 +208,64 @@ pub fn rim_orientation(
         d2.sort_by(f64::total_cmp);
         let k = ((d2.len() as f64 * KEEP) as usize).max(1);
         d2[..k].iter().sum::<f64>() / k as f64
-    };
-    // Grid over the opening axis (it always points inferiorly) and the rim's height, then a
-    // pattern search that halves its step when no move helps. The grid's rows (one anteversion
-    // each) are scored side by side; its best is the first lowest in row order, as one pass
-    // over the grid would keep it.
-    let rows: Vec<i32> = (-40..=70).step_by(6).collect();
-    let row_best = par_map(&rows, |_, &a| {
-        let mut d2 = Vec::with_capacity(points);
-        let mut best = (f64::INFINITY, 0.0, 0.0, 0.0);
-        for i in (-84..=84).step_by(6) {
-            for hk in [-0.3, -0.15, 0.0, 0.15] {
-                let e = cost(&axis_of(a as f64, i as f64), hk * r, true, &mut d2);
-                if e < best.0 {
-                    best = (e, a as f64, i as f64, hk * r);
+    }
+
+    /// The grid over the opening axis (it always points inferiorly) and the rim's height. The
+    /// grid's rows (one anteversion each) are scored side by side; its best is the first lowest
+    /// in row order, as one pass over the grid would keep it. `points`: the rim points (the
+    /// buffers' size).
+    fn grid_best(&self, points: usize) -> RimCandidate {
+        let r = self.r;
+        let rows: Vec<i32> = (-40..=70).step_by(6).collect();
+        let row_best = par_map(&rows, |_, &a| {
+            let mut d2 = Vec::with_capacity(points);
+            let mut best = (f64::INFINITY, 0.0, 0.0, 0.0);
+            for i in (-84..=84).step_by(6) {
+                for hk in [-0.3, -0.15, 0.0, 0.15] {
+                    let e = self.cost(&axis_of(a as f64, i as f64), hk * r, true, &mut d2);
+                    if e < best.0 {
+                        best = (e, a as f64, i as f64, hk * r);
+                    }
                 }
+            }
+            best
+        });
+        let mut best = (f64::INFINITY, 0.0, 0.0, 0.0);
+        for b in row_best {
+            if b.0 < best.0 {
+                best = b;
             }
         }
         best
-    });
-    let mut best = (f64::INFINITY, 0.0, 0.0, 0.0);
-    for b in row_best {
-        if b.0 < best.0 {
-            best = b;
-        }
     }
-    let mut d2 = Vec::with_capacity(points);
-    // The grid's best, scored in full, starts the search.
-    best.0 = cost(&axis_of(best.1, best.2), best.3, false, &mut d2);
-    let mut step = 3.0;
-    while step > 0.1 {
-        let (e0, a0, i0, h0) = best;
-        for (da, di, dh) in [
-            (step, 0.0, 0.0),
-            (-step, 0.0, 0.0),
-            (0.0, step, 0.0),
-            (0.0, -step, 0.0),
-            (0.0, 0.0, 0.1 * step),
-            (0.0, 0.0, -0.1 * step),
-        ] {
-            let e = cost(&axis_of(a0 + da, i0 + di), h0 + dh, false, &mut d2);
-            if e < best.0 {
-                best = (e, a0 + da, i0 + di, h0 + dh);
+
+    /// From the grid's `best`, scored in full, a pattern search that halves its step when no
+    /// move helps.
+    fn pattern_search(&self, mut best: RimCandidate, points: usize) -> RimCandidate {
+        let mut d2 = Vec::with_capacity(points);
+        best.0 = self.cost(&axis_of(best.1, best.2), best.3, false, &mut d2);
+        let mut step = 3.0;
+        while step > 0.1 {
+            let (e0, a0, i0, h0) = best;
+            for (da, di, dh) in [
+                (step, 0.0, 0.0),
+                (-step, 0.0, 0.0),
+                (0.0, step, 0.0),
+                (0.0, -step, 0.0),
+                (0.0, 0.0, 0.1 * step),
+                (0.0, 0.0, -0.1 * step),
+            ] {
+                let e = self.cost(&axis_of(a0 + da, i0 + di), h0 + dh, false, &mut d2);
+                if e < best.0 {
+                    best = (e, a0 + da, i0 + di, h0 + dh);
+                }
+            }
+            if best.0 >= e0 {
+                step *= 0.5;
             }
         }
-        if best.0 >= e0 {
-            step *= 0.5;
-        }
+        best
     }
-    let n = Unit::new_normalize(axis_of(best.1, best.2));
-    let (anteversion_deg, inclination_deg) = radiographic_angles(&n);
-    Ok(RimFit {
-        axis: [n.x, n.y, n.z],
-        offset_mm: best.3,
-        inclination_deg,
-        anteversion_deg,
-        rms_px: best.0.sqrt(),
-        points,
-    })
 }
 
 /// `curve` sampled every `spacing` pixels along its length (its closing segment included when

@@ -5,7 +5,7 @@ use super::task::{run_seed, Task};
 use super::Row;
 use crate::engine::Kernels;
 use crate::geom::pool_map;
-use crate::geom::Mesh;
+use crate::geom::{Curve, Mesh};
 use crate::pipeline::{cup_report, reconstruct, GuardFailure, ReconParams, Reconstruction};
 use crate::pipeline::{RestartCause, UncertaintyParams};
 use crate::report::{accuracy_and_shift, accuracy_samples};
@@ -247,76 +247,17 @@ fn run_prepared(
         }
     };
     row.seconds = start.elapsed().as_secs_f64();
-    let (acc, shifted) = accuracy_and_shift(&prep.samples, &rec.mesh);
-    (row.frame_shift_mm, row.shifted_mae_mm) = (shifted.shift_mm(), shifted.mae_mm);
-    [
-        row.frame_shift_x_mm,
-        row.frame_shift_y_mm,
-        row.frame_shift_z_mm,
-    ] = shifted.shift;
-    row.depth_offset_mm = depth_offset_mm(&shifted.shift, &rec.log);
-    row.mae_mm = acc.mae_mm;
-    row.sd_mm = acc.sd_mm;
-    row.p95_mm = acc.p95_mm;
-    let interior = prep
-        .interior
-        .as_ref()
-        .map_or_else(Vec::new, |q| q.distances(&rec.mesh));
-    row.recon_mae_mm = DistanceStats::from(&interior).mean;
-    row.cup_diameter_mm = rec.sphere.diameter();
-    row.surface_fit_diameter_mm = rec.surface_sphere.diameter();
-    row.limb_diameter_mm = rec.log.limb_sphere.map_or(f64::NAN, |l| 2.0 * l[3]);
-    row.converged = rec.log.converged;
-    row.iterations = rec.log.gn_iterations;
-    row.correspondence_updates = rec.log.correspondence_updates;
-    row.fallback = rec.log.fallback.unwrap_or_default().to_string();
-    row.restart = rec.log.restart.unwrap_or_default().to_string();
-    row.restart_cause = rec
-        .log
-        .restart_cause
-        .as_ref()
-        .map_or_else(String::new, RestartCause::name);
-    row.fallback_guard = rec
-        .log
-        .guard
-        .as_ref()
-        .map_or("", GuardFailure::name)
-        .to_string();
-    row.outline_px = rec.log.outline_px;
-    if let Some(largest) = largest_pose_correction(&rec.log.pose_corrections) {
-        (row.pose_turn_deg, row.pose_shift_mm) = (largest[0], largest[1]);
-    }
-    // The cup's orientation: the report's when the run resampled (it fits the same rim), else
-    // fitted here.
-    let mut orientation = None;
-    if let Some(up) = &cfg.uncertainty {
-        let up = UncertaintyParams {
-            seed: task.seed,
-            ..up.clone()
-        };
-        // A run whose resampling fails keeps its result; its uncertainty columns stay NaN.
-        if let Ok(rep) = cup_report(&rec, input.observed, &prm, kernels, &up) {
-            orientation = Some(rep.orientation.clone());
-            let truth = prm
-                .cup
-                .catalogue
-                .nearest(row.gt_cup_diameter_mm)
-                .catalogue_mm;
-            row.cup_sd_mm = rep.sd_mm;
-            row.size_probability = rep.probability_of(rep.catalogue_mm);
-            row.brier = rep.brier(truth);
-        }
-    }
-    let orientation = orientation
-        .unwrap_or_else(|| rim_orientation(&rec.cameras, input.observed, &rec.fitted_sphere).ok());
-    if let Some(o) = orientation {
-        row.inclination_deg = o.inclination_deg;
-        row.anteversion_deg = o.anteversion_deg;
-        if let Some((ti, ta)) = prep.truth_orientation {
-            row.inclination_err_deg = o.inclination_deg - ti;
-            row.anteversion_err_deg = o.anteversion_deg - ta;
-        }
-    }
+    row.fill_accuracy(prep, &rec);
+    row.fill_log(&rec);
+    row.fill_cup(
+        prep,
+        &rec,
+        input.observed,
+        &prm,
+        kernels,
+        cfg.uncertainty.as_ref(),
+        task.seed,
+    );
     (
         row,
         Some(ExampleRun {
@@ -325,6 +266,101 @@ fn run_prepared(
             recon: rec,
         }),
     )
+}
+
+impl Row {
+    /// The result's accuracy against the truth's samples and interior (`prep`): its MAE and
+    /// spread, the frame shift that best lays it on the truth and what is left after it, the
+    /// depth offset along the views.
+    fn fill_accuracy(&mut self, prep: &Prepared, rec: &Reconstruction) {
+        let (acc, shifted) = accuracy_and_shift(&prep.samples, &rec.mesh);
+        (self.frame_shift_mm, self.shifted_mae_mm) = (shifted.shift_mm(), shifted.mae_mm);
+        [
+            self.frame_shift_x_mm,
+            self.frame_shift_y_mm,
+            self.frame_shift_z_mm,
+        ] = shifted.shift;
+        self.depth_offset_mm = depth_offset_mm(&shifted.shift, &rec.log);
+        self.mae_mm = acc.mae_mm;
+        self.sd_mm = acc.sd_mm;
+        self.p95_mm = acc.p95_mm;
+        let interior = prep
+            .interior
+            .as_ref()
+            .map_or_else(Vec::new, |q| q.distances(&rec.mesh));
+        self.recon_mae_mm = DistanceStats::from(&interior).mean;
+    }
+
+    /// The result's spheres and what its log says: convergence, rounds, fallback, restart and
+    /// guard, outline distance, largest pose correction.
+    fn fill_log(&mut self, rec: &Reconstruction) {
+        self.cup_diameter_mm = rec.sphere.diameter();
+        self.surface_fit_diameter_mm = rec.surface_sphere.diameter();
+        self.limb_diameter_mm = rec.log.limb_sphere.map_or(f64::NAN, |l| 2.0 * l[3]);
+        self.converged = rec.log.converged;
+        self.iterations = rec.log.gn_iterations;
+        self.correspondence_updates = rec.log.correspondence_updates;
+        self.fallback = rec.log.fallback.unwrap_or_default().to_string();
+        self.restart = rec.log.restart.unwrap_or_default().to_string();
+        self.restart_cause = rec
+            .log
+            .restart_cause
+            .as_ref()
+            .map_or_else(String::new, RestartCause::name);
+        self.fallback_guard = rec
+            .log
+            .guard
+            .as_ref()
+            .map_or("", GuardFailure::name)
+            .to_string();
+        self.outline_px = rec.log.outline_px;
+        if let Some(largest) = largest_pose_correction(&rec.log.pose_corrections) {
+            (self.pose_turn_deg, self.pose_shift_mm) = (largest[0], largest[1]);
+        }
+    }
+
+    /// The cup's uncertainty when the study resamples (`uncertainty`, seeded by the run's
+    /// `seed`) and its orientation: the report's when the run resampled (it fits the same rim),
+    /// else fitted here from the `observed` outlines; the orientation's error against the
+    /// truth's (`prep`).
+    #[allow(clippy::too_many_arguments)]
+    fn fill_cup(
+        &mut self,
+        prep: &Prepared,
+        rec: &Reconstruction,
+        observed: &[Vec<Curve>],
+        prm: &ReconParams,
+        kernels: Kernels,
+        uncertainty: Option<&UncertaintyParams>,
+        seed: u64,
+    ) {
+        let mut orientation = None;
+        if let Some(up) = uncertainty {
+            let up = UncertaintyParams { seed, ..up.clone() };
+            // A run whose resampling fails keeps its result; its uncertainty columns stay NaN.
+            if let Ok(rep) = cup_report(rec, observed, prm, kernels, &up) {
+                orientation = Some(rep.orientation.clone());
+                let truth = prm
+                    .cup
+                    .catalogue
+                    .nearest(self.gt_cup_diameter_mm)
+                    .catalogue_mm;
+                self.cup_sd_mm = rep.sd_mm;
+                self.size_probability = rep.probability_of(rep.catalogue_mm);
+                self.brier = rep.brier(truth);
+            }
+        }
+        let orientation = orientation
+            .unwrap_or_else(|| rim_orientation(&rec.cameras, observed, &rec.fitted_sphere).ok());
+        if let Some(o) = orientation {
+            self.inclination_deg = o.inclination_deg;
+            self.anteversion_deg = o.anteversion_deg;
+            if let Some((ti, ta)) = prep.truth_orientation {
+                self.inclination_err_deg = o.inclination_deg - ti;
+                self.anteversion_err_deg = o.anteversion_deg - ta;
+            }
+        }
+    }
 }
 
 /// Run the tasks on `cfg.threads` threads. Rows come back in task order; `examples` receives the

@@ -280,53 +280,14 @@ pub fn learn(
     let mut runs = Vec::new();
     let mut sources: Vec<PathBuf> = Vec::new();
     let mut used = 0;
-    let mut estimator: Option<(CupEstimator, &Path)> = None;
-    // The views the training studies say they were made with (all the same), and whether one
-    // did not say (then the calibration does not either).
-    let mut said: Option<(Vec<String>, &Path)> = None;
-    let mut unsaid = false;
-    // The protocol the training studies were made under (all the same where they say).
-    let mut protocol: Option<(&'static str, PathBuf)> = None;
+    let mut shared = SharedSettings::default();
     for d in &dirs {
         if leave_out.contains(&subject_of(d)) {
             continue;
         }
         used += 1;
         let applied = applied_in(d)?;
-        match estimator {
-            None => estimator = Some((applied.estimator, d)),
-            Some((e, first)) if e != applied.estimator => {
-                return Err(format!(
-                    "{}: cup_estimator {} differs from {}'s {}: a calibration is learned for one estimator",
-                    d.display(),
-                    applied.estimator.name(),
-                    first.display(),
-                    e.name()
-                ))
-            }
-            Some(_) => {}
-        }
-        hold_protocol(
-            &mut protocol,
-            &applied,
-            d,
-            "a calibration is learned under one protocol (its bias and SD are that protocol's errors)",
-        )?;
-        match (&applied.views, &said) {
-            (None, _) => unsaid = true,
-            (Some(v), None) => said = Some((v.clone(), d)),
-            (Some(v), Some((first_views, first))) if v != first_views => {
-                return Err(format!(
-                    "{}: views {} differ from {}'s {}: a calibration is learned on one set of views (its bias and SD are theirs)",
-                    d.display(),
-                    v.join(","),
-                    first.display(),
-                    first_views.join(",")
-                ))
-            }
-            _ => {}
-        }
-        let model = applied.model_sd;
+        shared.hold(d, &applied)?;
         let source = match sources.iter().position(|s| *s == applied.source) {
             Some(k) => k,
             None => {
@@ -334,29 +295,11 @@ pub fn learn(
                 sources.len() - 1
             }
         };
-        let rows = read_csv(&d.join("runs.csv")).map_err(|e| e.to_string())?;
-        // In a study that resampled its cups, a run whose resampling failed (its SD NaN, its
-        // result kept) says nothing of the cup's spread and is skipped.
-        let resampled = resampled_cups(&rows, method);
-        for r in rows
-            .iter()
-            .filter(|r| r.method == method && r.error.is_empty())
-            .filter(|r| !(resampled && r.cup_sd_mm.is_nan()))
-        {
-            // The resampled SD alone (`resampled_sd`), and the estimator's own diameter,
-            // without the correction the study made.
-            let resample = resampled_sd(r.cup_sd_mm, model, resampled);
-            let (fitted_mm, resample_sd_mm) = applied.undo(r.cup_diameter_mm, resample);
-            runs.push(TrainingRun {
-                fitted_mm,
-                truth_mm: r.gt_cup_diameter_mm,
-                resample_sd_mm,
-                depth_offset_mm: r.depth_offset_mm,
-                source,
-            });
-        }
+        runs.extend(training_runs(d, &applied, method, source)?);
     }
-    let estimator = estimator.map_or(CupEstimator::ObservedPart, |(e, _)| e);
+    let estimator = shared
+        .estimator
+        .map_or(CupEstimator::ObservedPart, |(e, _)| e);
     let mut from = format!(
         "{} {} runs in {used} studies from {} sources of truths",
         runs.len(),
@@ -370,8 +313,94 @@ pub fn learn(
         from += &format!(": {n}");
     }
     let mut cal = CupCalibration::learn(&runs, estimator, what, from).map_err(|e| e.to_string())?;
-    cal.views = said.filter(|_| !unsaid).map(|(v, _)| v);
+    cal.views = shared.said.filter(|_| !shared.unsaid).map(|(v, _)| v);
     Ok(cal)
+}
+
+/// What the training studies of one calibration share, as they are read: one cup estimator,
+/// one protocol where they say, one set of views (each with the first study that gave it).
+#[derive(Default)]
+struct SharedSettings<'a> {
+    estimator: Option<(CupEstimator, &'a Path)>,
+    /// The views the studies say they were made with.
+    said: Option<(Vec<String>, &'a Path)>,
+    /// A study did not say (then the calibration does not either).
+    unsaid: bool,
+    protocol: Option<(&'static str, PathBuf)>,
+}
+
+impl<'a> SharedSettings<'a> {
+    /// Study `d`'s settings (`applied`) held to those before it: an error naming both when they
+    /// differ.
+    fn hold(&mut self, d: &'a Path, applied: &Applied) -> Result<(), String> {
+        match self.estimator {
+            None => self.estimator = Some((applied.estimator, d)),
+            Some((e, first)) if e != applied.estimator => {
+                return Err(format!(
+                    "{}: cup_estimator {} differs from {}'s {}: a calibration is learned for one estimator",
+                    d.display(),
+                    applied.estimator.name(),
+                    first.display(),
+                    e.name()
+                ))
+            }
+            Some(_) => {}
+        }
+        hold_protocol(
+            &mut self.protocol,
+            applied,
+            d,
+            "a calibration is learned under one protocol (its bias and SD are that protocol's errors)",
+        )?;
+        match (&applied.views, &self.said) {
+            (None, _) => self.unsaid = true,
+            (Some(v), None) => self.said = Some((v.clone(), d)),
+            (Some(v), Some((first_views, first))) if v != first_views => {
+                return Err(format!(
+                    "{}: views {} differ from {}'s {}: a calibration is learned on one set of views (its bias and SD are theirs)",
+                    d.display(),
+                    v.join(","),
+                    first.display(),
+                    first_views.join(",")
+                ))
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}
+
+/// The `method` runs of study `d` (made with `applied`) that a calibration learns from, their
+/// truths from source `source`: each run's own diameter and resampled SD, without the
+/// correction the study made.
+fn training_runs(
+    d: &Path,
+    applied: &Applied,
+    method: StudyMethod,
+    source: usize,
+) -> Result<Vec<TrainingRun>, String> {
+    let rows = read_csv(&d.join("runs.csv")).map_err(|e| e.to_string())?;
+    // In a study that resampled its cups, a run whose resampling failed (its SD NaN, its
+    // result kept) says nothing of the cup's spread and is skipped.
+    let resampled = resampled_cups(&rows, method);
+    Ok(rows
+        .iter()
+        .filter(|r| r.method == method && r.error.is_empty())
+        .filter(|r| !(resampled && r.cup_sd_mm.is_nan()))
+        .map(|r| {
+            // The resampled SD alone (`resampled_sd`), and the estimator's own diameter,
+            // without the correction the study made.
+            let resample = resampled_sd(r.cup_sd_mm, applied.model_sd, resampled);
+            let (fitted_mm, resample_sd_mm) = applied.undo(r.cup_diameter_mm, resample);
+            TrainingRun {
+                fitted_mm,
+                truth_mm: r.gt_cup_diameter_mm,
+                resample_sd_mm,
+                depth_offset_mm: r.depth_offset_mm,
+                source,
+            }
+        })
+        .collect())
 }
 
 pub fn run(args: CalibrateArgs) -> Result<(), String> {

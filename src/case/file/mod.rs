@@ -250,6 +250,57 @@ impl CaseFile {
 
     /// Check every field and build the cameras, curves and placement.
     pub fn validate(&self, path: &Path) -> Result<Case, CaseError> {
+        self.check_view_count(path)?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        let mut case = Case {
+            cameras: Vec::new(),
+            observed: Vec::new(),
+            init: self.placement(path)?,
+            images: Vec::new(),
+            names: Vec::new(),
+            geometry: Vec::new(),
+            warnings: Vec::new(),
+            clicks: Vec::new(),
+        };
+        for (vi, v) in self.views.iter().enumerate() {
+            let view = camera::view_camera(path, base, vi, v, &case.init)?;
+            let cam = view.cam;
+            let contours = contour::view_contours(path, vi, v, (cam.width, cam.height))?;
+            let name = v.name.clone().unwrap_or_else(|| format!("view{vi}"));
+            let px_per_mm = cam.pixels_per_mm_at(&case.init.center);
+            case.geometry.push(ViewGeometry {
+                view: name.clone(),
+                k: [cam.k.fx, cam.k.fy, cam.k.cx, cam.k.cy],
+                k_source: view.k_source,
+                dicom_file: view
+                    .dicom
+                    .as_ref()
+                    .and(view.image.as_ref())
+                    .map(|i| i.path.display().to_string()),
+                magnification_dicom: view.dicom.as_ref().and_then(|d| d.magnification()),
+                magnification_at_object: view
+                    .dicom
+                    .as_ref()
+                    .and_then(|d| d.spacing_mm)
+                    .map(|s| px_per_mm * 0.5 * (s[0] + s[1])),
+                dicom_focal_px: view.dicom_focal.map(|(a, b)| [a, b]),
+                dicom: view.dicom,
+                px_per_mm_at_object: px_per_mm,
+            });
+            case.warnings.extend(view.warnings);
+            case.warnings.extend(contours.warnings);
+            case.cameras.push(cam);
+            case.observed.push(contours.curves);
+            case.clicks.push(contours.clicks);
+            case.images.push(view.image.map(|i| i.path));
+            case.names.push(name);
+        }
+        views_agree(path, &case)?;
+        Ok(case)
+    }
+
+    /// `MIN_VIEWS` to `MAX_VIEWS` views.
+    fn check_view_count(&self, path: &Path) -> Result<(), CaseError> {
         if self.views.len() < MIN_VIEWS {
             return Err(field_err(
                 path,
@@ -266,6 +317,12 @@ impl CaseFile {
                 format!("at most {MAX_VIEWS} views"),
             ));
         }
+        Ok(())
+    }
+
+    /// The template's start: a finite centre, a radius within `START_RADIUS_MM`, a finite
+    /// non-zero axis.
+    fn placement(&self, path: &Path) -> Result<Placement, CaseError> {
         let tp = &self.template;
         for (i, v) in tp.center.iter().enumerate() {
             if !v.is_finite() || v.abs() > ABSURD {
@@ -295,81 +352,11 @@ impl CaseFile {
                 "must be a finite non-zero vector",
             ));
         }
-        let init = Placement {
+        Ok(Placement {
             center: Point3::from(tp.center),
             radius: tp.radius,
             axis: Unit::new_normalize(axis),
-        };
-        let base = path.parent().unwrap_or(Path::new("."));
-        let mut case = Case {
-            cameras: Vec::new(),
-            observed: Vec::new(),
-            init,
-            images: Vec::new(),
-            names: Vec::new(),
-            geometry: Vec::new(),
-            warnings: Vec::new(),
-            clicks: Vec::new(),
-        };
-        for (vi, v) in self.views.iter().enumerate() {
-            let view = camera::view_camera(path, base, vi, v, &case.init)?;
-            let cam = view.cam;
-            let contours = contour::view_contours(path, vi, v, (cam.width, cam.height))?;
-            let name = v.name.clone().unwrap_or_else(|| format!("view{vi}"));
-            let px_per_mm = cam.pixels_per_mm_at(&case.init.center);
-            let dicom = view.dicom;
-            case.geometry.push(ViewGeometry {
-                view: name.clone(),
-                k: [cam.k.fx, cam.k.fy, cam.k.cx, cam.k.cy],
-                k_source: view.k_source,
-                dicom_file: dicom
-                    .as_ref()
-                    .and(view.image.as_ref())
-                    .map(|i| i.path.display().to_string()),
-                magnification_dicom: dicom.as_ref().and_then(|d| d.magnification()),
-                magnification_at_object: dicom
-                    .as_ref()
-                    .and_then(|d| d.spacing_mm)
-                    .map(|s| px_per_mm * 0.5 * (s[0] + s[1])),
-                dicom_focal_px: view.dicom_focal.map(|(a, b)| [a, b]),
-                dicom,
-                px_per_mm_at_object: px_per_mm,
-            });
-            case.warnings.extend(view.warnings);
-            case.warnings.extend(contours.warnings);
-            case.cameras.push(cam);
-            case.observed.push(contours.curves);
-            case.clicks.push(contours.clicks);
-            case.images.push(view.image.map(|i| i.path));
-            case.names.push(name);
-        }
-        // Depth comes from views that look along different directions: views that all look
-        // the same way give the same outline, and the cap's distance along the ray is free.
-        if let Some(widest) = cameras_too_narrow(&case.cameras) {
-            return Err(field_err(
-                path,
-                "views[*].r".to_string(),
-                format!("{} views, at most {widest:.2} degrees apart", case.cameras.len()),
-                format!(
-                    "the views look along the same direction, or too nearly: at least two must differ by {MIN_VIEW_SPREAD_DEG} degrees or more for the cap's depth along them (simulated views 12 degrees apart or less ended runs over 3 mm off); the paper's span 40"
-                ),
-            ));
-        }
-        let px_per_mm: Vec<f64> = case
-            .geometry
-            .iter()
-            .map(|g| g.px_per_mm_at_object)
-            .collect();
-        let views = Views {
-            names: &case.names,
-            cameras: &case.cameras,
-            observed: &case.observed,
-            px_per_mm: &px_per_mm,
-        };
-        if let Some(d) = outline_span_mismatch(&views).or_else(|| outline_centre_mismatch(&views)) {
-            return Err(field_err(path, d.field, d.value, d.reason));
-        }
-        Ok(case)
+        })
     }
 
     /// The case file for cameras, curves and a placement (inverse of `validate`).
@@ -410,6 +397,38 @@ impl CaseFile {
             },
         }
     }
+}
+
+/// The views together: they look along directions far enough apart for the cap's depth, and
+/// their outlines agree in span and centre.
+fn views_agree(path: &Path, case: &Case) -> Result<(), CaseError> {
+    // Depth comes from views that look along different directions: views that all look
+    // the same way give the same outline, and the cap's distance along the ray is free.
+    if let Some(widest) = cameras_too_narrow(&case.cameras) {
+        return Err(field_err(
+            path,
+            "views[*].r".to_string(),
+            format!("{} views, at most {widest:.2} degrees apart", case.cameras.len()),
+            format!(
+                "the views look along the same direction, or too nearly: at least two must differ by {MIN_VIEW_SPREAD_DEG} degrees or more for the cap's depth along them (simulated views 12 degrees apart or less ended runs over 3 mm off); the paper's span 40"
+            ),
+        ));
+    }
+    let px_per_mm: Vec<f64> = case
+        .geometry
+        .iter()
+        .map(|g| g.px_per_mm_at_object)
+        .collect();
+    let views = Views {
+        names: &case.names,
+        cameras: &case.cameras,
+        observed: &case.observed,
+        px_per_mm: &px_per_mm,
+    };
+    if let Some(d) = outline_span_mismatch(&views).or_else(|| outline_centre_mismatch(&views)) {
+        return Err(field_err(path, d.field, d.value, d.reason));
+    }
+    Ok(())
 }
 
 #[cfg(test)]
