@@ -54,17 +54,7 @@ pub fn run(args: PoseStudyArgs) -> Result<(), String> {
     if let Some(o) = &out {
         crate::common::check_out(o, force)?;
     }
-    if !(deg.is_finite() && mm.is_finite() && deg >= 0.0 && mm >= 0.0) {
-        return Err(format!(
-            "--deg {deg} / --mm {mm}: must be finite and non-negative"
-        ));
-    }
-    if deg > 180.0 {
-        return Err(format!(
-            "--deg {deg}: must be at most 180 (a turn beyond it is a smaller turn the other way, \
-             so the study would report an error it did not make)"
-        ));
-    }
+    check_offsets(deg, mm)?;
     let truth = load_truth(&gt)?;
     let cfg = acetab::study::pose::PoseStudy {
         runs,
@@ -103,16 +93,7 @@ pub fn run(args: PoseStudyArgs) -> Result<(), String> {
         "rows": rows,
     });
     if let Some(o) = &out {
-        let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
-        acetab::io::fill_dir_atomically(
-            o,
-            |d| {
-                std::fs::write(d.join("summary.json"), text.as_bytes())
-                    .map_err(|e| crate::common::io_msg(&d.join("summary.json"), e))
-            },
-            crate::common::io_msg,
-        )
-        .map_err(|e| crate::common::unstage(&e, o))?;
+        write_summary(o, &summary)?;
     }
     if json {
         println!(
@@ -120,19 +101,7 @@ pub fn run(args: PoseStudyArgs) -> Result<(), String> {
             serde_json::to_string(&summary).map_err(|e| e.to_string())?
         );
     } else {
-        println!("run  seed                  MAE without  MAE with  cup err without  cup err with");
-        for r in &rows {
-            println!(
-                "{:>3}  {:<20}  {:>11.3}  {:>8.3}  {:>15.2}  {:>12.2}  {}",
-                r.run,
-                r.seed,
-                r.mae_without_mm,
-                r.mae_with_mm,
-                r.cup_error_without_mm,
-                r.cup_error_with_mm,
-                r.error
-            );
-        }
+        print_rows(&rows);
         println!(
             "mean MAE {without:.3} mm without, {with:.3} mm with pose refinement ({:.0} % lower); poses off by {deg} deg and {mm} mm (all views but view {}), seed {seed}",
             100.0 * (1.0 - with / without),
@@ -140,4 +109,51 @@ pub fn run(args: PoseStudyArgs) -> Result<(), String> {
         );
     }
     Ok(())
+}
+
+/// The poses' offsets: finite, non-negative, the turn at most 180 degrees.
+fn check_offsets(deg: f64, mm: f64) -> Result<(), String> {
+    if !(deg.is_finite() && mm.is_finite() && deg >= 0.0 && mm >= 0.0) {
+        return Err(format!(
+            "--deg {deg} / --mm {mm}: must be finite and non-negative"
+        ));
+    }
+    if deg > 180.0 {
+        return Err(format!(
+            "--deg {deg}: must be at most 180 (a turn beyond it is a smaller turn the other way, \
+             so the study would report an error it did not make)"
+        ));
+    }
+    Ok(())
+}
+
+/// summary.json written into `out`, all or nothing.
+fn write_summary(out: &std::path::Path, summary: &serde_json::Value) -> Result<(), String> {
+    let text = serde_json::to_string_pretty(summary).map_err(|e| e.to_string())?;
+    acetab::io::fill_dir_atomically(
+        out,
+        |d| {
+            std::fs::write(d.join("summary.json"), text.as_bytes())
+                .map_err(|e| crate::common::io_msg(&d.join("summary.json"), e))
+        },
+        crate::common::io_msg,
+    )
+    .map_err(|e| crate::common::unstage(&e, out))
+}
+
+/// The runs' table on the terminal.
+fn print_rows(rows: &[acetab::study::pose::PoseRow]) {
+    println!("run  seed                  MAE without  MAE with  cup err without  cup err with");
+    for r in rows {
+        println!(
+            "{:>3}  {:<20}  {:>11.3}  {:>8.3}  {:>15.2}  {:>12.2}  {}",
+            r.run,
+            r.seed,
+            r.mae_without_mm,
+            r.mae_with_mm,
+            r.cup_error_without_mm,
+            r.cup_error_with_mm,
+            r.error
+        );
+    }
 }
