@@ -60,9 +60,10 @@ fn subarc_rotation_energy(
 
 /// Match the open arc A against the best sub-arc of the closed curve B, trying both directions of
 /// A. Every start x length x direction is ranked by its rotation-only energy (read from B's
-/// tangent field, no resampling); the six best distinct ones get a coarse DP alignment (at most
-/// 48 samples), the best is polished by a coordinate search in start and length at that
-/// resolution, and the winner is aligned once at the full sample count.
+/// tangent field, no resampling); the eight best of distinct starts get a DP alignment at the
+/// ranking resolution (at most 32 samples), the best is polished by a coordinate search in start
+/// and length at a coarse one (at most 48), and the winner is aligned once at the full sample
+/// count.
 pub fn align_partial(
     a: &[Point2<f64>],
     b: &[Point2<f64>],
