@@ -109,20 +109,7 @@ pub fn box_plots(
         let areas = root.split_evenly((1, panels.len().max(1)));
         let colors = SERIES_COLORS;
         for ((title, series), area) in panels.iter().zip(areas.iter()) {
-            // The axis spans the whiskers (not far outliers, which are drawn at the edge).
-            let whiskers: Vec<[f64; 5]> = series
-                .iter()
-                .flatten()
-                .filter_map(|v| box_stats(v))
-                .collect();
-            let hi = whiskers.iter().map(|b| b[4]).fold(0.0f64, f64::max);
-            let lo = whiskers.iter().map(|b| b[0]).fold(0.0f64, f64::min);
-            let pad = 0.08 * (hi - lo).max(1e-3);
-            let (ymin, ymax) = (lo - if lo < 0.0 { pad } else { 0.0 }, hi + pad);
-            // Headroom for the legend (upper left, about 18 px per method in a plot about 390
-            // px high), so that it never covers a box.
-            let legend = ((groups.len() as f64 * 18.0 + 24.0) / 390.0).min(0.6);
-            let ymax = ymin + (ymax - ymin) / (1.0 - legend);
+            let (ymin, ymax) = box_panel_range(series, groups.len());
             let mut chart = ChartBuilder::on(area)
                 .caption(*title, ("sans-serif", 20))
                 .margin(12)
@@ -157,36 +144,17 @@ pub fn box_plots(
                     };
                     let x0 = l as f64 + 0.1 + 0.8 * g as f64 / ng;
                     let x1 = x0 + 0.8 / ng * 0.8;
-                    let xm = 0.5 * (x0 + x1);
-                    chart
-                        .draw_series([Rectangle::new([(x0, q1), (x1, q3)], c.mix(0.35).filled())])
-                        .map_err(draw_err)?;
-                    chart
-                        .draw_series([Rectangle::new([(x0, q1), (x1, q3)], c.stroke_width(1))])
-                        .map_err(draw_err)?;
-                    chart
-                        .draw_series([PathElement::new(
-                            vec![(x0, q2), (x1, q2)],
-                            c.stroke_width(2),
-                        )])
-                        .map_err(draw_err)?;
-                    chart
-                        .draw_series([PathElement::new(
-                            vec![(xm, lo), (xm, q1)],
-                            c.stroke_width(1),
-                        )])
-                        .map_err(draw_err)?;
-                    chart
-                        .draw_series([PathElement::new(
-                            vec![(xm, q3), (xm, hi)],
-                            c.stroke_width(1),
-                        )])
-                        .map_err(draw_err)?;
                     let outliers = vals
                         .iter()
-                        .filter(|v| v.is_finite() && (**v < lo || **v > hi))
-                        .map(|v| Circle::new((xm, v.clamp(ymin, ymax)), 3, c.filled()));
-                    chart.draw_series(outliers).map_err(draw_err)?;
+                        .filter(|v| v.is_finite() && (**v < lo || **v > hi));
+                    draw_box(
+                        &mut chart,
+                        (x0, x1),
+                        [lo, q1, q2, q3, hi],
+                        outliers,
+                        c,
+                        (ymin, ymax),
+                    )?;
                 }
                 chart
                     .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
@@ -201,6 +169,70 @@ pub fn box_plots(
         root.present().map_err(draw_err)?;
     }
     save_png(buf, w, h, path)
+}
+
+/// A box plot panel's y range: the whiskers of every box in `series` (not far outliers, which
+/// are drawn at the edge), padded, with headroom for the legend of `groups` methods (upper
+/// left, about 18 px per method in a plot about 390 px high), so that it never covers a box.
+fn box_panel_range(series: &[Vec<Vec<f64>>], groups: usize) -> (f64, f64) {
+    let whiskers: Vec<[f64; 5]> = series
+        .iter()
+        .flatten()
+        .filter_map(|v| box_stats(v))
+        .collect();
+    let hi = whiskers.iter().map(|b| b[4]).fold(0.0f64, f64::max);
+    let lo = whiskers.iter().map(|b| b[0]).fold(0.0f64, f64::min);
+    let pad = 0.08 * (hi - lo).max(1e-3);
+    let (ymin, ymax) = (lo - if lo < 0.0 { pad } else { 0.0 }, hi + pad);
+    let legend = ((groups as f64 * 18.0 + 24.0) / 390.0).min(0.6);
+    (ymin, ymin + (ymax - ymin) / (1.0 - legend))
+}
+
+/// A box plot chart.
+type BoxChart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// One box from `x0` to `x1` in colour `c`: the quartiles' box, the median, the whiskers
+/// (`[lo, q1, q2, q3, hi]`) and the `outliers` as dots, clamped into the chart's `ymin..ymax`.
+fn draw_box<'v>(
+    chart: &mut BoxChart,
+    (x0, x1): (f64, f64),
+    [lo, q1, q2, q3, hi]: [f64; 5],
+    outliers: impl Iterator<Item = &'v f64>,
+    c: RGBColor,
+    (ymin, ymax): (f64, f64),
+) -> Result<(), PlotError> {
+    let xm = 0.5 * (x0 + x1);
+    chart
+        .draw_series([Rectangle::new([(x0, q1), (x1, q3)], c.mix(0.35).filled())])
+        .map_err(draw_err)?;
+    chart
+        .draw_series([Rectangle::new([(x0, q1), (x1, q3)], c.stroke_width(1))])
+        .map_err(draw_err)?;
+    chart
+        .draw_series([PathElement::new(
+            vec![(x0, q2), (x1, q2)],
+            c.stroke_width(2),
+        )])
+        .map_err(draw_err)?;
+    chart
+        .draw_series([PathElement::new(
+            vec![(xm, lo), (xm, q1)],
+            c.stroke_width(1),
+        )])
+        .map_err(draw_err)?;
+    chart
+        .draw_series([PathElement::new(
+            vec![(xm, q3), (xm, hi)],
+            c.stroke_width(1),
+        )])
+        .map_err(draw_err)?;
+    let outliers = outliers.map(|v| Circle::new((xm, v.clamp(ymin, ymax)), 3, c.filled()));
+    chart.draw_series(outliers).map_err(draw_err)?;
+    Ok(())
 }
 
 /// One colour per series (method), in order.
@@ -317,7 +349,6 @@ pub fn surface_views(
     path: &Path,
     render: &dyn Fn(&crate::report::SurfacePanel) -> crate::report::PanelPixels,
 ) -> Result<(), PlotError> {
-    use nalgebra::Vector3;
     ensure_font()?;
     if mesh.triangles.is_empty() || values.len() != mesh.vertex_count() {
         return Err(PlotError::Draw(
@@ -327,20 +358,66 @@ pub fn surface_views(
     let (panel, bar_w, h) = (420u32, 150u32, 460u32);
     let w = 2 * panel + bar_w;
     let mut buf = vec![255u8; (w * h * 3) as usize];
-    let c = crate::geom::centroid(&mesh.vertices);
+    let views = surface_looks(axis);
+    render_panels(
+        mesh,
+        values,
+        max_mm,
+        &views,
+        render,
+        &mut buf,
+        (panel, w, h),
+    )?;
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        for (k, (_, title)) in views.iter().enumerate() {
+            root.draw(&Text::new(
+                *title,
+                ((k as u32 * panel + 12) as i32, 4),
+                ("sans-serif", 16).into_font().color(&BLACK),
+            ))
+            .map_err(draw_err)?;
+        }
+        draw_colour_bar(&root, (2 * panel + 20) as i32, h, max_mm, label)?;
+        root.present().map_err(draw_err)?;
+    }
+    save_png(buf, w, h, path)
+}
+
+/// The surface picture's two looks, each with its title: into the cup (against the opening
+/// `axis`) and from the side (along the axis turned about z).
+fn surface_looks(
+    axis: &nalgebra::Unit<nalgebra::Vector3<f64>>,
+) -> [(nalgebra::Vector3<f64>, &'static str); 2] {
+    use nalgebra::Vector3;
     let a = axis.into_inner();
+    let side = Vector3::z()
+        .cross(&a)
+        .try_normalize(1e-9)
+        .unwrap_or(Vector3::x());
+    [(-a, "into the cup"), (side, "from the side")]
+}
+
+/// The `mesh` coloured by `values` (up to `max_mm`) rendered by `render` along each of `views`
+/// into its panel of `buf` (`panel` px square panels side by side, 20 px down under their
+/// titles, in a picture `w` x `h`).
+fn render_panels(
+    mesh: &crate::geom::Mesh,
+    values: &[f64],
+    max_mm: f64,
+    views: &[(nalgebra::Vector3<f64>, &'static str)],
+    render: &dyn Fn(&crate::report::SurfacePanel) -> crate::report::PanelPixels,
+    buf: &mut [u8],
+    (panel, w, h): (u32, u32, u32),
+) -> Result<(), PlotError> {
+    use nalgebra::Vector3;
+    let c = crate::geom::centroid(&mesh.vertices);
+    let a = views[0].0;
     let up_hint = if a.z.abs() < 0.9 {
         Vector3::z()
     } else {
         Vector3::x()
     };
-    // Into the cup: look against the opening axis. From the side: look along the axis turned
-    // about z.
-    let side = Vector3::z()
-        .cross(&a)
-        .try_normalize(1e-9)
-        .unwrap_or(Vector3::x());
-    let views = [(-a, "into the cup"), (side, "from the side")];
     let points: Vec<[f32; 4]> = mesh
         .vertices
         .iter()
@@ -363,7 +440,6 @@ pub fn surface_views(
         .iter()
         .map(|p| (p - c).norm())
         .fold(1e-9, f64::max);
-    // The panels sit 20 px down, under their titles.
     let top = 20u32;
     let side_px = panel.min(h - top);
     for (k, (look, _)) in views.iter().enumerate() {
@@ -392,61 +468,59 @@ pub fn surface_views(
             }
         }
     }
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        for (k, (_, title)) in views.iter().enumerate() {
-            root.draw(&Text::new(
-                *title,
-                ((k as u32 * panel + 12) as i32, 4),
-                ("sans-serif", 16).into_font().color(&BLACK),
-            ))
-            .map_err(draw_err)?;
-        }
-        // The colour bar: 0 at the bottom, max at the top, grey for "no value".
-        let (bx, top, bottom) = ((2 * panel + 20) as i32, 50i32, h as i32 - 90);
-        for y in top..=bottom {
-            let f = (bottom - y) as f64 / (bottom - top) as f64;
-            let [r, g, b] = super::error_colors(&[f * max_mm], max_mm)[0];
-            root.draw(&PathElement::new(
-                vec![(bx, y), (bx + 20, y)],
-                RGBColor(r, g, b).stroke_width(1),
-            ))
-            .map_err(draw_err)?;
-        }
-        for (f, text) in [
-            (0.0, "0".to_string()),
-            (0.5, format!("{:.1}", 0.5 * max_mm)),
-            (1.0, format!(">= {max_mm:.1}")),
-        ] {
-            let y = bottom - (f * (bottom - top) as f64) as i32;
-            root.draw(&Text::new(
-                text,
-                (bx + 26, y - 7),
-                ("sans-serif", 13).into_font().color(&BLACK),
-            ))
-            .map_err(draw_err)?;
-        }
-        let [r, g, b] = super::NO_ERROR_COLOR;
-        root.draw(&Rectangle::new(
-            [(bx, bottom + 20), (bx + 20, bottom + 34)],
-            RGBColor(r, g, b).filled(),
+    Ok(())
+}
+
+/// The colour bar at `bx` of a picture `h` tall: 0 at the bottom, `max_mm` at the top, grey for
+/// "no value", titled `label`.
+fn draw_colour_bar(
+    root: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
+    bx: i32,
+    h: u32,
+    max_mm: f64,
+    label: &str,
+) -> Result<(), PlotError> {
+    let (top, bottom) = (50i32, h as i32 - 90);
+    for y in top..=bottom {
+        let f = (bottom - y) as f64 / (bottom - top) as f64;
+        let [r, g, b] = super::error_colors(&[f * max_mm], max_mm)[0];
+        root.draw(&PathElement::new(
+            vec![(bx, y), (bx + 20, y)],
+            RGBColor(r, g, b).stroke_width(1),
         ))
         .map_err(draw_err)?;
-        root.draw(&Text::new(
-            "none",
-            (bx + 26, bottom + 20),
-            ("sans-serif", 13).into_font().color(&BLACK),
-        ))
-        .map_err(draw_err)?;
-        root.draw(&Text::new(
-            label.to_string(),
-            (bx - 4, 28),
-            ("sans-serif", 13).into_font().color(&BLACK),
-        ))
-        .map_err(draw_err)?;
-        root.present().map_err(draw_err)?;
     }
-    save_png(buf, w, h, path)
+    for (f, text) in [
+        (0.0, "0".to_string()),
+        (0.5, format!("{:.1}", 0.5 * max_mm)),
+        (1.0, format!(">= {max_mm:.1}")),
+    ] {
+        let y = bottom - (f * (bottom - top) as f64) as i32;
+        root.draw(&Text::new(
+            text,
+            (bx + 26, y - 7),
+            ("sans-serif", 13).into_font().color(&BLACK),
+        ))
+        .map_err(draw_err)?;
+    }
+    let [r, g, b] = super::NO_ERROR_COLOR;
+    root.draw(&Rectangle::new(
+        [(bx, bottom + 20), (bx + 20, bottom + 34)],
+        RGBColor(r, g, b).filled(),
+    ))
+    .map_err(draw_err)?;
+    root.draw(&Text::new(
+        "none",
+        (bx + 26, bottom + 20),
+        ("sans-serif", 13).into_font().color(&BLACK),
+    ))
+    .map_err(draw_err)?;
+    root.draw(&Text::new(
+        label.to_string(),
+        (bx - 4, 28),
+        ("sans-serif", 13).into_font().color(&BLACK),
+    ))
+    .map_err(draw_err)
 }
 
 #[cfg(test)]
