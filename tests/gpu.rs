@@ -195,6 +195,40 @@ fn silhouette_edges_match_the_twin_exactly_and_the_raster_within_a_stated_bound(
     });
 }
 
+/// The silhouette's input is checked before anything is drawn: a triangle corner beyond the
+/// vertices, corners that are not whole triangles and a texture larger than the device allows
+/// are each an error naming what is wrong; the same mesh as given draws (the companion).
+#[test]
+fn the_silhouette_refuses_triangles_without_vertices_and_a_texture_too_large() {
+    with_gpu(|gpu| {
+        let mesh = hemisphere(26.0, 400);
+        let centre = Point3::new(0.0, 0.0, 0.0);
+        let cam = &simulated_views(&XrayGeometry::default(), &centre)[0];
+        let verts: Vec<[f32; 4]> = mesh
+            .vertices
+            .iter()
+            .map(|p| [p.x as f32, p.y as f32, p.z as f32, 0.0])
+            .collect();
+        let tris: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+        let view = cproject::ViewRows::from_camera(cam);
+        let s = gpu.silhouette(&verts, &tris, &view, 128).unwrap();
+        assert!(!s.contour.is_empty());
+        let message = |r: Result<_, acetab::engine::gpu::GpuError>| r.err().map(|e| e.to_string());
+        let mut beyond = tris.clone();
+        beyond[4] = verts.len() as u32;
+        let e = message(gpu.silhouette(&verts, &beyond, &view, 128)).expect("refused");
+        assert!(
+            e.contains(&format!("triangle corner {} is not one of the", verts.len())),
+            "{e}"
+        );
+        let e = message(gpu.silhouette(&verts, &tris[..tris.len() - 1], &view, 128))
+            .expect("refused");
+        assert!(e.contains("is not a positive multiple of 3"), "{e}");
+        let e = message(gpu.silhouette(&verts, &tris, &view, 1 << 20)).expect("refused");
+        assert!(e.contains("texture size"), "{e}");
+    });
+}
+
 fn wave(n: usize, f: f64, ph: f64) -> Vec<Vector2<f64>> {
     (0..n)
         .map(|i| {

@@ -176,30 +176,7 @@ impl Gpu<'_> {
         window: &Window,
     ) -> Result<Silhouette, GpuError> {
         const K: &str = "silhouette";
-        let lim = self.device.limits();
-        if window.size == 0 || window.size > lim.max_texture_dimension_2d {
-            return Err(GpuError::TooLarge {
-                kernel: K,
-                what: "texture size",
-                value: window.size as u64,
-                limit: lim.max_texture_dimension_2d as u64,
-            });
-        }
-        if let Some(&bad) = triangles.iter().find(|&&i| i as usize >= vertex_count) {
-            return Err(GpuError::Input {
-                kernel: K,
-                message: format!("triangle corner {bad} is not one of the {vertex_count} vertices"),
-            });
-        }
-        if !triangles.len().is_multiple_of(3) || triangles.is_empty() {
-            return Err(GpuError::Input {
-                kernel: K,
-                message: format!(
-                    "{} triangle corners is not a positive multiple of 3",
-                    triangles.len()
-                ),
-            });
-        }
+        check_input(&self.device.limits(), window, vertex_count, triangles)?;
         let n = window.size;
         let texels = (n as usize) * (n as usize);
         // Rows of the texture copy must be 256-byte aligned.
@@ -239,24 +216,7 @@ impl Gpu<'_> {
             "silhouette raster",
             &[&u, projected, &tb],
         );
-        let edges_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("silhouette edges"),
-            layout: &self.silhouette.edges_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: u.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(&view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: mask.as_entire_binding(),
-                },
-            ],
-        });
+        let edges_group = edges_bind_group(d, &self.silhouette.edges_layout, &u, &view, &mask);
         let read = self.submit_and_read(
             K,
             |enc| {
@@ -313,4 +273,68 @@ impl Gpu<'_> {
             contour,
         })
     }
+}
+
+/// The silhouette's input: a window the device's textures can hold, and triangles (a positive
+/// multiple of 3 corners) whose corners are among the `vertex_count` projected vertices.
+fn check_input(
+    lim: &wgpu::Limits,
+    window: &Window,
+    vertex_count: usize,
+    triangles: &[u32],
+) -> Result<(), GpuError> {
+    const K: &str = "silhouette";
+    if window.size == 0 || window.size > lim.max_texture_dimension_2d {
+        return Err(GpuError::TooLarge {
+            kernel: K,
+            what: "texture size",
+            value: window.size as u64,
+            limit: lim.max_texture_dimension_2d as u64,
+        });
+    }
+    if let Some(&bad) = triangles.iter().find(|&&i| i as usize >= vertex_count) {
+        return Err(GpuError::Input {
+            kernel: K,
+            message: format!("triangle corner {bad} is not one of the {vertex_count} vertices"),
+        });
+    }
+    if !triangles.len().is_multiple_of(3) || triangles.is_empty() {
+        return Err(GpuError::Input {
+            kernel: K,
+            message: format!(
+                "{} triangle corners is not a positive multiple of 3",
+                triangles.len()
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// The edge pass's bindings: the window's uniform `u`, the raster's ids `view`, the `mask` it
+/// writes.
+fn edges_bind_group(
+    d: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    u: &wgpu::Buffer,
+    view: &wgpu::TextureView,
+    mask: &wgpu::Buffer,
+) -> wgpu::BindGroup {
+    d.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("silhouette edges"),
+        layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: u.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: wgpu::BindingResource::TextureView(view),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: mask.as_entire_binding(),
+            },
+        ],
+    })
 }
