@@ -35,6 +35,16 @@ fn device() -> Option<&'static GpuDevice> {
     .as_ref()
 }
 
+/// A mesh as the kernels take it: its vertices as (x, y, z, 0) and its triangles' corners.
+fn mesh_buffers(mesh: &acetab::geom::Mesh) -> (Vec<[f32; 4]>, Vec<u32>) {
+    let verts = mesh
+        .vertices
+        .iter()
+        .map(|p| [p.x as f32, p.y as f32, p.z as f32, 0.0])
+        .collect();
+    (verts, mesh.triangles.iter().flatten().copied().collect())
+}
+
 /// Run `f` with the engine, or return (skipping) when ACETAB_SKIP_GPU=1.
 fn with_gpu(f: impl FnOnce(&Gpu)) {
     let Some(d) = device() else { return };
@@ -148,12 +158,7 @@ fn silhouette_edges_match_the_twin_exactly_and_the_raster_within_a_stated_bound(
         let mesh = hemisphere(26.0, 2500);
         let centre = Point3::new(0.0, 0.0, 0.0);
         for cam in simulated_views(&XrayGeometry::default(), &centre) {
-            let verts: Vec<[f32; 4]> = mesh
-                .vertices
-                .iter()
-                .map(|p| [p.x as f32, p.y as f32, p.z as f32, 0.0])
-                .collect();
-            let tris: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+            let (verts, tris) = mesh_buffers(&mesh);
             let view = cproject::ViewRows::from_camera(&cam);
             let s = gpu.silhouette(&verts, &tris, &view, 256).unwrap();
             // The edge kernel: exactly its twin run on the GPU's id image.
@@ -204,12 +209,7 @@ fn the_silhouette_refuses_triangles_without_vertices_and_a_texture_too_large() {
         let mesh = hemisphere(26.0, 400);
         let centre = Point3::new(0.0, 0.0, 0.0);
         let cam = &simulated_views(&XrayGeometry::default(), &centre)[0];
-        let verts: Vec<[f32; 4]> = mesh
-            .vertices
-            .iter()
-            .map(|p| [p.x as f32, p.y as f32, p.z as f32, 0.0])
-            .collect();
-        let tris: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+        let (verts, tris) = mesh_buffers(&mesh);
         let view = cproject::ViewRows::from_camera(cam);
         let s = gpu.silhouette(&verts, &tris, &view, 128).unwrap();
         assert!(!s.contour.is_empty());
@@ -218,11 +218,14 @@ fn the_silhouette_refuses_triangles_without_vertices_and_a_texture_too_large() {
         beyond[4] = verts.len() as u32;
         let e = message(gpu.silhouette(&verts, &beyond, &view, 128)).expect("refused");
         assert!(
-            e.contains(&format!("triangle corner {} is not one of the", verts.len())),
+            e.contains(&format!(
+                "triangle corner {} is not one of the",
+                verts.len()
+            )),
             "{e}"
         );
-        let e = message(gpu.silhouette(&verts, &tris[..tris.len() - 1], &view, 128))
-            .expect("refused");
+        let e =
+            message(gpu.silhouette(&verts, &tris[..tris.len() - 1], &view, 128)).expect("refused");
         assert!(e.contains("is not a positive multiple of 3"), "{e}");
         let e = message(gpu.silhouette(&verts, &tris, &view, 1 << 20)).expect("refused");
         assert!(e.contains("texture size"), "{e}");
@@ -538,16 +541,11 @@ fn the_surface_picture_on_the_gpu_matches_its_cpu_twin() {
         use acetab::sim::{phantom, PhantomParams};
         let ph = phantom(&PhantomParams::default());
         let mesh = &ph.mesh;
-        let points: Vec<[f32; 4]> = mesh
-            .vertices
-            .iter()
-            .map(|p| [p.x as f32, p.y as f32, p.z as f32, 0.0])
-            .collect();
+        let (points, tris) = mesh_buffers(mesh);
         // Colours that vary over the surface, so interpolation and shading both show.
         let colors: Vec<[f32; 4]> = (0..points.len())
             .map(|i| [(i % 7) as f32 / 7.0, 0.3, 1.0 - (i % 5) as f32 / 5.0, 1.0])
             .collect();
-        let tris: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
         let c = ph.placement.center;
         let look = -ph.placement.axis.into_inner();
         let view = |look: &nalgebra::Vector3<f64>| {
