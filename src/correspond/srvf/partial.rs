@@ -103,8 +103,11 @@ pub(super) fn align_partial_on(
         samples: prm.samples.min(32),
         ..coarse.clone()
     };
-    let picked = search.candidates(b, prm, rank_prm.samples);
-    let (reversed, start, len) = search.best_of(&picked, &rank_prm);
+    // A's SRVF and anchor-frame positions at the ranking resolution, by direction: made once for
+    // the ranking and its DPs.
+    let rank = [false, true].map(|rev| search.arc_and_pos(rev, rank_prm.samples));
+    let picked = search.candidates(b, prm, &rank);
+    let (reversed, start, len) = search.best_of(&picked, &rank, &rank_prm);
     let (start, len) = search.polish(reversed, start, len, &coarse);
     let t = prm.samples;
     let (ra, q1) = search.arc_q(reversed, t);
@@ -138,6 +141,9 @@ pub(super) fn align_partial_on(
     Ok(out)
 }
 
+/// A at some sample count: its SRVF and its positions in B's anchor frame.
+type ArcAt = (Vec<Vector2<f64>>, Vec<Vector2<f64>>);
+
 /// The open arc `a` against the sub-arcs of the closed curve B (`poly`), each sub-arc given by
 /// its direction, start and length as fractions of B.
 struct SubArcSearch<'a> {
@@ -161,9 +167,10 @@ impl SubArcSearch<'_> {
         (ra, q)
     }
 
-    /// A's positions in the anchor frame, by direction and sample count.
-    fn arc_pos(&self, reversed: bool, t: usize) -> Vec<Vector2<f64>> {
-        self.frame.map(&self.arc_q(reversed, t).0)
+    /// A's SRVF and its positions in the anchor frame, by direction and sample count.
+    fn arc_and_pos(&self, reversed: bool, t: usize) -> ArcAt {
+        let (ra, q) = self.arc_q(reversed, t);
+        (q, self.frame.map(&ra))
     }
 
     /// The rotation and warp of A (SRVF `q1`, anchor-frame positions `pa`) onto the sub-arc
@@ -198,14 +205,14 @@ impl SubArcSearch<'_> {
         )
     }
 
-    /// Every start x length x direction ranked by its rotation-only energy (A at `rank_t`
-    /// samples against B's tangent field, no resampling); the eight best of distinct starts
-    /// (direction, start, length).
+    /// Every start x length x direction ranked by its rotation-only energy (A's SRVF at the
+    /// ranking resolution, `rank`, against B's tangent field, no resampling); the eight best of
+    /// distinct starts (direction, start, length).
     fn candidates(
         &self,
         b: &[Point2<f64>],
         prm: &SrvfParams,
-        rank_t: usize,
+        rank: &[ArcAt; 2],
     ) -> Vec<(bool, f64, f64)> {
         let ratio = (polyline_length(self.a, false) / self.poly.total).clamp(0.05, 1.0);
         let tang = unit_tangents(b, 1024);
@@ -219,12 +226,12 @@ impl SubArcSearch<'_> {
         // (energy, reversed, start fraction, length fraction)
         let mut cands: Vec<(f64, bool, f64, f64)> = Vec::new();
         for reversed in [false, true] {
-            let q1 = self.arc_q(reversed, rank_t).1;
+            let q1 = &rank[usize::from(reversed)].0;
             for k in 0..STARTS {
                 let start = k as f64 / STARTS as f64;
                 for &f in &fracs {
                     cands.push((
-                        subarc_rotation_energy(&q1, &tang, start, f, prm),
+                        subarc_rotation_energy(q1, &tang, start, f, prm),
                         reversed,
                         start,
                         f,
@@ -251,9 +258,12 @@ impl SubArcSearch<'_> {
 
     /// The candidate whose DP alignment under `rank_prm` has the least energy (the first of
     /// equals); the candidates are never empty (every start and length is ranked).
-    fn best_of(&self, picked: &[(bool, f64, f64)], rank_prm: &SrvfParams) -> (bool, f64, f64) {
-        let t = rank_prm.samples;
-        let rank = [false, true].map(|rev| (self.arc_q(rev, t).1, self.arc_pos(rev, t)));
+    fn best_of(
+        &self,
+        picked: &[(bool, f64, f64)],
+        rank: &[ArcAt; 2],
+        rank_prm: &SrvfParams,
+    ) -> (bool, f64, f64) {
         let mut best: Option<(f64, bool, f64, f64)> = None;
         for &(rev, start, len) in picked {
             let (q1, pa) = &rank[usize::from(rev)];
@@ -269,7 +279,7 @@ impl SubArcSearch<'_> {
     /// a move helps, else halve the steps (at most 24 evaluations).
     fn polish(&self, reversed: bool, start: f64, len: f64, coarse: &SrvfParams) -> (f64, f64) {
         let t = coarse.samples;
-        let (q1c, pac) = (self.arc_q(reversed, t).1, self.arc_pos(reversed, t));
+        let (q1c, pac) = self.arc_and_pos(reversed, t);
         let (_, w) = self.eval(&q1c, &pac, coarse, start, len, None);
         let (mut energy, mut path) = (w.energy, w.path);
         let (mut start, mut len) = (start, len);
