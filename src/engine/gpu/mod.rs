@@ -8,6 +8,7 @@ mod buffers;
 mod context;
 pub mod deform;
 pub mod project;
+mod raster;
 pub mod silhouette;
 pub mod srvf_band;
 pub mod srvf_dp;

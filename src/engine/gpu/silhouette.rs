@@ -6,6 +6,9 @@ use super::buffers::{
     bind, bytes_of, copy_square_texture, fill, render_pipeline, square_texture, storage, uniform,
     uniform_entry, SENTINEL_U32,
 };
+use super::raster::{
+    check_square, check_triangles, draw_triangles, padded_row_bytes, unpadded, Targets,
+};
 use super::{Gpu, GpuError};
 use crate::engine::cpu::project::ViewRows;
 use crate::engine::cpu::silhouette::{trace, Window};
@@ -179,8 +182,7 @@ impl Gpu<'_> {
         check_input(&self.device.limits(), window, vertex_count, triangles)?;
         let n = window.size;
         let texels = (n as usize) * (n as usize);
-        // Rows of the texture copy must be 256-byte aligned.
-        let row_bytes = (n * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let row_bytes = padded_row_bytes(n);
         let (d, q, pool) = (self.device, self.queue, &self.pool);
         let w = SilhouetteWindow::from(window);
         let u = uniform(d, K, bytemuck::bytes_of(&w));
@@ -217,36 +219,30 @@ impl Gpu<'_> {
             &[&u, projected, &tb],
         );
         let edges_group = edges_bind_group(d, &self.silhouette.edges_layout, &u, &view, &mask);
+        let targets = Targets {
+            color: &view,
+            clear: wgpu::Color::TRANSPARENT,
+            depth: None,
+        };
+        let sil = &self.silhouette;
         let read = self.submit_and_read(
             K,
             |enc| {
-                {
-                    let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                        label: Some("silhouette raster"),
-                        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                            view: &view,
-                            depth_slice: None,
-                            resolve_target: None,
-                            ops: wgpu::Operations {
-                                load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                                store: wgpu::StoreOp::Store,
-                            },
-                        })],
-                        depth_stencil_attachment: None,
-                        timestamp_writes: None,
-                        occlusion_query_set: None,
-                        multiview_mask: None,
-                    });
-                    pass.set_pipeline(&self.silhouette.raster);
-                    pass.set_bind_group(0, &raster_group, &[]);
-                    pass.draw(0..triangles.len() as u32, 0..1);
-                }
+                let corners = triangles.len() as u32;
+                draw_triangles(
+                    enc,
+                    "silhouette raster",
+                    &targets,
+                    &sil.raster,
+                    &raster_group,
+                    corners,
+                );
                 {
                     let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                         label: Some("silhouette edges"),
                         timestamp_writes: None,
                     });
-                    pass.set_pipeline(&self.silhouette.edges);
+                    pass.set_pipeline(&sil.edges);
                     pass.set_bind_group(0, &edges_group, &[]);
                     pass.dispatch_workgroups(n.div_ceil(8), n.div_ceil(8), 1);
                 }
@@ -260,11 +256,7 @@ impl Gpu<'_> {
         pool.give([tb, mask, ids_buf]);
         let read = read?;
         let mask: Vec<u32> = bytemuck::pod_collect_to_vec(&read[0]);
-        let padded: Vec<u32> = bytemuck::pod_collect_to_vec(&read[1]);
-        let stride = (row_bytes / 4) as usize;
-        let ids: Vec<u32> = (0..n as usize)
-            .flat_map(|y| padded[y * stride..y * stride + n as usize].iter().copied())
-            .collect();
+        let ids: Vec<u32> = unpadded(&read[1], n, row_bytes);
         let contour = trace(&mask, n);
         Ok(Silhouette {
             window: *window,
@@ -284,30 +276,8 @@ fn check_input(
     triangles: &[u32],
 ) -> Result<(), GpuError> {
     const K: &str = "silhouette";
-    if window.size == 0 || window.size > lim.max_texture_dimension_2d {
-        return Err(GpuError::TooLarge {
-            kernel: K,
-            what: "texture size",
-            value: window.size as u64,
-            limit: lim.max_texture_dimension_2d as u64,
-        });
-    }
-    if let Some(&bad) = triangles.iter().find(|&&i| i as usize >= vertex_count) {
-        return Err(GpuError::Input {
-            kernel: K,
-            message: format!("triangle corner {bad} is not one of the {vertex_count} vertices"),
-        });
-    }
-    if !triangles.len().is_multiple_of(3) || triangles.is_empty() {
-        return Err(GpuError::Input {
-            kernel: K,
-            message: format!(
-                "{} triangle corners is not a positive multiple of 3",
-                triangles.len()
-            ),
-        });
-    }
-    Ok(())
+    check_square(lim, K, "texture size", window.size)?;
+    check_triangles(K, vertex_count, triangles)
 }
 
 /// The edge pass's bindings: the window's uniform `u`, the raster's ids `view`, the `mask` it

@@ -5,6 +5,9 @@ use super::buffers::{
     bind, bytes_of, copy_square_texture, render_pipeline, square_texture, storage, uniform,
     uniform_entry_in,
 };
+use super::raster::{
+    check_square, check_triangles, draw_triangles, padded_row_bytes, unpadded, Targets,
+};
 use super::{Gpu, GpuError};
 pub use crate::engine::cpu::surface::SurfaceView;
 
@@ -13,6 +16,7 @@ pub(crate) struct SurfaceKernel {
     layout: wgpu::BindGroupLayout,
 }
 
+const K: &str = "surface";
 const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
@@ -49,39 +53,10 @@ impl Gpu<'_> {
         view: &SurfaceView,
     ) -> Result<Vec<[u8; 4]>, GpuError> {
         let _turn = self.turn();
-        const K: &str = "surface";
-        let input = |message: String| GpuError::Input { kernel: K, message };
         let n = view.size() as u32;
-        let lim = self.device.limits();
-        if n == 0 || n > lim.max_texture_dimension_2d {
-            return Err(GpuError::TooLarge {
-                kernel: K,
-                what: "panel size",
-                value: n as u64,
-                limit: lim.max_texture_dimension_2d as u64,
-            });
-        }
-        if points.is_empty() || colors.len() != points.len() {
-            return Err(input(format!(
-                "{} vertices and {} colours: one colour a vertex, at least one vertex",
-                points.len(),
-                colors.len()
-            )));
-        }
-        if triangles.is_empty() || !triangles.len().is_multiple_of(3) {
-            return Err(input(format!(
-                "{} triangle corners is not a positive multiple of 3",
-                triangles.len()
-            )));
-        }
-        if let Some(&bad) = triangles.iter().find(|&&i| i as usize >= points.len()) {
-            return Err(input(format!(
-                "triangle corner {bad} is not one of the {} vertices",
-                points.len()
-            )));
-        }
+        check_input(&self.device.limits(), n, points, colors, triangles)?;
         let (d, q, pool) = (self.device, self.queue, &self.pool);
-        let row_bytes = (n * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let row_bytes = padded_row_bytes(n);
         let u = uniform(d, K, bytemuck::bytes_of(view));
         let none = wgpu::BufferUsages::empty();
         let pb = pool.upload(d, q, K, bytes_of(points), none);
@@ -112,51 +87,44 @@ impl Gpu<'_> {
             wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
         );
         let group = bind(d, &self.surface.layout, K, &[&u, &pb, &cb, &tb]);
+        let targets = Targets {
+            color: &cv,
+            clear: wgpu::Color::WHITE,
+            depth: Some(&dv),
+        };
         let read = self.submit_and_read(
             K,
             |enc| {
-                {
-                    let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                        label: Some("surface"),
-                        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                            view: &cv,
-                            depth_slice: None,
-                            resolve_target: None,
-                            ops: wgpu::Operations {
-                                load: wgpu::LoadOp::Clear(wgpu::Color::WHITE),
-                                store: wgpu::StoreOp::Store,
-                            },
-                        })],
-                        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                            view: &dv,
-                            depth_ops: Some(wgpu::Operations {
-                                load: wgpu::LoadOp::Clear(1.0),
-                                store: wgpu::StoreOp::Discard,
-                            }),
-                            stencil_ops: None,
-                        }),
-                        timestamp_writes: None,
-                        occlusion_query_set: None,
-                        multiview_mask: None,
-                    });
-                    pass.set_pipeline(&self.surface.pipeline);
-                    pass.set_bind_group(0, &group, &[]);
-                    pass.draw(0..triangles.len() as u32, 0..1);
-                }
+                let corners = triangles.len() as u32;
+                draw_triangles(enc, K, &targets, &self.surface.pipeline, &group, corners);
                 copy_square_texture(enc, &color, &out, n, row_bytes);
             },
             &[(&out, (row_bytes * n) as u64)],
         );
         pool.give([pb, cb, tb, out]);
-        let read = read?;
-        let stride = row_bytes as usize;
-        Ok((0..n as usize)
-            .flat_map(|y| {
-                read[0][y * stride..y * stride + 4 * n as usize]
-                    .chunks_exact(4)
-                    .map(|p| [p[0], p[1], p[2], p[3]])
-                    .collect::<Vec<_>>()
-            })
-            .collect())
+        Ok(unpadded(&read?[0], n, row_bytes))
     }
+}
+
+/// The picture's input: a panel the device's textures can hold, one colour a vertex and at least
+/// one vertex, and triangles among the vertices.
+fn check_input(
+    lim: &wgpu::Limits,
+    n: u32,
+    points: &[[f32; 4]],
+    colors: &[[f32; 4]],
+    triangles: &[u32],
+) -> Result<(), GpuError> {
+    check_square(lim, K, "panel size", n)?;
+    if points.is_empty() || colors.len() != points.len() {
+        return Err(GpuError::Input {
+            kernel: K,
+            message: format!(
+                "{} vertices and {} colours: one colour a vertex, at least one vertex",
+                points.len(),
+                colors.len()
+            ),
+        });
+    }
+    check_triangles(K, points.len(), triangles)
 }
