@@ -11,9 +11,14 @@ atlas's own extract_acetabulum.py, which drops a cut with a radius outside 21-32
 as it drops atlas members. The file names (i0204_lhip.stl, ...) keep the side and give each mix its
 own subject, so leave-one-subject-out studies treat them as new subjects.
 
+Other sets of acetabula the project has not seen come from other partners and other shares:
+--step K pairs each subject with the K-th next one (default 1), --mix T_EVEN,T_ODD sets t for the
+even and odd pairs (default 0.5,-0.4; a positive t names a mix "i", a negative one "e").
+
 Nothing is written into the repository: OUT_DIR is for scratch studies.
-Usage: python3 tools/atlas_blends.py OUT_DIR [ATLAS_DIR]   (ATLAS_DIR: ../shared/data/pelvis-atlas)
-Needs numpy."""
+Usage: python3 tools/atlas_blends.py [--step K] [--mix T_EVEN,T_ODD] OUT_DIR [ATLAS_DIR]
+(ATLAS_DIR: ../shared/data/pelvis-atlas). Needs numpy."""
+import argparse
 import importlib.util
 import os
 import subprocess
@@ -53,9 +58,11 @@ def onto(A, B):
     return (B - cb) @ R.T + ca
 
 
-def mixes(atlas):
+def mixes(atlas, step=1, mix=MIX):
     """(name, vertices, faces) of every mix, side by side, of the members whose acetabulum the atlas
-    kept (a25_lhip's correspondence failed: it has no acetabulum and takes no part)."""
+    kept (a25_lhip's correspondence failed: it has no acetabulum and takes no part): each member A
+    with the `step`-th next member B of its side, t = mix[0] for the even pairs, mix[1] for the
+    odd ones."""
     load_vtk = extractor(atlas).load_vtk
     hemipelves, acetabula = (os.path.join(atlas, d) for d in ("hemipelves", "acetabula"))
     kept = {f[:-4] for f in os.listdir(acetabula) if f.endswith(".stl")}
@@ -63,22 +70,42 @@ def mixes(atlas):
     for side in ("lhip", "rhip"):
         subjects = [n.split("_")[0][1:] for n in names if n.endswith("_" + side)]
         for k, a in enumerate(subjects):
-            b = subjects[(k + 1) % len(subjects)]
+            b = subjects[(k + step) % len(subjects)]
+            if b == a:
+                sys.exit(f"--step {step} pairs a{a}_{side} with itself ({len(subjects)} members)")
             VA, F = load_vtk(os.path.join(hemipelves, f"a{a}_{side}.vtk"))
             VB, FB = load_vtk(os.path.join(hemipelves, f"a{b}_{side}.vtk"))
             if VA.shape != VB.shape or not np.array_equal(F, FB):
                 sys.exit(f"a{a}_{side} and a{b}_{side} do not share their vertices and faces")
-            t = MIX[k % 2]
+            t = mix[k % 2]
             tag = "i" if t > 0 else "e"
             yield f"{tag}{a}{b}_{side}", (1 - t) * VA + t * onto(VA, VB), F
 
 
-def main():
-    if len(sys.argv) not in (2, 3):
-        sys.exit(__doc__)
-    out = os.path.abspath(sys.argv[1])
+def arguments(argv):
+    """OUT_DIR, ATLAS_DIR, the step and the two shares, checked: a step that pairs no member with
+    another, or a share that is 0 (A itself) or 1 (B itself), is refused."""
     here = os.path.dirname(os.path.abspath(__file__))
-    atlas = sys.argv[2] if len(sys.argv) == 3 else os.path.join(here, "..", "..", "shared", "data", "pelvis-atlas")
+    parser = argparse.ArgumentParser(description="Acetabula mixed from the pelvis atlas's members.")
+    parser.add_argument("out")
+    parser.add_argument("atlas", nargs="?",
+                        default=os.path.join(here, "..", "..", "shared", "data", "pelvis-atlas"))
+    parser.add_argument("--step", type=int, default=1)
+    parser.add_argument("--mix", default=",".join(str(t) for t in MIX))
+    args = parser.parse_args(argv)
+    try:
+        mix = tuple(float(t) for t in args.mix.split(","))
+    except ValueError:
+        parser.error(f"--mix {args.mix!r}: two numbers, T_EVEN,T_ODD")
+    if len(mix) != 2 or any(not np.isfinite(t) or t in (0.0, 1.0) for t in mix):
+        parser.error(f"--mix {args.mix!r}: two finite shares, neither 0 nor 1")
+    if args.step < 1:
+        parser.error(f"--step {args.step}: at least 1")
+    return os.path.abspath(args.out), args.atlas, args.step, mix
+
+
+def main():
+    out, atlas, step, mix = arguments(sys.argv[1:])
     hemipelves = os.path.join(atlas, "hemipelves")
     script = os.path.join(atlas, "extract_acetabulum.py")
     if not os.path.isdir(hemipelves) or not os.path.isfile(script):
@@ -86,7 +113,7 @@ def main():
     mixed = os.path.join(out, "hemipelves")
     os.makedirs(mixed, exist_ok=True)
     paths = []
-    for name, V, F in mixes(atlas):
+    for name, V, F in mixes(atlas, step, mix):
         path = os.path.join(mixed, name + ".vtk")
         write_vtk(path, V, F)
         paths.append(path)

@@ -83,3 +83,39 @@ def test_a_member_without_an_acetabulum_takes_no_part():
     # would have used had they taken every hemipelvis.
     every = {p.stem for p in (ATLAS / "hemipelves").glob("*.vtk")}
     assert every - kept and not (every - kept) & used
+
+
+def test_another_step_and_other_shares_make_other_mixes():
+    if not (ATLAS / "hemipelves").is_dir():
+        pytest.skip(f"{ATLAS} is absent: the mixes are made from the shared pelvis atlas")
+    lhip = sorted(p.stem for p in (ATLAS / "acetabula").glob("*_lhip.stl"))
+    seen = set()
+    for name, V, _ in atlas_blends.mixes(str(ATLAS), step=2, mix=(0.25, -0.2)):
+        a, b = members_of(name)
+        if b.endswith("_lhip"):
+            # Each member mixed with the one two on in its side's list.
+            assert lhip.index(b) == (lhip.index(a) + 2) % len(lhip), name
+        (VA, _), (VB, _) = member(a), member(b)
+        to_a = np.linalg.norm(V - VA, axis=1)
+        to_b = np.linalg.norm(V - atlas_blends.onto(VA, VB), axis=1)
+        moving = to_a + to_b > 1e-6
+        ratio = np.median(to_a[moving] / to_b[moving])
+        want = 0.25 / 0.75 if name.startswith("i") else 0.2 / 1.2
+        assert abs(ratio - want) < 1e-6, (name, ratio)
+        # Companion: the default shares' ratios are refused by the same check.
+        assert abs(ratio - (1.0 if name.startswith("i") else 0.4 / 1.4)) > 0.05
+        seen.add(name[0])
+        if seen == {"i", "e"}:
+            break
+    assert seen == {"i", "e"}
+
+
+def test_shares_and_steps_that_make_no_mix_are_refused():
+    for argv in (["out", "--mix", "0.5"], ["out", "--mix", "0,0.3"], ["out", "--mix", "a,b"],
+                 ["out", "--mix", "1,-0.4"], ["out", "--step", "0"]):
+        with pytest.raises(SystemExit) as e:
+            atlas_blends.arguments(argv)
+        assert e.value.code == 2, argv
+    # Companion: the defaults and a valid choice are taken.
+    assert atlas_blends.arguments(["out"])[2:] == (1, (0.5, -0.4))
+    assert atlas_blends.arguments(["out", "--step", "3", "--mix", "0.3,-0.25"])[2:] == (3, (0.3, -0.25))
