@@ -138,6 +138,9 @@ pub fn choose_prior(
     Ok((Some(prior), what))
 }
 
+/// A field that is wrong: its name, its value and what it must be.
+type Bad = (String, String, String);
+
 impl PriorMesh {
     /// The training entry of surface `mesh` (an acetabulum in body axes, mm).
     pub fn of(name: &str, subject: &str, mesh: &Mesh) -> Result<PriorMesh, String> {
@@ -153,6 +156,59 @@ impl PriorMesh {
             mirrored,
             deviation: field.into_iter().map(|v| v.map(rounded)).collect(),
         })
+    }
+
+    /// The `i`-th mesh's fields, the meshes before it being `before`: a name and a subject, a
+    /// name no earlier mesh has, an acetabulum's radius, and a deviation for every grid direction
+    /// within +-1.
+    fn check(&self, i: usize, before: &[PriorMesh]) -> Result<(), Bad> {
+        // A mesh without a name cannot be told apart, one without a subject never leaves with
+        // its subject (`--prior-leave-out` would keep it in its own prior).
+        for (key, value) in [("name", &self.name), ("subject", &self.subject)] {
+            if value.trim().is_empty() {
+                return Err((
+                    format!("meshes[{i}].{key}"),
+                    format!("{value:?}"),
+                    format!("a mesh's {key}, not empty"),
+                ));
+            }
+        }
+        // One mesh twice would weigh twice in the mean and the modes (`prior build` refuses two
+        // meshes of one name).
+        if let Some(first) = before.iter().position(|o| o.name == self.name) {
+            return Err((
+                format!("meshes[{i}].name"),
+                self.name.clone(),
+                format!("a name no other mesh has (meshes[{first}] has it too)"),
+            ));
+        }
+        if !(self.radius_mm.is_finite() && (10.0..=80.0).contains(&self.radius_mm)) {
+            return Err((
+                format!("meshes[{i}].radius_mm ({})", self.name),
+                self.radius_mm.to_string(),
+                "an acetabulum's radius, 10 to 80 mm".into(),
+            ));
+        }
+        if self.deviation.len() != GRID_POINTS {
+            return Err((
+                format!("meshes[{i}].deviation ({})", self.name),
+                format!("{} values", self.deviation.len()),
+                format!("{GRID_POINTS} values"),
+            ));
+        }
+        if let Some(v) = self
+            .deviation
+            .iter()
+            .flatten()
+            .find(|v| !(v.is_finite() && v.abs() <= 1.0))
+        {
+            return Err((
+                format!("meshes[{i}].deviation ({})", self.name),
+                v.to_string(),
+                "within +-1 (a share of the radius)".into(),
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -191,87 +247,15 @@ impl PriorFile {
             path: path.to_path_buf(),
             reason,
         })?;
-        let field = |field: String, value: String, expected: String| PriorFileError::Field {
+        let bad = |(field, value, expected): Bad| PriorFileError::Field {
             path: path.to_path_buf(),
             field,
             value: crate::io::shown(&value),
             expected,
         };
-        if f.format != FORMAT {
-            return Err(field(
-                "format".into(),
-                f.format.clone(),
-                format!("\"{FORMAT}\""),
-            ));
-        }
-        if f.grid_points != GRID_POINTS {
-            return Err(field(
-                "grid_points".into(),
-                f.grid_points.to_string(),
-                GRID_POINTS.to_string(),
-            ));
-        }
-        if f.kernel_deg != KERNEL_DEG {
-            return Err(field(
-                "kernel_deg".into(),
-                f.kernel_deg.to_string(),
-                KERNEL_DEG.to_string(),
-            ));
-        }
-        if f.modes > MAX_MODES {
-            return Err(field(
-                "modes".into(),
-                f.modes.to_string(),
-                format!("0 to {MAX_MODES}"),
-            ));
-        }
+        f.check_settings().map_err(bad)?;
         for (i, m) in f.meshes.iter().enumerate() {
-            // A mesh without a name cannot be told apart, one without a subject never leaves
-            // with its subject (`--prior-leave-out` would keep it in its own prior).
-            for (key, value) in [("name", &m.name), ("subject", &m.subject)] {
-                if value.trim().is_empty() {
-                    return Err(field(
-                        format!("meshes[{i}].{key}"),
-                        format!("{value:?}"),
-                        format!("a mesh's {key}, not empty"),
-                    ));
-                }
-            }
-            // One mesh twice would weigh twice in the mean and the modes (`prior build`
-            // refuses two meshes of one name).
-            if let Some(first) = f.meshes[..i].iter().position(|o| o.name == m.name) {
-                return Err(field(
-                    format!("meshes[{i}].name"),
-                    m.name.clone(),
-                    format!("a name no other mesh has (meshes[{first}] has it too)"),
-                ));
-            }
-            if !(m.radius_mm.is_finite() && (10.0..=80.0).contains(&m.radius_mm)) {
-                return Err(field(
-                    format!("meshes[{i}].radius_mm ({})", m.name),
-                    m.radius_mm.to_string(),
-                    "an acetabulum's radius, 10 to 80 mm".into(),
-                ));
-            }
-            if m.deviation.len() != GRID_POINTS {
-                return Err(field(
-                    format!("meshes[{i}].deviation ({})", m.name),
-                    format!("{} values", m.deviation.len()),
-                    format!("{GRID_POINTS} values"),
-                ));
-            }
-            if let Some(v) = m
-                .deviation
-                .iter()
-                .flatten()
-                .find(|v| !(v.is_finite() && v.abs() <= 1.0))
-            {
-                return Err(field(
-                    format!("meshes[{i}].deviation ({})", m.name),
-                    v.to_string(),
-                    "within +-1 (a share of the radius)".into(),
-                ));
-            }
+            m.check(i, &f.meshes[..i]).map_err(bad)?;
         }
         // Enough meshes for the modes (the fields were checked above; the prior itself is
         // learned when it is used, from whatever a leave-out keeps).
@@ -287,6 +271,40 @@ impl PriorFile {
             });
         }
         Ok(f)
+    }
+
+    /// The file's settings: its format, the grid, the kernel and the number of modes this code
+    /// reads.
+    fn check_settings(&self) -> Result<(), Bad> {
+        if self.format != FORMAT {
+            return Err((
+                "format".into(),
+                self.format.clone(),
+                format!("\"{FORMAT}\""),
+            ));
+        }
+        if self.grid_points != GRID_POINTS {
+            return Err((
+                "grid_points".into(),
+                self.grid_points.to_string(),
+                GRID_POINTS.to_string(),
+            ));
+        }
+        if self.kernel_deg != KERNEL_DEG {
+            return Err((
+                "kernel_deg".into(),
+                self.kernel_deg.to_string(),
+                KERNEL_DEG.to_string(),
+            ));
+        }
+        if self.modes > MAX_MODES {
+            return Err((
+                "modes".into(),
+                self.modes.to_string(),
+                format!("0 to {MAX_MODES}"),
+            ));
+        }
+        Ok(())
     }
 
     /// The same file without the meshes of `subject` (leave-one-subject-out).

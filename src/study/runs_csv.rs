@@ -398,6 +398,47 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
         },
         other => perr(1, format!("{other:?}")),
     })?;
+    let want = accepted_header(rd.headers().ok()).map_err(|reason| perr(1, reason))?;
+    let mut rows = Vec::new();
+    // Each run's line, for naming the first of two lines of one run.
+    let mut lines: BTreeMap<(StudyMethod, u32, usize), usize> = BTreeMap::new();
+    for rec in rd.records() {
+        let rec = rec.map_err(|e| {
+            let line = e.position().map_or(0, |p| p.line() as usize);
+            match e.kind() {
+                csv::ErrorKind::UnequalLengths { len, .. } => {
+                    perr(line, format!("{len} fields, expected {}", want.len()))
+                }
+                other => perr(line, format!("{other:?}")),
+            }
+        })?;
+        let line = rec.position().map_or(0, |p| p.line() as usize);
+        let row: Row = rec
+            .deserialize(Some(&want))
+            .map_err(|e| perr(line, field_reason(&rec, &want, &e)))?;
+        if let Some(reason) = row.implausible() {
+            return Err(perr(line, reason));
+        }
+        if let Some(first) = lines.insert(row.key(), line) {
+            return Err(perr(
+                line,
+                format!(
+                    "{} level {} run {} is already on line {} (a run is one line; two studies' files joined?)",
+                    row.method.name(),
+                    row.level,
+                    row.run,
+                    first
+                ),
+            ));
+        }
+        rows.push(row);
+    }
+    Ok(rows)
+}
+
+/// The header a runs.csv may have (`h`, none where it could not be read): the whole one, or the
+/// whole one's prefix that files written before later columns were added have.
+fn accepted_header(h: Option<&csv::StringRecord>) -> Result<csv::StringRecord, String> {
     let full = header();
     // Files written before the depth offset, before the shift's axes too, before the cause
     // columns too, before the shift
@@ -420,72 +461,38 @@ pub fn read_csv(path: &Path) -> Result<Vec<Row>, StudyError> {
         Some(*n)
     })
     .collect();
-    let want = match rd.headers() {
-        Ok(h) if *h == full => full.clone(),
-        Ok(h) if older.iter().any(|&n| *h == prefix(n)) => h.clone(),
+    match h {
+        Some(h) if *h == full => Ok(full.clone()),
+        Some(h) if older.iter().any(|&n| *h == prefix(n)) => Ok(h.clone()),
         _ => {
-            let want = full;
-            let names: Vec<&str> = want.iter().collect();
-            return Err(perr(
-                1,
-                format!("expected the header {:?}", names.join(",")),
-            ));
+            let names: Vec<&str> = full.iter().collect();
+            Err(format!("expected the header {:?}", names.join(",")))
         }
-    };
-    let mut rows = Vec::new();
-    // Each run's line, for naming the first of two lines of one run.
-    let mut lines: BTreeMap<(StudyMethod, u32, usize), usize> = BTreeMap::new();
-    for rec in rd.records() {
-        let rec = rec.map_err(|e| {
-            let line = e.position().map_or(0, |p| p.line() as usize);
-            match e.kind() {
-                csv::ErrorKind::UnequalLengths { len, .. } => {
-                    perr(line, format!("{len} fields, expected {}", want.len()))
-                }
-                other => perr(line, format!("{other:?}")),
-            }
-        })?;
-        let line = rec.position().map_or(0, |p| p.line() as usize);
-        let row: Row = rec.deserialize(Some(&want)).map_err(|e| {
-            let reason = match e.kind() {
-                csv::ErrorKind::Deserialize { err, .. } => match err.field() {
-                    Some(k) => {
-                        let column = want.get(k as usize).unwrap_or("?");
-                        let expected = match column {
-                            "converged" => "true or false",
-                            "method" => "a method (srvf, icp, icp-normvec, or one of them -paper)",
-                            "level" | "run" | "seed" | "iterations" | "correspondence_updates" => {
-                                "a whole number"
-                            }
-                            _ => "a number",
-                        };
-                        let value = rec.get(k as usize).unwrap_or("");
-                        format!("column {column:?}: {value:?} is not {expected}")
-                    }
-                    None => err.kind().to_string(),
-                },
-                other => format!("{other:?}"),
-            };
-            perr(line, reason)
-        })?;
-        if let Some(reason) = row.implausible() {
-            return Err(perr(line, reason));
-        }
-        if let Some(first) = lines.insert(row.key(), line) {
-            return Err(perr(
-                line,
-                format!(
-                    "{} level {} run {} is already on line {} (a run is one line; two studies' files joined?)",
-                    row.method.name(),
-                    row.level,
-                    row.run,
-                    first
-                ),
-            ));
-        }
-        rows.push(row);
     }
-    Ok(rows)
+}
+
+/// Why the record `rec` (under the header `want`) is not a row (`e`): the column, its value and
+/// what it must be.
+fn field_reason(rec: &csv::StringRecord, want: &csv::StringRecord, e: &csv::Error) -> String {
+    match e.kind() {
+        csv::ErrorKind::Deserialize { err, .. } => match err.field() {
+            Some(k) => {
+                let column = want.get(k as usize).unwrap_or("?");
+                let expected = match column {
+                    "converged" => "true or false",
+                    "method" => "a method (srvf, icp, icp-normvec, or one of them -paper)",
+                    "level" | "run" | "seed" | "iterations" | "correspondence_updates" => {
+                        "a whole number"
+                    }
+                    _ => "a number",
+                };
+                let value = rec.get(k as usize).unwrap_or("");
+                format!("column {column:?}: {value:?} is not {expected}")
+            }
+            None => err.kind().to_string(),
+        },
+        other => format!("{other:?}"),
+    }
 }
 
 /// A converged run of `method` at `level`, number `run`, with MAE `mae` and a cup 0.5 mm over

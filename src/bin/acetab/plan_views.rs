@@ -4,7 +4,7 @@
 //! source of truths, the surface's MAE, the fitted cup's error, and the cup corrected by what
 //! the set's other subjects' runs teach (leave-one-subject-out).
 
-use crate::calibrate::{applied_in, hold_protocol, resampled_cups, resampled_sd};
+use crate::calibrate::{applied_in, hold_protocol, resampled_cups, resampled_sd, Applied};
 use crate::calibrate::{study_dirs, subject_of};
 use crate::common::{check_out, io_msg};
 use acetab::io::fill_dir_atomically;
@@ -64,82 +64,21 @@ fn read_sweep(
 ) -> Result<Sweep, String> {
     let dirs = study_dirs(std::slice::from_ref(&sweep.to_path_buf()))
         .map_err(|e| e.replacen("--study", "--sweep", 1))?;
-    let mut first: Option<(Vec<String>, CupEstimator, PathBuf)> = None;
+    let mut first: Option<FirstStudy> = None;
     let mut protocol: Option<(&'static str, PathBuf)> = None;
     let mut meshes = Vec::new();
     let mut runs = Vec::new();
     for d in &dirs {
         let applied = applied_in(d)?;
-        let Some(views) = applied.views.clone() else {
-            return Err(format!(
-                "{}: study.views missing: the sweep's views are not known (a study made before they were recorded)",
-                d.join("summary.json").display()
-            ));
-        };
-        match &first {
-            None => first = Some((views, applied.estimator, d.clone())),
-            Some((v, e, at)) => {
-                if *v != views {
-                    return Err(format!(
-                        "{}: views {} differ from {}'s {}: a sweep is one view set",
-                        d.display(),
-                        views.join(","),
-                        at.display(),
-                        v.join(",")
-                    ));
-                }
-                if *e != applied.estimator {
-                    return Err(format!(
-                        "{}: cup_estimator {} differs from {}'s {}",
-                        d.display(),
-                        applied.estimator.name(),
-                        at.display(),
-                        e.name()
-                    ));
-                }
-            }
-        }
+        hold_views(&mut first, &applied, d)?;
         hold_protocol(&mut protocol, &applied, d, "a sweep is one protocol")?;
-        let source = match sources.iter().position(|s| *s == applied.source) {
-            Some(k) => k,
-            None => {
-                sources.push(applied.source.clone());
-                sources.len() - 1
-            }
-        };
-        let subject = subject_of(d);
+        let source = source_index(sources, &applied.source);
         meshes.push(
             d.file_name()
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_default(),
         );
-        let rows = read_csv(&d.join("runs.csv")).map_err(|e| e.to_string())?;
-        let resampled = resampled_cups(&rows, method);
-        for r in rows.iter().filter(|r| r.method == method) {
-            if !(r.gt_cup_diameter_mm.is_finite() && r.gt_cup_diameter_mm > 0.0) {
-                return Err(format!(
-                    "{}: {} level {} run {}: gt_cup_diameter_mm = {}: must be a positive diameter (the truth's cup)",
-                    d.join("runs.csv").display(),
-                    r.method.name(),
-                    r.level,
-                    r.run,
-                    r.gt_cup_diameter_mm
-                ));
-            }
-            let ok = r.error.is_empty() && r.cup_diameter_mm.is_finite();
-            // The resampled SD alone (`resampled_sd`), and the estimator's own diameter,
-            // without the correction the study made.
-            let resample = resampled_sd(r.cup_sd_mm, applied.model_sd, resampled);
-            let (fitted, resample_sd_mm) = applied.undo(r.cup_diameter_mm, resample);
-            runs.push(PlanRun {
-                source,
-                subject: subject.clone(),
-                fitted_mm: ok.then_some(fitted),
-                truth_mm: r.gt_cup_diameter_mm,
-                resample_sd_mm,
-                mae_mm: r.mae_mm,
-            });
-        }
+        runs.extend(study_runs(d, method, &applied, source)?);
     }
     let Some((views, estimator, _)) = first else {
         return Err(format!("--sweep {}: no study in it", sweep.display()));
@@ -159,6 +98,95 @@ fn read_sweep(
         meshes,
         runs,
     })
+}
+
+/// The first study of a sweep: its views, its cup estimator, its folder.
+type FirstStudy = (Vec<String>, CupEstimator, PathBuf);
+
+/// The study in `d` (`applied`) made with the views and the cup estimator of the sweep's first
+/// study (`first`, which the first study read sets): a sweep is one view set.
+fn hold_views(first: &mut Option<FirstStudy>, applied: &Applied, d: &Path) -> Result<(), String> {
+    let Some(views) = applied.views.clone() else {
+        return Err(format!(
+            "{}: study.views missing: the sweep's views are not known (a study made before they were recorded)",
+            d.join("summary.json").display()
+        ));
+    };
+    match first {
+        None => *first = Some((views, applied.estimator, d.to_path_buf())),
+        Some((v, e, at)) => {
+            if *v != views {
+                return Err(format!(
+                    "{}: views {} differ from {}'s {}: a sweep is one view set",
+                    d.display(),
+                    views.join(","),
+                    at.display(),
+                    v.join(",")
+                ));
+            }
+            if *e != applied.estimator {
+                return Err(format!(
+                    "{}: cup_estimator {} differs from {}'s {}",
+                    d.display(),
+                    applied.estimator.name(),
+                    at.display(),
+                    e.name()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Where `source` is in `sources` (added at the end where it is new).
+fn source_index(sources: &mut Vec<PathBuf>, source: &Path) -> usize {
+    match sources.iter().position(|s| s == source) {
+        Some(k) => k,
+        None => {
+            sources.push(source.to_path_buf());
+            sources.len() - 1
+        }
+    }
+}
+
+/// The `method`'s runs of the study in `d` (`applied`), its truths from `source`: each run's
+/// cup as the estimator fitted it and its resampled SD, without the correction the study made.
+fn study_runs(
+    d: &Path,
+    method: StudyMethod,
+    applied: &Applied,
+    source: usize,
+) -> Result<Vec<PlanRun>, String> {
+    let subject = subject_of(d);
+    let rows = read_csv(&d.join("runs.csv")).map_err(|e| e.to_string())?;
+    let resampled = resampled_cups(&rows, method);
+    let mut runs = Vec::new();
+    for r in rows.iter().filter(|r| r.method == method) {
+        if !(r.gt_cup_diameter_mm.is_finite() && r.gt_cup_diameter_mm > 0.0) {
+            return Err(format!(
+                "{}: {} level {} run {}: gt_cup_diameter_mm = {}: must be a positive diameter (the truth's cup)",
+                d.join("runs.csv").display(),
+                r.method.name(),
+                r.level,
+                r.run,
+                r.gt_cup_diameter_mm
+            ));
+        }
+        let ok = r.error.is_empty() && r.cup_diameter_mm.is_finite();
+        // The resampled SD alone (`resampled_sd`), and the estimator's own diameter,
+        // without the correction the study made.
+        let resample = resampled_sd(r.cup_sd_mm, applied.model_sd, resampled);
+        let (fitted, resample_sd_mm) = applied.undo(r.cup_diameter_mm, resample);
+        runs.push(PlanRun {
+            source,
+            subject: subject.clone(),
+            fitted_mm: ok.then_some(fitted),
+            truth_mm: r.gt_cup_diameter_mm,
+            resample_sd_mm,
+            mae_mm: r.mae_mm,
+        });
+    }
+    Ok(runs)
 }
 
 /// Short names for the sources: each folder's own name, or its last two components where two
