@@ -62,68 +62,9 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, MeshIoError> {
         source,
     };
     let (vertices, triangles) = match ext_of(path).as_str() {
-        "stl" => {
-            let bytes = std::fs::read(path).map_err(io)?;
-            let parse = |reason: String| MeshIoError::Parse {
-                path: path.to_path_buf(),
-                format: "STL",
-                reason: super::printable(&reason),
-            };
-            let m = stl_io::read_stl(&mut std::io::Cursor::new(&bytes)).map_err(|e| {
-                parse(stl_size_mismatch(&bytes, None).unwrap_or_else(|| e.to_string()))
-            })?;
-            if let Some(reason) = stl_size_mismatch(&bytes, Some(m.faces.len())) {
-                return Err(parse(reason));
-            }
-            let v = m
-                .vertices
-                .iter()
-                .map(|v| Point3::new(v[0] as f64, v[1] as f64, v[2] as f64))
-                .collect();
-            let t = m
-                .faces
-                .iter()
-                .map(|f| f.vertices.map(|i| i as u32))
-                .collect();
-            (v, t)
-        }
+        "stl" => read_stl(path)?,
         "ply" => read_ply(path)?,
-        "obj" => {
-            let opts = tobj::LoadOptions {
-                triangulate: true,
-                single_index: true,
-                ..Default::default()
-            };
-            let (models, _) = tobj::load_obj(path, &opts).map_err(|e| match e {
-                tobj::LoadError::OpenFileFailed => io(std::io::Error::new(
-                    std::io::ErrorKind::NotFound,
-                    "open failed",
-                )),
-                e => MeshIoError::Parse {
-                    path: path.to_path_buf(),
-                    format: "OBJ",
-                    reason: super::printable(&e.to_string()),
-                },
-            })?;
-            let mut v = Vec::new();
-            let mut t = Vec::new();
-            for m in models {
-                let base = v.len() as u32;
-                v.extend(
-                    m.mesh
-                        .positions
-                        .chunks_exact(3)
-                        .map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)),
-                );
-                t.extend(
-                    m.mesh
-                        .indices
-                        .chunks_exact(3)
-                        .map(|c| [c[0] + base, c[1] + base, c[2] + base]),
-                );
-            }
-            (v, t)
-        }
+        "obj" => read_obj(path)?,
         // A path that is not there is named as missing, whatever its extension says (a
         // folder or file name mistyped reads better so than as an unsupported extension).
         _ if !path.exists() => {
@@ -152,6 +93,75 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, MeshIoError> {
         path: path.to_path_buf(),
         source,
     })
+}
+
+/// An STL file's corners (not yet welded) and triangles: its size must agree with the triangle
+/// count in its header (`stl_size_mismatch`).
+fn read_stl(path: &Path) -> Result<RawMesh, MeshIoError> {
+    let bytes = std::fs::read(path).map_err(|source| MeshIoError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let parse = |reason: String| MeshIoError::Parse {
+        path: path.to_path_buf(),
+        format: "STL",
+        reason: super::printable(&reason),
+    };
+    let m = stl_io::read_stl(&mut std::io::Cursor::new(&bytes))
+        .map_err(|e| parse(stl_size_mismatch(&bytes, None).unwrap_or_else(|| e.to_string())))?;
+    if let Some(reason) = stl_size_mismatch(&bytes, Some(m.faces.len())) {
+        return Err(parse(reason));
+    }
+    let v = m
+        .vertices
+        .iter()
+        .map(|v| Point3::new(v[0] as f64, v[1] as f64, v[2] as f64))
+        .collect();
+    let t = m
+        .faces
+        .iter()
+        .map(|f| f.vertices.map(|i| i as u32))
+        .collect();
+    Ok((v, t))
+}
+
+/// An OBJ file's vertices and triangles (faces triangulated, one index per corner), every model
+/// in it one after the other.
+fn read_obj(path: &Path) -> Result<RawMesh, MeshIoError> {
+    let opts = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ..Default::default()
+    };
+    let (models, _) = tobj::load_obj(path, &opts).map_err(|e| match e {
+        tobj::LoadError::OpenFileFailed => MeshIoError::Io {
+            path: path.to_path_buf(),
+            source: std::io::Error::new(std::io::ErrorKind::NotFound, "open failed"),
+        },
+        e => MeshIoError::Parse {
+            path: path.to_path_buf(),
+            format: "OBJ",
+            reason: super::printable(&e.to_string()),
+        },
+    })?;
+    let mut v = Vec::new();
+    let mut t = Vec::new();
+    for m in models {
+        let base = v.len() as u32;
+        v.extend(
+            m.mesh
+                .positions
+                .chunks_exact(3)
+                .map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)),
+        );
+        t.extend(
+            m.mesh
+                .indices
+                .chunks_exact(3)
+                .map(|c| [c[0] + base, c[1] + base, c[2] + base]),
+        );
+    }
+    Ok((v, t))
 }
 
 /// Where a binary STL's size disagrees with the triangle count in its header, what is wrong.

@@ -68,30 +68,8 @@ impl CupCalibration {
                 min: MIN_TRAINING_RUNS,
             });
         }
-        let weight = source_weights(&runs);
-        let mean =
-            |f: &dyn Fn(&TrainingRun) -> f64| runs.iter().map(|r| weight(r) * f(r)).sum::<f64>();
-        let (bias_mm, shrink, shrink_to_mm) = match what {
-            Learn::SdOnly => (0.0, 0.0, 0.0),
-            Learn::Bias => (mean(&|r| r.fitted_mm - r.truth_mm), 0.0, 0.0),
-            Learn::BiasAndShrink => {
-                let (mf, mt) = (mean(&|r| r.fitted_mm), mean(&|r| r.truth_mm));
-                let var = mean(&|r| (r.fitted_mm - mf).powi(2));
-                let cov = mean(&|r| (r.fitted_mm - mf) * (r.truth_mm - mt));
-                let shrink = if var > 0.0 {
-                    (1.0 - cov / var).clamp(0.0, MAX_SHRINK)
-                } else {
-                    0.0
-                };
-                (mean(&|r| r.fitted_mm - r.truth_mm), shrink, mf)
-            }
-        };
-        let correction = CupParams {
-            bias_mm,
-            shrink,
-            shrink_to_mm,
-            ..Default::default()
-        };
+        let correction = correction_of(&runs, what);
+        let shrink = correction.shrink;
         // (corrected error, resampled SD as the correction scales it)
         let pairs: Vec<(f64, f64)> = runs
             .iter()
@@ -102,23 +80,12 @@ impl CupCalibration {
                 )
             })
             .collect();
-        // Each run is covered once s^2 >= e^2 - sd^2: the answer is that quantile.
-        let mut need: Vec<f64> = pairs
-            .iter()
-            .map(|(e, sd)| (e * e - sd * sd).max(0.0))
-            .collect();
-        need.sort_by(f64::total_cmp);
-        let k = ((NOMINAL_COVERAGE * need.len() as f64).ceil() as usize).clamp(1, need.len());
-        let s = need[k - 1].sqrt();
-        let covered = pairs
-            .iter()
-            .filter(|(e, sd)| e.abs() <= (sd * sd + s * s).sqrt() + 1e-12)
-            .count();
+        let (s, covered) = model_sd(&pairs);
         let learned = CupCalibration {
             estimator: estimator.name().to_string(),
-            bias_mm,
+            bias_mm: correction.bias_mm,
             shrink,
-            shrink_to_mm,
+            shrink_to_mm: correction.shrink_to_mm,
             depth_mm,
             model_sd_mm: s,
             learned_from,
@@ -144,6 +111,55 @@ impl CupCalibration {
             }
         }
     }
+}
+
+/// The correction `what` asks for, learned from `runs` (each source of truths weighing the same,
+/// `source_weights`): none, the mean error as a bias, or a bias and a shrink toward the mean
+/// fitted cup (one less the regression slope of the truth on the fitted cup, at most
+/// `MAX_SHRINK`).
+fn correction_of(runs: &[TrainingRun], what: Learn) -> CupParams {
+    let weight = source_weights(runs);
+    let mean = |f: &dyn Fn(&TrainingRun) -> f64| runs.iter().map(|r| weight(r) * f(r)).sum::<f64>();
+    let (bias_mm, shrink, shrink_to_mm) = match what {
+        Learn::SdOnly => (0.0, 0.0, 0.0),
+        Learn::Bias => (mean(&|r| r.fitted_mm - r.truth_mm), 0.0, 0.0),
+        Learn::BiasAndShrink => {
+            let (mf, mt) = (mean(&|r| r.fitted_mm), mean(&|r| r.truth_mm));
+            let var = mean(&|r| (r.fitted_mm - mf).powi(2));
+            let cov = mean(&|r| (r.fitted_mm - mf) * (r.truth_mm - mt));
+            let shrink = if var > 0.0 {
+                (1.0 - cov / var).clamp(0.0, MAX_SHRINK)
+            } else {
+                0.0
+            };
+            (mean(&|r| r.fitted_mm - r.truth_mm), shrink, mf)
+        }
+    };
+    CupParams {
+        bias_mm,
+        shrink,
+        shrink_to_mm,
+        ..Default::default()
+    }
+}
+
+/// The smallest model-error SD s >= 0 with at least `NOMINAL_COVERAGE` of the (corrected error,
+/// resampled SD) `pairs` within sqrt(sd^2 + s^2), and how many pairs it covers (`pairs` not
+/// empty).
+fn model_sd(pairs: &[(f64, f64)]) -> (f64, usize) {
+    // Each run is covered once s^2 >= e^2 - sd^2: the answer is that quantile.
+    let mut need: Vec<f64> = pairs
+        .iter()
+        .map(|(e, sd)| (e * e - sd * sd).max(0.0))
+        .collect();
+    need.sort_by(f64::total_cmp);
+    let k = ((NOMINAL_COVERAGE * need.len() as f64).ceil() as usize).clamp(1, need.len());
+    let s = need[k - 1].sqrt();
+    let covered = pairs
+        .iter()
+        .filter(|(e, sd)| e.abs() <= (sd * sd + s * s).sqrt() + 1e-12)
+        .count();
+    (s, covered)
 }
 
 /// The training runs' mean depth offset (`TrainingRun::depth_offset_mm`), every source of
