@@ -243,6 +243,42 @@ pub(crate) fn hold_protocol(
     Ok(())
 }
 
+/// Study `d`'s cup estimator (`applied`) held to the first study's (`seen`, set by the first):
+/// a different one is an error naming both, ending in `why`.
+pub(crate) fn hold_estimator(
+    seen: &mut Option<(CupEstimator, PathBuf)>,
+    applied: &Applied,
+    d: &Path,
+    why: &str,
+) -> Result<(), String> {
+    match &*seen {
+        None => *seen = Some((applied.estimator, d.to_path_buf())),
+        Some((e, first)) if *e != applied.estimator => {
+            return Err(format!(
+                "{}: cup_estimator {} differs from {}'s {}{why}",
+                d.display(),
+                applied.estimator.name(),
+                first.display(),
+                e.name()
+            ))
+        }
+        Some(_) => {}
+    }
+    Ok(())
+}
+
+/// Where `source` is in `sources` (added at the end where it is new): the index a run's source
+/// of truths is known by.
+pub(crate) fn source_index(sources: &mut Vec<PathBuf>, source: &Path) -> usize {
+    match sources.iter().position(|s| s == source) {
+        Some(k) => k,
+        None => {
+            sources.push(source.to_path_buf());
+            sources.len() - 1
+        }
+    }
+}
+
 /// The protocol kinds ("ideal", "realistic") the studies under `dirs` say they were made under,
 /// with the first study saying each.
 pub(crate) fn protocols_in(dirs: &[PathBuf]) -> Result<Vec<(&'static str, PathBuf)>, String> {
@@ -288,13 +324,7 @@ pub fn learn(
         used += 1;
         let applied = applied_in(d)?;
         shared.hold(d, &applied)?;
-        let source = match sources.iter().position(|s| *s == applied.source) {
-            Some(k) => k,
-            None => {
-                sources.push(applied.source.clone());
-                sources.len() - 1
-            }
-        };
+        let source = source_index(&mut sources, &applied.source);
         runs.extend(training_runs(d, &applied, method, source)?);
     }
     let estimator = shared
@@ -321,7 +351,7 @@ pub fn learn(
 /// one protocol where they say, one set of views (each with the first study that gave it).
 #[derive(Default)]
 struct SharedSettings<'a> {
-    estimator: Option<(CupEstimator, &'a Path)>,
+    estimator: Option<(CupEstimator, PathBuf)>,
     /// The views the studies say they were made with.
     said: Option<(Vec<String>, &'a Path)>,
     /// A study did not say (then the calibration does not either).
@@ -333,19 +363,12 @@ impl<'a> SharedSettings<'a> {
     /// Study `d`'s settings (`applied`) held to those before it: an error naming both when they
     /// differ.
     fn hold(&mut self, d: &'a Path, applied: &Applied) -> Result<(), String> {
-        match self.estimator {
-            None => self.estimator = Some((applied.estimator, d)),
-            Some((e, first)) if e != applied.estimator => {
-                return Err(format!(
-                    "{}: cup_estimator {} differs from {}'s {}: a calibration is learned for one estimator",
-                    d.display(),
-                    applied.estimator.name(),
-                    first.display(),
-                    e.name()
-                ))
-            }
-            Some(_) => {}
-        }
+        hold_estimator(
+            &mut self.estimator,
+            applied,
+            d,
+            ": a calibration is learned for one estimator",
+        )?;
         hold_protocol(
             &mut self.protocol,
             applied,

@@ -4,7 +4,9 @@
 //! source of truths, the surface's MAE, the fitted cup's error, and the cup corrected by what
 //! the set's other subjects' runs teach (leave-one-subject-out).
 
-use crate::calibrate::{applied_in, hold_protocol, resampled_cups, resampled_sd, Applied};
+use crate::calibrate::{
+    applied_in, hold_estimator, hold_protocol, resampled_cups, resampled_sd, source_index, Applied,
+};
 use crate::calibrate::{study_dirs, subject_of};
 use crate::common::{check_out, io_msg};
 use acetab::io::fill_dir_atomically;
@@ -64,13 +66,14 @@ fn read_sweep(
 ) -> Result<Sweep, String> {
     let dirs = study_dirs(std::slice::from_ref(&sweep.to_path_buf()))
         .map_err(|e| e.replacen("--study", "--sweep", 1))?;
-    let mut first: Option<FirstStudy> = None;
+    let mut views: Option<(Vec<String>, PathBuf)> = None;
+    let mut estimator: Option<(CupEstimator, PathBuf)> = None;
     let mut protocol: Option<(&'static str, PathBuf)> = None;
     let mut meshes = Vec::new();
     let mut runs = Vec::new();
     for d in &dirs {
         let applied = applied_in(d)?;
-        hold_views(&mut first, &applied, d)?;
+        hold_views(&mut views, &mut estimator, &applied, d)?;
         hold_protocol(&mut protocol, &applied, d, "a sweep is one protocol")?;
         let source = source_index(sources, &applied.source);
         meshes.push(
@@ -80,7 +83,7 @@ fn read_sweep(
         );
         runs.extend(study_runs(d, method, &applied, source)?);
     }
-    let Some((views, estimator, _)) = first else {
+    let (Some((views, _)), Some((estimator, _))) = (views, estimator) else {
         return Err(format!("--sweep {}: no study in it", sweep.display()));
     };
     if runs.is_empty() {
@@ -100,53 +103,34 @@ fn read_sweep(
     })
 }
 
-/// The first study of a sweep: its views, its cup estimator, its folder.
-type FirstStudy = (Vec<String>, CupEstimator, PathBuf);
-
 /// The study in `d` (`applied`) made with the views and the cup estimator of the sweep's first
-/// study (`first`, which the first study read sets): a sweep is one view set.
-fn hold_views(first: &mut Option<FirstStudy>, applied: &Applied, d: &Path) -> Result<(), String> {
-    let Some(views) = applied.views.clone() else {
+/// study (`views` and `estimator`, which the first study read sets): a sweep is one view set.
+fn hold_views(
+    views: &mut Option<(Vec<String>, PathBuf)>,
+    estimator: &mut Option<(CupEstimator, PathBuf)>,
+    applied: &Applied,
+    d: &Path,
+) -> Result<(), String> {
+    let Some(these) = applied.views.clone() else {
         return Err(format!(
             "{}: study.views missing: the sweep's views are not known (a study made before they were recorded)",
             d.join("summary.json").display()
         ));
     };
-    match first {
-        None => *first = Some((views, applied.estimator, d.to_path_buf())),
-        Some((v, e, at)) => {
-            if *v != views {
-                return Err(format!(
-                    "{}: views {} differ from {}'s {}: a sweep is one view set",
-                    d.display(),
-                    views.join(","),
-                    at.display(),
-                    v.join(",")
-                ));
-            }
-            if *e != applied.estimator {
-                return Err(format!(
-                    "{}: cup_estimator {} differs from {}'s {}",
-                    d.display(),
-                    applied.estimator.name(),
-                    at.display(),
-                    e.name()
-                ));
-            }
+    match views {
+        None => *views = Some((these, d.to_path_buf())),
+        Some((v, at)) if *v != these => {
+            return Err(format!(
+                "{}: views {} differ from {}'s {}: a sweep is one view set",
+                d.display(),
+                these.join(","),
+                at.display(),
+                v.join(",")
+            ))
         }
+        Some(_) => {}
     }
-    Ok(())
-}
-
-/// Where `source` is in `sources` (added at the end where it is new).
-fn source_index(sources: &mut Vec<PathBuf>, source: &Path) -> usize {
-    match sources.iter().position(|s| s == source) {
-        Some(k) => k,
-        None => {
-            sources.push(source.to_path_buf());
-            sources.len() - 1
-        }
-    }
+    hold_estimator(estimator, applied, d, "")
 }
 
 /// The `method`'s runs of the study in `d` (`applied`), its truths from `source`: each run's

@@ -102,9 +102,11 @@ pub(crate) fn padded_row_bytes(n: u32) -> u32 {
 /// row by row from the top, without the rows' padding.
 pub(crate) fn unpadded<T: bytemuck::Pod>(read: &[u8], n: u32, row_bytes: u32) -> Vec<T> {
     let (n, stride) = (n as usize, row_bytes as usize);
-    (0..n)
-        .flat_map(|y| bytemuck::pod_collect_to_vec::<u8, T>(&read[y * stride..y * stride + 4 * n]))
-        .collect()
+    let rows: Vec<u8> = (0..n)
+        .flat_map(|y| &read[y * stride..y * stride + 4 * n])
+        .copied()
+        .collect();
+    bytemuck::pod_collect_to_vec(&rows)
 }
 
 #[cfg(test)]

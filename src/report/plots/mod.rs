@@ -212,23 +212,13 @@ fn draw_box<'v>(
     chart
         .draw_series([Rectangle::new([(x0, q1), (x1, q3)], c.stroke_width(1))])
         .map_err(draw_err)?;
+    // The median, then the two whiskers.
     chart
-        .draw_series([PathElement::new(
-            vec![(x0, q2), (x1, q2)],
-            c.stroke_width(2),
-        )])
-        .map_err(draw_err)?;
-    chart
-        .draw_series([PathElement::new(
-            vec![(xm, lo), (xm, q1)],
-            c.stroke_width(1),
-        )])
-        .map_err(draw_err)?;
-    chart
-        .draw_series([PathElement::new(
-            vec![(xm, q3), (xm, hi)],
-            c.stroke_width(1),
-        )])
+        .draw_series([
+            PathElement::new(vec![(x0, q2), (x1, q2)], c.stroke_width(2)),
+            PathElement::new(vec![(xm, lo), (xm, q1)], c.stroke_width(1)),
+            PathElement::new(vec![(xm, q3), (xm, hi)], c.stroke_width(1)),
+        ])
         .map_err(draw_err)?;
     let outliers = outliers.map(|v| Circle::new((xm, v.clamp(ymin, ymax)), 3, c.filled()));
     chart.draw_series(outliers).map_err(draw_err)?;
